@@ -1,0 +1,63 @@
+"""The ``fydpad`` command: one subcommand per module in :mod:`fydpad.commands`."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import importlib.util
+import sys
+from collections.abc import Sequence
+
+from fydpad import __version__
+from fydpad.errors import UserError
+from vision.recording import RecordingError
+
+#: Subcommand modules, in the order ``--help`` lists them.
+COMMANDS = ("demo", "track", "synth", "config")
+
+
+def add_config_argument(parser: argparse.ArgumentParser) -> None:
+    """``--config FILE`` on a subcommand; it may also be given before the subcommand."""
+    parser.add_argument(
+        "--config", metavar="FILE", default=argparse.SUPPRESS,
+        help="device configuration (TOML) overriding the paper's defaults",
+    )
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="fydpad",
+        description=(
+            "Master station software for the FYD-pad fabric tactile display: track the finger "
+            "on the fabric, render softness and texture, drive a slave robot."
+        ),
+        epilog="Run 'fydpad COMMAND --help' for the options of one command.",
+    )
+    parser.add_argument("--version", action="version", version=f"fydpad {__version__}")
+    parser.add_argument(
+        "--config", metavar="FILE", default=None,
+        help="device configuration (TOML) overriding the paper's defaults",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name in COMMANDS:
+        if importlib.util.find_spec(f"fydpad.commands.{name}") is None:
+            continue  # a command whose module has not landed yet
+        importlib.import_module(f"fydpad.commands.{name}").register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except (UserError, RecordingError) as exc:
+        print(f"fydpad {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"fydpad {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,9 @@
+"""Finger sensing for the FYD-pad: contact centroid, indentation and force.
+
+This package imports nothing from the rest of the project (DESIGN.md).
+"""
+
+from vision.contact import Contact, ContactTracker
+from vision.state import FingerState
+
+__all__ = ["Contact", "ContactTracker", "FingerState"]

@@ -1,0 +1,146 @@
+"""Frame sources: a live camera, a recorded video, or the simulated pad, behind one Protocol."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol, runtime_checkable
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from vision.recording import PadRecording
+
+
+class SourceError(RuntimeError):
+    """A frame source is missing, gives no frames, or failed; the message names the device."""
+
+
+@dataclass(frozen=True, slots=True)
+class Frame:
+    """One raw camera frame (not flipped) and its capture time."""
+
+    index: int
+    t_s: float
+    image: NDArray[np.uint8]
+
+
+@runtime_checkable
+class FrameSource(Protocol):
+    """Anything that yields raw camera frames in order."""
+
+    #: Nominal frame rate in frames per second.
+    fps: float
+    #: Raw frame size (width, height) in pixels.
+    frame_size: tuple[int, int]
+
+    def frames(self) -> Iterator[Frame]: ...
+
+    def close(self) -> None: ...
+
+
+@dataclass
+class CameraConfig:
+    """The under-fabric webcam (paper II-A: Microsoft LifeCam HD-3000, 640x480 at 30 fps).
+
+    ``image_flip`` says how to flip a raw frame to show the fabric seen from above;
+    the camera looks up at the fabric, so its image is usually mirrored.
+    """
+
+    device: str = "0"
+    frame_size: tuple[int, int] = (640, 480)
+    fps: float = 30.0
+    image_flip: str = "horizontal"
+    roi_px: tuple[int, int, int, int] = (24, 22, 592, 414)
+    workspace_mm: tuple[float, float] = (100.0, 70.0)
+    #: The paper raises contrast and brightness to their maximum; set where the camera allows.
+    maximise_contrast_brightness: bool = True
+    #: Seconds to wait for the first frame before calling the camera silent.
+    first_frame_timeout_s: float = 5.0
+
+    def __post_init__(self) -> None:
+        if self.image_flip not in ("none", "horizontal", "vertical", "both"):
+            raise ValueError(
+                "image_flip must be one of 'none', 'horizontal', 'vertical', 'both'; "
+                f"got {self.image_flip!r}"
+            )
+
+
+class VideoSource:
+    """Frames of a pad session recording, decoded one at a time by OpenCV."""
+
+    def __init__(self, recording: PadRecording):
+        self.recording = recording
+        self.fps = recording.fps
+        self.frame_size = recording.video_size
+
+    def frames(self) -> Iterator[Frame]:
+        for k, t_s, image in self.recording.frames():
+            yield Frame(k, t_s, image)
+
+    def close(self) -> None:
+        pass
+
+    def __str__(self) -> str:
+        return f"video {self.recording.video_path}"
+
+
+class CameraSource:
+    """A live camera through OpenCV (device index or path).
+
+    Capture times come from the host's monotonic clock, relative to the first frame.
+    """
+
+    def __init__(self, config: CameraConfig):
+        self.config = config
+        device: int | str = int(config.device) if config.device.isdigit() else config.device
+        self._cap = cv2.VideoCapture(device)
+        if not self._cap.isOpened():
+            raise SourceError(
+                f"camera {config.device!r}: cannot be opened (is it plugged in, and is the "
+                "index or path right? `ls /dev/video*` lists video devices)"
+            )
+        w, h = config.frame_size
+        self._cap.set(cv2.CAP_PROP_FRAME_WIDTH, w)
+        self._cap.set(cv2.CAP_PROP_FRAME_HEIGHT, h)
+        self._cap.set(cv2.CAP_PROP_FPS, config.fps)
+        if config.maximise_contrast_brightness:
+            # Not every camera exposes these; the paper sets both to their maximum.
+            self._cap.set(cv2.CAP_PROP_CONTRAST, 1.0)
+            self._cap.set(cv2.CAP_PROP_BRIGHTNESS, 1.0)
+        self.fps = float(self._cap.get(cv2.CAP_PROP_FPS) or config.fps)
+        self.frame_size = (
+            int(self._cap.get(cv2.CAP_PROP_FRAME_WIDTH)) or w,
+            int(self._cap.get(cv2.CAP_PROP_FRAME_HEIGHT)) or h,
+        )
+
+    def frames(self) -> Iterator[Frame]:
+        t0: float | None = None
+        k = 0
+        deadline = time.monotonic() + self.config.first_frame_timeout_s
+        while True:
+            ok, image = self._cap.read()
+            now = time.monotonic()
+            if not ok:
+                if t0 is None and now < deadline:
+                    time.sleep(0.01)
+                    continue
+                state = "gave no frames" if t0 is None else f"stopped after {k} frames"
+                raise SourceError(f"camera {self.config.device!r}: {state}")
+            if t0 is None:
+                t0 = now
+            yield Frame(k, now - t0, image)
+            k += 1
+
+    def close(self) -> None:
+        self._cap.release()
+
+    def __str__(self) -> str:
+        return f"camera {self.config.device!r}"
+
+
+def open_recording_source(recdir: str | Path) -> VideoSource:
+    return VideoSource(PadRecording(recdir))
