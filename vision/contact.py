@@ -114,7 +114,7 @@ class ContactTracker:
     def preprocess(self, frame: NDArray[np.uint8]) -> NDArray[np.uint8]:
         """Steps 1-3: flip, ROI, resize to the processing size, grey levels."""
         if frame.ndim not in (2, 3) or frame.dtype != np.uint8:
-            raise ValueError(f"expected an 8-bit grey or BGR frame, got {frame.dtype} {frame.shape}")
+            raise ValueError(f"expected an 8-bit grey or BGR frame, got {frame.dtype}{frame.shape}")
         x, y, w, h = self.roi_px
         fh, fw = frame.shape[:2]
         if x + w > fw or y + h > fh:

@@ -230,7 +230,9 @@ def read_csv_columns(
                         f"{path}: line {line}: column '{c}': {cell!r} is not a number"
                     ) from None
                 if not math.isfinite(value):
-                    raise RecordingError(f"{path}: line {line}: column '{c}': {cell!r} is not finite")
+                    raise RecordingError(
+                        f"{path}: line {line}: column '{c}': {cell!r} is not finite"
+                    )
                 columns[c].append(value)
     return {c: np.asarray(v, dtype=np.float64) for c, v in columns.items()}
 
@@ -487,7 +489,9 @@ class PadRecordingWriter:
         if not self._video.isOpened():
             raise RecordingError(f"{self.path / video_name}: OpenCV cannot write this video")
         self._video.set(cv2.VIDEOWRITER_PROP_QUALITY, float(jpeg_quality))
-        self._frames = CsvRowWriter(self.path / "frames.csv", ("t_s", "frame")) if frame_times else None
+        self._frames = (
+            CsvRowWriter(self.path / "frames.csv", ("t_s", "frame")) if frame_times else None
+        )
         self._ir: CsvRowWriter | None = None
         self._force: CsvRowWriter | None = None
         self._truth: CsvRowWriter | None = None
