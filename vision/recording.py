@@ -290,7 +290,9 @@ def _fmt(v: object) -> str:
     if isinstance(v, float | np.floating):
         if not math.isfinite(v):
             return ""
-        return f"{float(v):.6g}" if abs(v) >= 1e5 else f"{float(v):.4f}".rstrip("0").rstrip(".")
+        # Six decimals: microseconds for t_s, well below every sensor's resolution.
+        text = f"{float(v):.6f}".rstrip("0").rstrip(".")
+        return "0" if text == "-0" else text
     return str(v)
 
 
