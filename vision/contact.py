@@ -14,30 +14,32 @@ workspace frame, or None. ``method="paper"`` is the paper's algorithm exactly:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from vision.mapping import flip_frame, roi_to_workspace
+from vision.robust import RobustParams, RobustTracker
 
 PAPER_THRESHOLD = 150
 PAPER_BETA = 5.0
 PAPER_PROCESSING_SIZE = (160, 120)
 DEFAULT_ROI_PX = (24, 22, 592, 414)
 DEFAULT_WORKSPACE_MM = (100.0, 70.0)
-METHODS = ("paper",)
+METHODS = ("robust", "paper")
 
 
 @dataclass
 class TrackerConfig:
     """The contact tracker's settings; defaults are the paper's (section II-B.1)."""
 
-    method: str = "paper"
+    method: str = "robust"
     threshold: int = PAPER_THRESHOLD
     beta: float = PAPER_BETA
     processing_size: tuple[int, int] = PAPER_PROCESSING_SIZE
+    robust: RobustParams = field(default_factory=RobustParams)
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -72,10 +74,11 @@ class ContactTracker:
         roi_px: tuple[int, int, int, int] = DEFAULT_ROI_PX,
         workspace_mm: tuple[float, float] = DEFAULT_WORKSPACE_MM,
         image_flip: str = "none",
-        method: str = "paper",
+        method: str = "robust",
         threshold: int = PAPER_THRESHOLD,
         beta: float = PAPER_BETA,
         processing_size: tuple[int, int] = PAPER_PROCESSING_SIZE,
+        robust: RobustParams | None = None,
     ):
         if method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}, got {method!r}")
@@ -102,6 +105,15 @@ class ContactTracker:
         self._v_centres = y + (np.arange(ph) + 0.5) * (h / ph)
         self._cell_area_mm2 = (self.workspace_mm[0] / pw) * (self.workspace_mm[1] / ph)
         self._levels = np.arange(256, dtype=np.float64)
+        self._robust = (
+            RobustTracker(self.roi_px, None, image_flip, self.workspace_mm, robust)
+            if method == "robust" else None
+        )
+
+    def reset(self) -> None:
+        """Forget what was learned from earlier frames (the robust method's background)."""
+        if self._robust is not None:
+            self._robust.reset()
 
     def __repr__(self) -> str:
         return (
@@ -128,7 +140,15 @@ class ContactTracker:
 
     def process(self, frame: NDArray[np.uint8]) -> Contact | None:
         """The contact in one raw camera frame (BGR or grey), or None without contact."""
-        return self.centroid(self.preprocess(frame))
+        if self._robust is None:
+            return self.centroid(self.preprocess(frame))
+        if frame.ndim not in (2, 3) or frame.dtype != np.uint8:
+            raise ValueError(f"expected an 8-bit grey or BGR frame, got {frame.dtype}{frame.shape}")
+        r = self._robust.process(frame)
+        if r is None:
+            return None
+        x_mm, y_mm = roi_to_workspace(r.u_px, r.v_px, self.roi_px, self.workspace_mm)
+        return Contact(float(x_mm), float(y_mm), r.u_px, r.v_px, r.area_mm2)
 
     def centroid(self, grey: NDArray[np.uint8]) -> Contact | None:
         """Steps 4-6 on a processing-size grey image."""

@@ -107,6 +107,7 @@ def make_tracker(
     return ContactTracker(
         roi_px=roi_px, workspace_mm=workspace_mm, image_flip=image_flip, method=cfg.method,
         threshold=cfg.threshold, beta=cfg.beta, processing_size=cfg.processing_size,
+        robust=cfg.robust,
     )
 
 

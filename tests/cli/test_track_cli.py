@@ -41,12 +41,14 @@ def test_track_writes_the_format_and_matches_truth(blob_recording: Path, tmp_pat
 def test_track_on_unflipped_camera_reads_image_flip(blob_recording: Path, tmp_path: Path):
     from tests.conftest import write_blob_recording
     rec = tmp_path / "plain"
-    write_blob_recording(rec, [(30.0, -20.0)], image_flip="none")
-    out = tmp_path / "t.csv"
-    assert main(["track", str(rec), "--out", str(out)]) == 0
-    cols = read_track(out)
-    assert cols["x_mm"][0] == pytest.approx(30.0, abs=0.3)
-    assert cols["y_mm"][0] == pytest.approx(-20.0, abs=0.3)
+    write_blob_recording(rec, [None, (30.0, -20.0)], image_flip="none")
+    for method in ("paper", "robust"):
+        out = tmp_path / f"{method}.csv"
+        assert main(["track", str(rec), "--out", str(out), "--method", method]) == 0
+        cols = read_track(out)
+        assert cols["contact"].tolist() == [0, 1]
+        assert cols["x_mm"][1] == pytest.approx(30.0, abs=0.3)
+        assert cols["y_mm"][1] == pytest.approx(-20.0, abs=0.3)
 
 
 def _break(rec: Path, case: str) -> str:

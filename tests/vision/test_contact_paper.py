@@ -14,7 +14,7 @@ def tracker_for(grey: np.ndarray, **kw) -> ContactTracker:
     """A tracker whose ROI is the whole frame at its own size: no resizing."""
     h, w = grey.shape
     return ContactTracker(roi_px=(0, 0, w, h), workspace_mm=(100.0, 70.0), processing_size=(w, h),
-                          **kw)
+                          method="paper", **kw)
 
 
 def test_gaussian_weights_by_hand():
@@ -68,7 +68,7 @@ def test_full_frame_pipeline_flip_roi_resize_grey():
     # A dark 8x8 block on the raw image's left: 2x2 processing cells at cols 10-11, rows 50-51.
     raw[200:208, 40:48] = (60, 60, 60)
     tracker = ContactTracker(roi_px=(0, 0, 640, 480), workspace_mm=(100.0, 70.0),
-                             image_flip="horizontal")
+                             image_flip="horizontal", method="paper")
     c = tracker.process(raw)
     # Mirrored: the block spans raw cols 40..48, so flipped cols 592..600, centre 596.
     assert c.u_px == pytest.approx(596.0)
@@ -84,7 +84,7 @@ def test_full_frame_pipeline_flip_roi_resize_grey():
 def test_flip_modes_put_the_contact_where_seen_from_above(flip, expect_sign):
     raw = np.full((480, 640), 230, np.uint8)
     raw[100:120, 100:120] = 50  # upper-left of the raw image
-    c = ContactTracker(roi_px=(0, 0, 640, 480), image_flip=flip).process(raw)
+    c = ContactTracker(roi_px=(0, 0, 640, 480), image_flip=flip, method="paper").process(raw)
     assert (np.sign(c.x_mm), np.sign(c.y_mm)) == expect_sign
 
 
@@ -94,16 +94,16 @@ def test_roi_offset_maps_linearly_to_the_workspace():
     # Dark pixels outside the ROI are not seen.
     raw[:22, :] = 40
     raw[:, :24] = 40
-    assert ContactTracker(roi_px=roi).process(raw) is None
+    assert ContactTracker(roi_px=roi, method="paper").process(raw) is None
     # The whole ROI uniformly dark: the centroid is the ROI centre, i.e. (0, 0) mm.
     raw[22:436, 24:616] = 40
-    c = ContactTracker(roi_px=roi).process(raw)
+    c = ContactTracker(roi_px=roi, method="paper").process(raw)
     assert (c.x_mm, c.y_mm) == pytest.approx((0.0, 0.0), abs=1e-9)
     assert c.area_mm2 == pytest.approx(100.0 * 70.0)
     # A dark quarter at the ROI's top-left: centroid at (-25, +17.5) mm.
     raw[22:436, 24:616] = 230
     raw[22:229, 24:320] = 40
-    c = ContactTracker(roi_px=roi).process(raw)
+    c = ContactTracker(roi_px=roi, method="paper").process(raw)
     assert (c.x_mm, c.y_mm) == pytest.approx((-25.0, 17.5), abs=1e-9)
     assert c.area_mm2 == pytest.approx(100.0 * 70.0 / 4)
 
@@ -117,4 +117,4 @@ def test_bad_arguments_raise(kw):
 
 def test_roi_outside_frame_is_an_error():
     with pytest.raises(ValueError, match="outside"):
-        ContactTracker(roi_px=(600, 0, 100, 100)).process(np.zeros((480, 640), np.uint8))
+        ContactTracker(roi_px=(600, 0, 100, 100), method="paper").process(np.zeros((480, 640), np.uint8))

@@ -1,0 +1,284 @@
+"""A contact tracker that survives real footage (see docs/robust_tracking.md).
+
+The paper's fixed grey-level threshold fails as soon as the light changes, the fabric
+has a mark on it, or a hovering finger casts a shadow. This tracker measures each
+pixel's darkness *relative to a model of the bare fabric* and accepts a dark region as a
+contact only if it looks like a fingertip:
+
+1. **Grey pyramid.** The ROI (cropped from the raw frame, flip folded into the
+   coordinates) is converted to grey and reduced by ``pyramid_levels`` Gaussian
+   pyramid steps: cheap, and the weave's texture is filtered out.
+2. **Background model.** The bare fabric's brightness B, learned from the first frame and
+   updated slowly wherever there is no contact (quickly where the image gets brighter,
+   since a finger only darkens). Vignetting, uneven backlight and marks on the fabric are
+   part of B, so they cancel in the ratio ``r = I / B``.
+3. **Illumination.** Room light, flicker, auto-exposure and drifting daylight scale the
+   whole image smoothly: a quadratic gain field G(u, v) is fitted to r over the pixels
+   that are not dark (robust least squares on a grid), and the contrast is
+   ``c = 1 - r / G`` (0 = bare fabric, 1 = black).
+4. **Candidates.** Connected regions where c exceeds ``contrast_floor``; each one's peak
+   contrast must exceed ``contrast_on`` to start a contact and ``contrast_off`` to keep
+   one (hysteresis), its peak must not lie on the border of the view (the rest of the
+   hand shadows the view from its edge), its core (pixels above ``core_fraction`` of the
+   peak) must have a fingertip's area and shape, and its edge must be sharp: a contact
+   presses the skin on the fabric, while a hovering finger's shadow is blurred by its
+   distance (the ratio of the core's area to the area above a quarter of the peak).
+5. **Centroid.** The contrast-weighted mean of the core's pixel centres, mapped back
+   exactly through the pyramid to the flipped full frame, then to the workspace.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+
+@dataclass
+class RobustParams:
+    """Settings of the robust tracker (contrasts are fractions of the bare fabric's brightness)."""
+
+    pyramid_levels: int = 2
+    #: Pixels darker than this contrast may belong to a candidate region.
+    contrast_floor: float = 0.12
+    #: Peak contrast needed to start a contact, and to keep one (hysteresis).
+    contrast_on: float = 0.30
+    contrast_off: float = 0.22
+    #: The core of a region: pixels above this fraction of its peak contrast.
+    core_fraction: float = 0.5
+    #: Centroid weights: contrast minus this fraction of the peak, where positive.
+    weight_floor_fraction: float = 0.3
+    #: Fingertip contact area limits, in mm^2 of the workspace.
+    min_area_mm2: float = 10.0
+    max_area_mm2: float = 900.0
+    #: Largest ratio of the core's principal axes.
+    max_elongation: float = 3.0
+    #: Smallest ratio of the core's area to the area above a quarter of the peak.
+    min_sharpness: float = 0.55
+    #: Background update rates per frame: towards darker (slow) and brighter (fast).
+    bg_rate_darker: float = 0.02
+    bg_rate_brighter: float = 0.25
+    #: Pixels closer than this (mm) to the contact are not learned into the background.
+    bg_guard_mm: float = 8.0
+    #: Grid step (in pyramid pixels) of the samples the gain field is fitted on.
+    gain_grid_step: int = 3
+
+
+@dataclass(frozen=True, slots=True)
+class RobustResult:
+    """A contact found by :class:`RobustTracker`, in flipped full-frame pixels."""
+
+    u_px: float
+    v_px: float
+    area_mm2: float
+    peak_contrast: float
+    sharpness: float
+
+
+class RobustTracker:
+    """Background-relative contact detection over grey frames of one camera.
+
+    Stateful (the background model and the contact hysteresis): one instance per camera
+    stream; :meth:`reset` forgets the background.
+    """
+
+    def __init__(
+        self,
+        roi_px: tuple[int, int, int, int],
+        frame_size: tuple[int, int] | None,
+        image_flip: str,
+        workspace_mm: tuple[float, float],
+        params: RobustParams | None = None,
+    ):
+        self.params = params or RobustParams()
+        self.roi_px = roi_px
+        self.image_flip = image_flip
+        self.workspace_mm = workspace_mm
+        self._frame_size = frame_size
+        self._shape: tuple[int, int] | None = None
+        self.reset()
+
+    def reset(self) -> None:
+        self._bg: NDArray[np.float32] | None = None
+        self.in_contact = False
+
+    # -- geometry ---------------------------------------------------------------
+
+    def _raw_roi(self, frame_w: int, frame_h: int) -> tuple[int, int, int, int]:
+        """The ROI in raw (unflipped) frame pixels."""
+        x, y, w, h = self.roi_px
+        if self.image_flip in ("horizontal", "both"):
+            x = frame_w - x - w
+        if self.image_flip in ("vertical", "both"):
+            y = frame_h - y - h
+        return x, y, w, h
+
+    def _setup(self, frame_w: int, frame_h: int, small_shape: tuple[int, int]) -> None:
+        p = self.params
+        x, y, w, h = self.roi_px
+        sh, sw = small_shape
+        self._shape = small_shape
+        # Pyramid pixel centre k maps to ROI pixel 2^L * (k + 0.5) - (2^L - 1) / 2 - 0.5 + 0.5:
+        # each pyrDown puts output pixel k on input pixel 2k, i.e. c_in = 2 c_out - 0.5.
+        scale = float(2**p.pyramid_levels)
+        offset = -(scale - 1.0) / 2.0
+        centres_u = (np.arange(sw) + 0.5) * scale + offset  # in raw-ROI pixels
+        centres_v = (np.arange(sh) + 0.5) * scale + offset
+        # Fold the flip in: flipped ROI coordinate = size - raw coordinate.
+        if self.image_flip in ("horizontal", "both"):
+            centres_u = w - centres_u
+        if self.image_flip in ("vertical", "both"):
+            centres_v = h - centres_v
+        self._u_px = (x + centres_u).astype(np.float64)
+        self._v_px = (y + centres_v).astype(np.float64)
+        # Workspace mm per pyramid pixel: for areas and the background guard.
+        self._cell_w_mm = self.workspace_mm[0] * scale / w
+        self._cell_h_mm = self.workspace_mm[1] * scale / h
+        self._cell_area_mm2 = self._cell_w_mm * self._cell_h_mm
+        # Gain-field design matrix on a grid: 1, u, v, u^2, uv, v^2 (normalised coordinates).
+        step = p.gain_grid_step
+        gv, gu = np.mgrid[step // 2 : sh : step, step // 2 : sw : step]
+        self._grid = (gv.ravel(), gu.ravel())
+        uu = (np.arange(sw, dtype=np.float32) / sw - 0.5) * 2
+        vv = (np.arange(sh, dtype=np.float32) / sh - 0.5) * 2
+        U, V = np.meshgrid(uu, vv)
+        self._basis_full = np.stack([np.ones_like(U), U, V, U * U, U * V, V * V]).reshape(6, -1)
+        self._basis_grid = self._basis_full[:, gv.ravel() * sw + gu.ravel()].T.astype(np.float64)
+        self._gain = np.empty((sh, sw), np.float32)
+        self._contrast = np.empty((sh, sw), np.float32)
+
+    # -- per frame --------------------------------------------------------------
+
+    def grey_pyramid(self, frame: NDArray[np.uint8]) -> NDArray[np.uint8]:
+        fh, fw = frame.shape[:2]
+        x, y, w, h = self._raw_roi(fw, fh)
+        if x < 0 or y < 0 or x + w > fw or y + h > fh:
+            raise ValueError(f"ROI {list(self.roi_px)} lies outside the {fw}x{fh} frame")
+        roi = frame[y : y + h, x : x + w]
+        grey = cv2.cvtColor(roi, cv2.COLOR_BGR2GRAY) if roi.ndim == 3 else roi
+        for _ in range(self.params.pyramid_levels):
+            grey = cv2.pyrDown(grey)
+        return grey
+
+    def process(self, frame: NDArray[np.uint8]) -> RobustResult | None:
+        small = self.grey_pyramid(frame)
+        if self._shape != small.shape:
+            self._setup(frame.shape[1], frame.shape[0], small.shape)
+            self._bg = None
+        img = small.astype(np.float32)
+        np.maximum(img, 1.0, out=img)
+        if self._bg is None:
+            self._bg = img.copy()
+        result = self._detect(img)
+        self._update_background(img, result)
+        return result
+
+    def _fit_gain(self, ratio: NDArray[np.float32]) -> NDArray[np.float32]:
+        """A smooth gain field fitted to ``I / B`` over pixels that are not dark."""
+        samples = ratio[self._grid].astype(np.float64)
+        keep = samples > np.median(samples) * 0.85
+        basis = self._basis_grid
+        for _ in range(2):
+            # Least squares by the 6x6 normal equations: far cheaper than lstsq here.
+            a = basis[keep]
+            coef = np.linalg.solve(a.T @ a + 1e-9 * np.eye(6), a.T @ samples[keep])
+            fit = basis @ coef
+            # Drop samples well below the fit (a finger, a shadow) and refit.
+            keep = samples > fit * 0.9
+        gain = (coef.astype(np.float32) @ self._basis_full).reshape(self._shape)
+        np.maximum(gain, 1e-3, out=gain)
+        return gain
+
+    def _detect(self, img: NDArray[np.float32]) -> RobustResult | None:
+        p = self.params
+        ratio = img / self._bg
+        self._gain = self._fit_gain(ratio)
+        contrast = self._contrast
+        np.divide(ratio, self._gain, out=contrast)
+        np.subtract(1.0, contrast, out=contrast)
+        mask = (contrast > p.contrast_floor).astype(np.uint8)
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        needed = p.contrast_off if self.in_contact else p.contrast_on
+        sh, sw = self._shape
+        best: RobustResult | None = None
+        best_score = 0.0
+        min_cells = p.min_area_mm2 / self._cell_area_mm2
+        for i in range(1, n):
+            x0, y0, bw, bh, area = stats[i]
+            if area < min_cells:
+                continue
+            sub = contrast[y0 : y0 + bh, x0 : x0 + bw]
+            inside = labels[y0 : y0 + bh, x0 : x0 + bw] == i
+            region = np.where(inside, sub, 0.0)
+            peak_idx = int(np.argmax(region))
+            peak = float(region.flat[peak_idx])
+            if peak < needed:
+                continue
+            py, px = divmod(peak_idx, bw)
+            py += y0
+            px += x0
+            if px == 0 or py == 0 or px == sw - 1 or py == sh - 1:
+                continue  # darkest at the edge of the view: a hand outside it, not a contact
+            core = region > peak * p.core_fraction
+            core_cells = int(np.count_nonzero(core))
+            core_area = core_cells * self._cell_area_mm2
+            if not p.min_area_mm2 <= core_area <= p.max_area_mm2:
+                continue
+            sharpness = core_cells / max(1, int(np.count_nonzero(region > peak * 0.25)))
+            if sharpness < p.min_sharpness:
+                continue
+            # Soft weights (contrast above a fraction of the peak) rather than the hard
+            # core: a hard cut jumps by whole pyramid cells as the edge crosses them.
+            w = np.maximum(region - peak * p.weight_floor_fraction, 0.0)
+            total = float(w.sum())
+            wu = w.sum(axis=0)
+            wv = w.sum(axis=1)
+            cu = float(wu @ np.arange(x0, x0 + bw)) / total
+            cv_ = float(wv @ np.arange(y0, y0 + bh)) / total
+            if _elongation(w, cu - x0, cv_ - y0, total) > p.max_elongation:
+                continue
+            score = total
+            if score > best_score:
+                best_score = score
+                best = RobustResult(
+                    u_px=float(np.interp(cu, np.arange(sw), self._u_px)),
+                    v_px=float(np.interp(cv_, np.arange(sh), self._v_px)),
+                    area_mm2=core_area,
+                    peak_contrast=peak,
+                    sharpness=sharpness,
+                )
+                self._best_box = (x0, y0, bw, bh)
+        self.in_contact = best is not None
+        return best
+
+    def _update_background(self, img: NDArray[np.float32], result: RobustResult | None) -> None:
+        p = self.params
+        # Learn the fabric under the current light: divide the light back out first.
+        target = img / self._gain
+        rate = np.where(target > self._bg, p.bg_rate_brighter, p.bg_rate_darker).astype(
+            np.float32
+        )
+        if result is not None:
+            x0, y0, bw, bh = self._best_box
+            gx = int(np.ceil(p.bg_guard_mm / self._cell_w_mm))
+            gy = int(np.ceil(p.bg_guard_mm / self._cell_h_mm))
+            rate[max(0, y0 - gy) : y0 + bh + gy, max(0, x0 - gx) : x0 + bw + gx] = 0.0
+        self._bg += rate * (target - self._bg)
+
+
+def _elongation(w: NDArray[np.float64], cu: float, cv_: float, total: float) -> float:
+    """Ratio of the principal axes of a weighted region (1 for a disc)."""
+    vv, uu = np.indices(w.shape)
+    du = uu - cu
+    dv = vv - cv_
+    suu = float((w * du * du).sum()) / total
+    svv = float((w * dv * dv).sum()) / total
+    suv = float((w * du * dv).sum()) / total
+    tr = suu + svv
+    det = suu * svv - suv * suv
+    disc = max(tr * tr / 4 - det, 0.0) ** 0.5
+    small = tr / 2 - disc
+    big = tr / 2 + disc
+    return float(np.sqrt(big / small)) if small > 1e-12 else float("inf")
