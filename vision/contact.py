@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from vision.calibration import CalibratedMapping
 from vision.mapping import flip_frame, roi_to_workspace
 from vision.robust import RobustParams, RobustTracker
 
@@ -79,6 +80,7 @@ class ContactTracker:
         beta: float = PAPER_BETA,
         processing_size: tuple[int, int] = PAPER_PROCESSING_SIZE,
         robust: RobustParams | None = None,
+        calibration: CalibratedMapping | None = None,
     ):
         if method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}, got {method!r}")
@@ -105,6 +107,9 @@ class ContactTracker:
         self._v_centres = y + (np.arange(ph) + 0.5) * (h / ph)
         self._cell_area_mm2 = (self.workspace_mm[0] / pw) * (self.workspace_mm[1] / ph)
         self._levels = np.arange(256, dtype=np.float64)
+        #: When set, contact points go through lens undistortion and the workspace
+        #: homography instead of the linear ROI mapping.
+        self.calibration = calibration
         self._robust = (
             RobustTracker(self.roi_px, None, image_flip, self.workspace_mm, robust)
             if method == "robust" else None
@@ -141,14 +146,23 @@ class ContactTracker:
     def process(self, frame: NDArray[np.uint8]) -> Contact | None:
         """The contact in one raw camera frame (BGR or grey), or None without contact."""
         if self._robust is None:
-            return self.centroid(self.preprocess(frame))
-        if frame.ndim not in (2, 3) or frame.dtype != np.uint8:
-            raise ValueError(f"expected an 8-bit grey or BGR frame, got {frame.dtype}{frame.shape}")
-        r = self._robust.process(frame)
-        if r is None:
-            return None
-        x_mm, y_mm = roi_to_workspace(r.u_px, r.v_px, self.roi_px, self.workspace_mm)
-        return Contact(float(x_mm), float(y_mm), r.u_px, r.v_px, r.area_mm2)
+            contact = self.centroid(self.preprocess(frame))
+        else:
+            if frame.ndim not in (2, 3) or frame.dtype != np.uint8:
+                raise ValueError(
+                    f"expected an 8-bit grey or BGR frame, got {frame.dtype}{frame.shape}"
+                )
+            r = self._robust.process(frame)
+            if r is None:
+                return None
+            x_mm, y_mm = roi_to_workspace(r.u_px, r.v_px, self.roi_px, self.workspace_mm)
+            contact = Contact(float(x_mm), float(y_mm), r.u_px, r.v_px, r.area_mm2)
+        if contact is not None and self.calibration is not None:
+            x_mm, y_mm = self.calibration.to_workspace(
+                contact.u_px, contact.v_px, (frame.shape[1], frame.shape[0])
+            )
+            contact = Contact(x_mm, y_mm, contact.u_px, contact.v_px, contact.area_mm2)
+        return contact
 
     def centroid(self, grey: NDArray[np.uint8]) -> Contact | None:
         """Steps 4-6 on a processing-size grey image."""

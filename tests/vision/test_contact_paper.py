@@ -117,4 +117,5 @@ def test_bad_arguments_raise(kw):
 
 def test_roi_outside_frame_is_an_error():
     with pytest.raises(ValueError, match="outside"):
-        ContactTracker(roi_px=(600, 0, 100, 100), method="paper").process(np.zeros((480, 640), np.uint8))
+        tracker = ContactTracker(roi_px=(600, 0, 100, 100), method="paper")
+        tracker.process(np.zeros((480, 640), np.uint8))
