@@ -8,6 +8,7 @@ type is an error naming the file and the key.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import tomllib
 import types
@@ -15,8 +16,6 @@ import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-
-import tomli_w
 
 from fydpad.errors import UserError
 from vision.contact import TrackerConfig
@@ -163,9 +162,35 @@ def _plain(value: Any) -> Any:
     return value
 
 
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int | float):
+        return repr(v)
+    if isinstance(v, str):
+        return json.dumps(v)  # a JSON string is a valid TOML basic string
+    if isinstance(v, list):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(f"cannot write {type(v).__name__} to TOML")
+
+
+def _toml_table(name: str, table: dict[str, Any], out: list[str]) -> None:
+    scalars = {k: v for k, v in table.items() if not isinstance(v, dict)}
+    if scalars or not table:
+        out.append(f"[{name}]")
+        out.extend(f"{k} = {_toml_value(v)}" for k, v in scalars.items())
+        out.append("")
+    for k, v in table.items():
+        if isinstance(v, dict):
+            _toml_table(f"{name}.{k}", v, out)
+
+
 def config_to_toml(config: StationConfig) -> str:
-    """The configuration as TOML; unset optional values (None) are left out."""
-    return tomli_w.dumps(_plain(config))
+    """The configuration as TOML, one line per value; unset optional values are left out."""
+    out: list[str] = []
+    for name, table in _plain(config).items():
+        _toml_table(name, table, out)
+    return "\n".join(out)
 
 
 def save_config(config: StationConfig, path: str | Path) -> None:

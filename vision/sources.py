@@ -12,6 +12,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from vision.calibration import CameraIntrinsics, WorkspaceHomography
 from vision.recording import PadRecording
 
 
@@ -60,6 +61,11 @@ class CameraConfig:
     maximise_contrast_brightness: bool = True
     #: Seconds to wait for the first frame before calling the camera silent.
     first_frame_timeout_s: float = 5.0
+    #: Lens model from ``fydpad calibrate camera`` (absent: no undistortion).
+    intrinsics: CameraIntrinsics | None = None
+    #: Image-to-workspace homography from ``fydpad calibrate workspace`` (absent: the
+    #: linear ROI mapping of RECORDING_FORMAT.md).
+    workspace_homography: WorkspaceHomography | None = None
 
     def __post_init__(self) -> None:
         if self.image_flip not in ("none", "horizontal", "vertical", "both"):

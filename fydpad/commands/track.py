@@ -16,11 +16,12 @@ from fydpad.config import load_config
 from fydpad.errors import UserError
 from fydpad.plots import plot_track
 from fydpad.progress import progress
+from vision.calibration import CalibratedMapping
 from vision.contact import METHODS, ContactTracker, TrackerConfig
 from vision.evaluation import score_tracking
 from vision.mapping import workspace_to_roi
 from vision.recording import PadRecording, TrackWriter
-from vision.sources import CameraSource, FrameSource, SourceError, VideoSource
+from vision.sources import CameraConfig, CameraSource, FrameSource, SourceError, VideoSource
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -45,6 +46,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--video", metavar="MP4", help="write the frames with the contact marked")
     p.add_argument("--max-frames", type=int, metavar="N", help="stop after N frames")
     p.add_argument("--json", metavar="FILE", help="write the summary (and accuracy) as JSON")
+    p.add_argument("--calibrated", action="store_true",
+                   help="map a recording through the configuration's camera calibration "
+                   "(always on for --camera when the configuration has one)")
     add_config_argument(p)
     p.set_defaults(func=run)
 
@@ -80,7 +84,12 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(str(exc)) from None
         roi_px, workspace_mm, image_flip = cam.roi_px, cam.workspace_mm, cam.image_flip
         total = None
-    tracker = make_tracker(tracker_config, roi_px, workspace_mm, image_flip)
+    use_calibration = args.camera is not None or args.calibrated
+    tracker = make_tracker(tracker_config, roi_px, workspace_mm, image_flip,
+                           config.camera if use_calibration else None)
+    if args.calibrated and config.camera.workspace_homography is None:
+        raise UserError("--calibrated: the configuration has no [camera.workspace_homography] "
+                        "(run 'fydpad calibrate workspace' first)")
 
     truth = recording.read_truth() if recording is not None else None
     if args.max_frames is not None:
@@ -103,11 +112,17 @@ def make_tracker(
     roi_px: tuple[int, int, int, int],
     workspace_mm: tuple[float, float],
     image_flip: str,
+    camera: CameraConfig | None = None,
 ) -> ContactTracker:
+    """The configured tracker; with ``camera``, its lens and workspace calibration apply."""
+    calibration = None
+    if camera is not None and camera.workspace_homography is not None:
+        calibration = CalibratedMapping(camera.workspace_homography, camera.intrinsics,
+                                        image_flip)
     return ContactTracker(
         roi_px=roi_px, workspace_mm=workspace_mm, image_flip=image_flip, method=cfg.method,
         threshold=cfg.threshold, beta=cfg.beta, processing_size=cfg.processing_size,
-        robust=cfg.robust,
+        robust=cfg.robust, calibration=calibration,
     )
 
 

@@ -1,0 +1,230 @@
+"""``fydpad calibrate camera`` and ``fydpad calibrate workspace``: the camera's lens and
+the image-to-workspace homography, saved into the device configuration."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Iterator
+from dataclasses import replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from fydpad.config import StationConfig, load_config, save_config
+from fydpad.errors import UserError
+from fydpad.progress import progress
+from vision.calibration import (
+    CalibrationError,
+    CharucoBoardSpec,
+    apply_homography,
+    calibrate_charuco,
+    default_targets_mm,
+    fit_workspace_homography,
+    press_centroids,
+    raw_undistorted_point,
+)
+from vision.contact import ContactTracker
+from vision.recording import PadRecording
+from vision.sources import CameraSource, FrameSource, SourceError, VideoSource
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+
+
+def register_camera(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "camera",
+        help="the webcam's lens (intrinsics and distortion) from views of a ChArUco board",
+        description=(
+            "Fit the camera matrix and lens distortion from views of a ChArUco board "
+            "(opencv-contrib's aruco module). Done once per camera: hold the printed board "
+            "in front of the camera at 10-20 positions and tilts covering the whole view, and "
+            "save the frames as images in a directory or as a video. The result is written "
+            "into the configuration (section [camera.intrinsics]); the tracker then "
+            "undistorts contact positions."
+        ),
+    )
+    p.add_argument("source", metavar="IMAGES", help="a directory of images, or a video file")
+    p.add_argument("--board", default="7x5", metavar="COLSxROWS",
+                   help="squares across and down (default: %(default)s)")
+    p.add_argument("--square-mm", type=float, default=12.0, help="square side (default: 12)")
+    p.add_argument("--marker-mm", type=float, default=9.0, help="marker side (default: 9)")
+    p.add_argument("--dictionary", default="DICT_5X5_100",
+                   help="ArUco dictionary of the board (default: %(default)s)")
+    p.add_argument("--every", type=int, default=10, metavar="N",
+                   help="from a video, use every N-th frame (default: %(default)s)")
+    p.add_argument("--out", metavar="TOML", required=True,
+                   help="configuration file to write (the --config file updated, or new)")
+    p.set_defaults(func=run_camera)
+
+
+def register_workspace(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "workspace",
+        help="the image-to-workspace mapping from presses at marked points",
+        description=(
+            "Fit the homography from the (undistorted) image to the workspace from presses "
+            "at marked points: a square grid over 80%% of the workspace (9 points by default), "
+            "pressed in reading order as seen from above (far row first, left to right), each "
+            "held still for about a second. From a recording of those presses, or live from a "
+            "camera. The result is written into the configuration (section "
+            "[camera.workspace_homography]) and used instead of the linear ROI mapping."
+        ),
+    )
+    p.add_argument("recdir", nargs="?", metavar="RECDIR", help="a recording of the presses")
+    p.add_argument("--camera", metavar="N", help="calibrate live from this camera instead")
+    p.add_argument("--points", type=int, default=9, help="number of marked points (a square)")
+    p.add_argument("--min-hold-s", type=float, default=0.4,
+                   help="shortest press that counts (default: %(default)s s)")
+    p.add_argument("--out", metavar="TOML", required=True,
+                   help="configuration file to write (the --config file updated, or new)")
+    p.set_defaults(func=run_workspace)
+
+
+# --------------------------------------------------------------------------- camera
+
+
+def _board_spec(args: argparse.Namespace) -> CharucoBoardSpec:
+    try:
+        cols, rows = (int(v) for v in args.board.lower().split("x"))
+    except ValueError:
+        raise UserError(f"--board: expected COLSxROWS such as 7x5, got {args.board!r}") from None
+    if args.marker_mm >= args.square_mm:
+        raise UserError("--marker-mm must be smaller than --square-mm")
+    return CharucoBoardSpec(cols, rows, args.square_mm, args.marker_mm, args.dictionary)
+
+
+def _calibration_images(source: Path, every: int) -> Iterator[np.ndarray]:
+    if source.is_dir():
+        files = sorted(p for p in source.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+        if not files:
+            raise UserError(f"{source}: no images ({', '.join(IMAGE_SUFFIXES)})")
+        for f in progress(files, total=len(files), desc="board views"):
+            image = cv2.imread(str(f))
+            if image is None:
+                raise UserError(f"{f}: OpenCV cannot read it as an image")
+            yield image
+        return
+    if not source.exists():
+        raise UserError(f"{source}: no such directory or video")
+    cap = cv2.VideoCapture(str(source))
+    if not cap.isOpened():
+        raise UserError(f"{source}: OpenCV cannot open it as a video")
+    try:
+        k = 0
+        while True:
+            ok, frame = cap.read()
+            if not ok:
+                break
+            if k % max(1, every) == 0:
+                yield frame
+            k += 1
+    finally:
+        cap.release()
+
+
+def run_camera(args: argparse.Namespace) -> int:
+    config = load_config(args.config)
+    spec = _board_spec(args)
+    try:
+        spec.board()
+        intrinsics, used = calibrate_charuco(_calibration_images(Path(args.source), args.every),
+                                             spec)
+    except CalibrationError as exc:
+        raise UserError(f"{args.source}: {exc}") from None
+    config.camera = replace(config.camera, intrinsics=intrinsics)
+    save_config(config, args.out)
+    k = intrinsics.k
+    print(f"lens calibrated from {used} board views: reprojection RMS {intrinsics.rms_px:.3f} px")
+    print(f"  focal length {k[0, 0]:.1f} x {k[1, 1]:.1f} px, centre ({k[0, 2]:.1f}, "
+          f"{k[1, 2]:.1f}) px, distortion {', '.join(f'{d:+.4f}' for d in intrinsics.dist)}")
+    print(f"written to {args.out} [camera.intrinsics]")
+    return 0
+
+
+# --------------------------------------------------------------------------- workspace
+
+
+def run_workspace(args: argparse.Namespace) -> int:
+    config = load_config(args.config)
+    if (args.recdir is None) == (args.camera is None):
+        raise UserError("give either a recording RECDIR of the presses or --camera N")
+    try:
+        targets = default_targets_mm(config.camera.workspace_mm, args.points)
+    except CalibrationError as exc:
+        raise UserError(f"--points: {exc}") from None
+    source: FrameSource
+    if args.recdir is not None:
+        rec = PadRecording(args.recdir)
+        source = VideoSource(rec)
+        camera = replace(config.camera, roi_px=rec.meta.roi_px,
+                         workspace_mm=rec.meta.workspace_mm, image_flip=rec.meta.image_flip)
+        total = rec.frame_count
+    else:
+        camera = replace(config.camera, device=str(args.camera))
+        try:
+            source = CameraSource(camera)
+        except SourceError as exc:
+            raise UserError(str(exc)) from None
+        total = None
+        print("keep the fabric clear for a second, then press each point in turn, holding "
+              "still for about a second:")
+        for i, (x, y) in enumerate(targets):
+            print(f"  point {i + 1}: x {x:+.1f} mm, y {y:+.1f} mm")
+    homography, residual = fit_from_presses(source, camera, config, targets, args.min_hold_s,
+                                            total)
+    config.camera = replace(camera, workspace_homography=homography)
+    save_config(config, args.out)
+    print(f"workspace mapping fitted from {len(targets)} presses: RMS {homography.rms_mm:.3f} mm, "
+          f"worst point {residual.max():.3f} mm")
+    print(f"written to {args.out} [camera.workspace_homography]")
+    return 0
+
+
+def fit_from_presses(
+    source: FrameSource,
+    camera,
+    config: StationConfig,
+    targets: np.ndarray,
+    min_hold_s: float,
+    total: int | None = None,
+):
+    """Track the presses in ``source`` and fit the homography to ``targets`` (in order)."""
+    tracker = ContactTracker(roi_px=camera.roi_px, workspace_mm=camera.workspace_mm,
+                             image_flip=camera.image_flip, method=config.tracker.method,
+                             robust=config.tracker.robust)
+    t, c, u, v = [], [], [], []
+    frame_size = None
+    try:
+        for frame in progress(source.frames(), total=total, desc="presses"):
+            frame_size = (frame.image.shape[1], frame.image.shape[0])
+            contact = tracker.process(frame.image)
+            t.append(frame.t_s)
+            c.append(contact is not None)
+            u.append(np.nan if contact is None else contact.u_px)
+            v.append(np.nan if contact is None else contact.v_px)
+            # Live: stop once every point has been pressed and the finger has lifted.
+            if isinstance(source, CameraSource) and not c[-1] and len(
+                press_centroids(t, c, u, v, min_hold_s)
+            ) >= len(targets):
+                break
+    except SourceError as exc:
+        raise UserError(str(exc)) from None
+    finally:
+        source.close()
+    presses = press_centroids(t, c, u, v, min_hold_s)
+    if len(presses) != len(targets):
+        raise UserError(
+            f"found {len(presses)} presses held >= {min_hold_s} s, expected {len(targets)}: "
+            "press each marked point once, in order, and hold it still"
+        )
+    raw = np.vstack([
+        raw_undistorted_point(pu, pv, camera.image_flip, frame_size, camera.intrinsics)
+        for pu, pv in presses
+    ])
+    try:
+        homography = fit_workspace_homography(raw, targets)
+    except CalibrationError as exc:
+        raise UserError(str(exc)) from None
+    residual = np.hypot(*(apply_homography(homography.h, raw) - targets).T)
+    return homography, residual
