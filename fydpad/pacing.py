@@ -70,9 +70,9 @@ class LoopTimer:
         self._next = 0.0
         self._last = 0.0
 
-    def start(self) -> float:
-        """Set the schedule's origin to now; returns it."""
-        self._start = self._clock()
+    def start(self, at: float | None = None) -> float:
+        """Set the schedule's origin (clock seconds; default now); returns it."""
+        self._start = self._clock() if at is None else at
         self._next = self._start
         return self._start
 
@@ -81,22 +81,37 @@ class LoopTimer:
         if self._start is None:
             self.start()
         deadline = self._next
-        now = self._clock()
-        remaining = deadline - now
-        if remaining > self.spin_s:
-            time.sleep(remaining - self.spin_s)
-        while self._clock() < deadline:
-            pass
-        now = self._clock()
-        late = now - deadline
-        self._record(late)
-        self._last = now
+        now = self.wait_until(deadline)
         self._next = deadline + self.period_s
         if now - self._next >= self.period_s:
             missed = int((now - self._next) // self.period_s)
             self._skipped += missed
             self._next += missed * self.period_s
         return deadline
+
+    def wait_until(self, deadline: float) -> float:
+        """Sleep until ``deadline`` (clock seconds) and record how late we woke; returns now.
+
+        For loops paced by their data's own time stamps (a replayed recording)."""
+        if self._start is None:
+            self.start()
+        remaining = deadline - self._clock()
+        if remaining > self.spin_s:
+            time.sleep(remaining - self.spin_s)
+        while self._clock() < deadline:
+            pass
+        now = self._clock()
+        self._record(now - deadline)
+        self._last = now
+        return now
+
+    def mark(self) -> float:
+        """Count a tick that was not scheduled (a live camera's frame); returns now."""
+        if self._start is None:
+            self.start()
+        self._last = self._clock()
+        self._record(0.0)
+        return self._last
 
     def _record(self, late_s: float) -> None:
         self._ticks += 1

@@ -10,6 +10,7 @@ import csv
 import json
 import math
 import os
+import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -245,27 +246,35 @@ def _check_increasing(path: Path, t_s: NDArray[np.float64]) -> None:
 
 
 class CsvRowWriter:
-    """Writes a CSV row by row and flushes at most every ``flush_every_s`` seconds of data,
-    so a killed process keeps what it wrote."""
+    """Writes a CSV row by row and hands it to the OS at least every ``flush_every_s``
+    seconds, so a killed process keeps what it wrote."""
 
-    def __init__(self, path: str | Path, columns: Sequence[str], comment: str | None = None):
+    def __init__(
+        self,
+        path: str | Path,
+        columns: Sequence[str],
+        comment: str | None = None,
+        flush_every_s: float = 0.5,
+    ):
         self.path = Path(path)
         self.columns = tuple(columns)
         self._fh: IO[str] = self.path.open("w", newline="", encoding="utf-8")
         if comment:
             self._fh.write(f"# {comment}\n")
         self._fh.write(",".join(self.columns) + "\n")
-        self._rows_since_flush = 0
+        self._flush_every_s = flush_every_s
+        self._last_flush = time.monotonic()
 
     def write(self, *values: object) -> None:
         self._fh.write(",".join(_fmt(v) for v in values) + "\n")
-        self._rows_since_flush += 1
-        if self._rows_since_flush >= 30:
-            self.flush()
+        now = time.monotonic()
+        if now - self._last_flush >= self._flush_every_s:
+            self._fh.flush()
+            self._last_flush = now
 
     def flush(self) -> None:
         self._fh.flush()
-        self._rows_since_flush = 0
+        self._last_flush = time.monotonic()
 
     def close(self) -> None:
         if not self._fh.closed:

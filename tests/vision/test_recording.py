@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 import numpy as np
@@ -148,8 +149,10 @@ def test_writer_keeps_rows_when_not_closed(tmp_path: Path):
     w = TrackWriter(p)
     for k in range(100):
         w.write_row(k / 30, k, True, 0.0, 0.0, None)
-    # Not closed (as if the process were killed): everything up to the last flush is there.
-    assert len(read_track(p)["t_s"]) >= 90
+    time.sleep(0.6)  # longer than the writer's flush interval (0.5 s)
+    w.write_row(100 / 30, 100, True, 0.0, 0.0, None)
+    # Not closed (as if the process were killed): all rows up to the flush are on disk.
+    assert len(read_track(p)["t_s"]) == 101
     w.close()
 
 

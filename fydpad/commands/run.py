@@ -1,0 +1,147 @@
+"""``fydpad run``: the master station, live or on a replayed recording."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import signal
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+from fydpad.cli import add_config_argument
+from fydpad.commands.track import make_tracker
+from fydpad.config import load_config
+from fydpad.errors import UserError
+from fydpad.station.render import RenderSpec
+from fydpad.station.station import SensorFeed, Station, StationFault, StationOptions
+from vision.recording import PadMeta, PadRecording
+from vision.sources import CameraSource, SourceError, VideoSource
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "run",
+        help="run the master station (live camera or a replayed recording)",
+        description=(
+            "Run the FYD-pad master station: each loop at its own rate (vision at the camera "
+            "rate, IR and force at the sensor rate, rendering at 1 kHz in a process of its "
+            "own, tele-operation at the vision rate), handing each other the latest value. "
+            "Ctrl-C, --duration or any fault stops it safely: vibration off, motors to rest, "
+            "robot told to hold, files closed. A second Ctrl-C forces the exit."
+        ),
+    )
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--camera", metavar="N", help="live camera (index or device path)")
+    src.add_argument("--replay", metavar="RECDIR", help="replay a pad session recording")
+    p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    p.add_argument("--record", metavar="DIR",
+                   help="record the session (RECORDING_FORMAT.md) as it goes")
+    p.add_argument("--no-video", action="store_true", help="with --record: no video file")
+    p.add_argument("--stats", metavar="FILE", help="write loop statistics as JSON on exit")
+    p.add_argument("--motors", choices=["none", "sim", "qb"], default="none",
+                   help="motor backend (default: %(default)s)")
+    p.add_argument("--texture", metavar="MODEL", help="render this texture model")
+    p.add_argument("--vibration-gain", type=float, default=1.0,
+                   help="texture vibration gain (the paper: 1)")
+    p.add_argument("--softness", type=float, metavar="N_PER_MM",
+                   help="render this stiffness (N/mm)")
+    p.add_argument("--as-fast-as-possible", action="store_true",
+                   help="with --replay: do not pace the frames at their recorded times")
+    p.add_argument("--no-realtime", action="store_true",
+                   help="do not ask for SCHED_FIFO and a core for the render process")
+    add_config_argument(p)
+    p.set_defaults(func=run)
+
+
+class _Interrupts:
+    """First Ctrl-C: stop safely. Second: exit at once."""
+
+    def __init__(self) -> None:
+        self.station: Station | None = None
+        self.count = 0
+
+    def __call__(self, signum, frame) -> None:
+        self.count += 1
+        if self.count == 1 and self.station is not None:
+            print("\nstopping (Ctrl-C again to force)", file=sys.stderr)
+            self.station.stop_event.set()
+        else:
+            os._exit(130)
+
+
+def _status_printer():
+    if not sys.stderr.isatty():
+        return None
+
+    def show(s: dict) -> None:
+        contact = (f"contact x {s['x_mm']:+6.1f} y {s['y_mm']:+6.1f} mm"
+                   if s["contact"] else "no contact" + " " * 20)
+        ind = s["indentation_mm"]
+        force = s["force_n"]
+        print(f"\rframes {s['frames']:6d}  {contact}  z "
+              f"{ind if math.isfinite(ind) else float('nan'):5.1f} mm  F {force:5.2f} N ",
+              end="", file=sys.stderr, flush=True)
+
+    return show
+
+
+def run(args: argparse.Namespace) -> int:
+    config = load_config(args.config)
+    if args.replay:
+        rec = PadRecording(args.replay)
+        source = VideoSource(rec)
+        meta = rec.meta
+        sensors = SensorFeed(rec.read_ir(), rec.read_force())
+        camera = None
+    else:
+        cam = replace(config.camera, device=str(args.camera))
+        try:
+            source = CameraSource(cam)
+        except SourceError as exc:
+            raise UserError(str(exc)) from None
+        meta = PadMeta(roi_px=cam.roi_px, workspace_mm=cam.workspace_mm, fps=source.fps,
+                       frame_size=source.frame_size, image_flip=cam.image_flip)
+        sensors = None
+        camera = cam
+    tracker = make_tracker(config.tracker, meta.roi_px, meta.workspace_mm, meta.image_flip,
+                           camera)
+    if args.record:
+        Path(args.record).mkdir(parents=True, exist_ok=True)
+    render = RenderSpec(
+        rate_hz=config.loops.render_hz,
+        texture=args.texture,
+        vibration_gain=args.vibration_gain,
+        stiffness_n_per_mm=math.nan if args.softness is None else args.softness,
+        motors=args.motors,
+        commands_csv=str(Path(args.record) / "commands.csv") if args.record else None,
+        realtime=not args.no_realtime,
+    )
+    options = StationOptions(
+        duration_s=args.duration, real_time=not args.as_fast_as_possible,
+        record_dir=args.record, record_video=not args.no_video, render=render,
+        status=_status_printer(),
+    )
+    station = Station(source, tracker, meta, options, sensors=sensors)
+    interrupts = _Interrupts()
+    interrupts.station = station
+    previous = signal.signal(signal.SIGINT, interrupts)
+    try:
+        stats = station.run()
+    except StationFault as exc:
+        raise UserError(f"station stopped safely after a fault: {exc}") from None
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        if options.status is not None:
+            print(file=sys.stderr)
+        if args.stats:
+            Path(args.stats).write_text(json.dumps(station.stats, indent=2) + "\n")
+    r = stats.get("render", {})
+    print(f"station ran {station.frames} frames ({station.contact_frames} with contact); "
+          f"render {r.get('rate_hz', 0):.1f} Hz, {r.get('on_time_pct', 0):.2f} % on time, "
+          f"jitter p99 {r.get('jitter_ms', {}).get('p99', math.nan):.2f} ms, "
+          f"frame-to-command p99 "
+          f"{stats.get('frame_to_command_ms', {}).get('p99', math.nan):.1f} ms")
+    return 0

@@ -1,0 +1,1 @@
+"""The multi-rate master station: vision, sensors, rendering and tele-operation loops."""

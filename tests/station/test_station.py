@@ -1,0 +1,111 @@
+"""The station on a replayed recording: loops, statistics, recording, and the fail-safe
+path on a fault in each loop (real processes, real shared memory)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fydpad.cli import main
+from fydpad.station.render import RenderSpec
+from fydpad.station.station import SensorFeed, Station, StationFault, StationOptions
+from tests.conftest import write_blob_recording
+from vision.contact import ContactTracker
+from vision.recording import PadRecording, read_track
+
+CHAIN = "tests.station.chains_for_tests:MarkerChain"
+
+
+@pytest.fixture(scope="module")
+def circle_rec(tmp_path_factory) -> Path:
+    rec = tmp_path_factory.mktemp("st") / "circle"
+    pos = [None] * 4 + [(20 * np.cos(k / 8), 15 * np.sin(k / 8)) for k in range(40)] + [None] * 4
+    write_blob_recording(rec, pos)
+    return rec
+
+
+def make_station(rec: Path, tmp_path: Path, tracker=None, **render_kw) -> Station:
+    r = PadRecording(rec)
+    m = r.meta
+    tracker = tracker or ContactTracker(roi_px=m.roi_px, workspace_mm=m.workspace_mm,
+                                        image_flip=m.image_flip)
+    spec = RenderSpec(chain=CHAIN, motor_options={"marker": str(tmp_path / "safe.txt"),
+                                                  **render_kw}, realtime=False,
+                      commands_csv=str(tmp_path / "commands.csv"))
+    opts = StationOptions(render=spec, record_dir=str(tmp_path / "session"))
+    from vision.sources import VideoSource
+    return Station(VideoSource(r), tracker, m, opts,
+                   sensors=SensorFeed(r.read_ir(), r.read_force()))
+
+
+def test_station_runs_records_and_stops_safely(circle_rec: Path, tmp_path: Path):
+    station = make_station(circle_rec, tmp_path)
+    stats = station.run()
+    assert station.frames == 48 and station.contact_frames == 40
+    assert stats["render"]["ticks"] > 1000  # 1.6 s of recording at 1 kHz
+    assert set(stats) >= {"render", "vision", "frame_to_command_ms"}
+    assert "safe_stop" in (tmp_path / "safe.txt").read_text()
+    # The session it recorded is a recording like any other, and replays.
+    session = PadRecording(tmp_path / "session")
+    assert session.frame_count == 48
+    track = read_track(tmp_path / "session" / "track.csv")
+    assert (track["contact"] != 0).sum() == 40
+    assert session.read_ir() is not None and session.read_force() is not None
+    cmds = np.genfromtxt(tmp_path / "commands.csv", delimiter=",", names=True)
+    assert set(np.unique(cmds["frame"]).astype(int)) >= set(range(5, 40))
+    # Vibration is rendered only while there is contact (MarkerChain: 0.1 with gain 1).
+    touching = cmds["vibration"] > 0
+    assert touching.any() and not touching.all()
+
+
+def test_fault_in_the_render_loop_stops_everything(circle_rec: Path, tmp_path: Path):
+    station = make_station(circle_rec, tmp_path, fail_after_ticks=200)
+    with pytest.raises(StationFault, match="injected actuator fault"):
+        station.run()
+    assert "safe_stop after 201 ticks" in (tmp_path / "safe.txt").read_text()
+    assert station.frames < 48  # the vision loop stopped early too
+
+
+class ExplodingTracker(ContactTracker):
+    def __init__(self, after: int, **kw):
+        super().__init__(**kw)
+        self.after = after
+        self.n = 0
+
+    def process(self, frame):
+        self.n += 1
+        if self.n > self.after:
+            raise ValueError("injected vision fault")
+        return super().process(frame)
+
+
+def test_fault_in_the_vision_loop_stops_the_render_process(circle_rec: Path, tmp_path: Path):
+    m = PadRecording(circle_rec).meta
+    tracker = ExplodingTracker(10, roi_px=m.roi_px, workspace_mm=m.workspace_mm,
+                               image_flip=m.image_flip)
+    station = make_station(circle_rec, tmp_path, tracker=tracker)
+    with pytest.raises(StationFault, match="injected vision fault"):
+        station.run()
+    assert "safe_stop" in (tmp_path / "safe.txt").read_text()
+    # What was recorded before the fault is kept and readable.
+    assert len(read_track(tmp_path / "session" / "track.csv")["t_s"]) == 10
+
+
+def test_run_command_writes_stats(circle_rec: Path, tmp_path: Path, capsys):
+    stats_file = tmp_path / "stats.json"
+    rc = main(["run", "--replay", str(circle_rec), "--duration", "1.0", "--stats",
+               str(stats_file), "--no-realtime"])
+    assert rc == 0
+    stats = json.loads(stats_file.read_text())
+    for loop in ("render", "vision"):
+        assert {"rate_hz", "on_time_pct", "jitter_ms"} <= set(stats[loop])
+    assert {"p50", "p99"} == set(stats["frame_to_command_ms"])
+    assert "render" in capsys.readouterr().out
+
+
+def test_missing_camera_is_one_line(tmp_path: Path, capsys):
+    assert main(["run", "--camera", "/dev/video-missing", "--duration", "1"]) == 2
+    assert "camera '/dev/video-missing'" in capsys.readouterr().err
