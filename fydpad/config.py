@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from fydpad.errors import UserError
+from vision.config import ForceConfig, IRConfig
 from vision.contact import TrackerConfig
 from vision.sources import CameraConfig
 
@@ -47,6 +48,8 @@ class StationConfig:
 
     camera: CameraConfig = field(default_factory=CameraConfig)
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
+    ir: IRConfig = field(default_factory=IRConfig)
+    force: ForceConfig = field(default_factory=ForceConfig)
     loops: LoopRates = field(default_factory=LoopRates)
     endpoints: Endpoints = field(default_factory=Endpoints)
 

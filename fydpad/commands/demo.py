@@ -12,6 +12,7 @@ from fydpad.commands.track import format_summary, make_tracker, summarise, track
 from fydpad.config import load_config
 from vision.recording import PadRecording
 from vision.sources import VideoSource
+from vision.stream import finger_states
 
 DEMO_RECORDINGS = ("circle", "lissajous", "tapping")
 
@@ -42,7 +43,9 @@ def run(args: argparse.Namespace) -> int:
             m = rec.meta
             tracker = make_tracker(config.tracker, m.roi_px, m.workspace_mm, m.image_flip)
             out = out_dir / f"{name}_track.csv"
-            n = track_to_csv(VideoSource(rec), tracker, out, total=rec.frame_count)
+            source = VideoSource(rec)
+            n = track_to_csv(finger_states(rec, tracker, config.ir, source.frames()), source,
+                             tracker, out, total=rec.frame_count)
             print(f"== {name}")
             print(format_summary(summarise(out, rec.read_truth(), n, tracker)))
     return 0

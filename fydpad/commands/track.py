@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
+from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
 
@@ -22,6 +24,9 @@ from vision.evaluation import score_tracking
 from vision.mapping import workspace_to_roi
 from vision.recording import PadRecording, TrackWriter
 from vision.sources import CameraConfig, CameraSource, FrameSource, SourceError, VideoSource
+from vision.speed import SpeedState, speed_update
+from vision.state import FingerState
+from vision.stream import TrackedFrame, finger_states
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -94,8 +99,10 @@ def run(args: argparse.Namespace) -> int:
     truth = recording.read_truth() if recording is not None else None
     if args.max_frames is not None:
         total = min(total or args.max_frames, args.max_frames)
+    stream = (finger_states(recording, tracker, config.ir, source.frames())
+              if recording is not None else live_states(source, tracker))
     n_written = track_to_csv(
-        source, tracker, Path(args.out), total=total, video=args.video, truth=truth,
+        stream, source, tracker, Path(args.out), total=total, video=args.video, truth=truth,
         max_frames=args.max_frames,
     )
     summary = summarise(Path(args.out), truth, n_written, tracker)
@@ -126,7 +133,22 @@ def make_tracker(
     )
 
 
+def live_states(source: FrameSource, tracker: ContactTracker) -> Iterator[TrackedFrame]:
+    """The finger states of a live camera without sensors: position and speed only."""
+    speed = SpeedState()
+    for frame in source.frames():
+        contact = tracker.process(frame.image)
+        if contact is None:
+            _, speed = speed_update(speed, frame.t_s, math.nan, math.nan, False)
+            yield TrackedFrame(frame, None, FingerState(frame.t_s, False, speed_mm_s=0.0))
+        else:
+            v, speed = speed_update(speed, frame.t_s, contact.x_mm, contact.y_mm, True)
+            yield TrackedFrame(frame, contact, FingerState(frame.t_s, True, contact.x_mm,
+                                                           contact.y_mm, speed_mm_s=v))
+
+
 def track_to_csv(
+    stream: Iterator[TrackedFrame],
     source: FrameSource,
     tracker: ContactTracker,
     out: Path,
@@ -135,21 +157,22 @@ def track_to_csv(
     truth=None,
     max_frames: int | None = None,
 ) -> int:
-    """Track every frame of ``source`` into ``out``, row by row; returns the rows written."""
-    writer = TrackWriter(out, extra_columns=("u_px", "v_px", "area_mm2"))
+    """Write the tracked ``stream`` into ``out``, row by row; returns the rows written."""
+    writer = TrackWriter(out, extra_columns=("u_px", "v_px", "area_mm2", "speed_mm_s"))
     annotated = None
     n = 0
     try:
-        for frame in progress(source.frames(), total=total, desc="tracking"):
+        for tracked in progress(stream, total=total, desc="tracking"):
             if max_frames is not None and n >= max_frames:
                 break
-            contact = tracker.process(frame.image)
+            frame, contact, state = tracked.frame, tracked.contact, tracked.state
             if contact is None:
-                writer.write_row(frame.t_s, frame.index, False, None, None, None,
-                                 None, None, None)
+                writer.write_row(frame.t_s, frame.index, False, None, None,
+                                 state.indentation_mm, None, None, None, None)
             else:
-                writer.write_row(frame.t_s, frame.index, True, contact.x_mm, contact.y_mm, None,
-                                 contact.u_px, contact.v_px, contact.area_mm2)
+                writer.write_row(frame.t_s, frame.index, True, contact.x_mm, contact.y_mm,
+                                 state.indentation_mm, contact.u_px, contact.v_px,
+                                 contact.area_mm2, state.speed_mm_s)
             if video:
                 if annotated is None:
                     h, w = frame.image.shape[:2]

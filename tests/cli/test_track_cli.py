@@ -112,3 +112,18 @@ def test_camera_that_does_not_exist_is_named(tmp_path: Path, capsys):
     rc = main(["track", "--camera", "/dev/video-missing", "--out", str(tmp_path / "t.csv")])
     assert rc == 2
     assert "camera '/dev/video-missing'" in capsys.readouterr().err
+
+
+def test_indentation_filled_only_with_ir(tmp_path: Path):
+    from tests.conftest import write_blob_recording
+    for with_ir in (True, False):
+        rec = tmp_path / f"ir{with_ir}"
+        write_blob_recording(rec, [None] * 12 + [(0.0, 0.0)] * 3 + [None], with_ir=with_ir)
+        out = tmp_path / f"t{with_ir}.csv"
+        assert main(["track", str(rec), "--out", str(out)]) == 0
+        ind = read_track(out)["indentation_mm"]
+        if with_ir:
+            # Constant voltages: the fabric never moves, so the indentation is ~0 mm.
+            assert np.all(np.isfinite(ind)) and np.abs(ind).max() < 0.5
+        else:
+            assert np.all(np.isnan(ind))

@@ -1,0 +1,298 @@
+"""``fydpad calibrate``: one sub-subcommand per thing to calibrate.
+
+``ir`` refits eq. (1) per IR sensor from (distance, voltage) pairs; ``force`` fits the
+load cell's offset and gain from known weights (docs/calibration_files.md). ``camera``
+and ``workspace`` come from ``fydpad.commands.calibrate_vision`` when it is there. To
+add one, put its ``register(sub)`` in ``SUBCOMMANDS``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import importlib.util
+from collections.abc import Callable
+from dataclasses import replace
+from datetime import date
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fydpad.errors import UserError
+from vision.config import ForceConfig, IRConfig
+from vision.force import ForceCalibration, ForceCalibrationError, calibrate_force
+from vision.indentation import IRCalibrationError, IRFit, fit_ir_polynomial
+from vision.ir import PAPER_POLY_CM
+from vision.recording import read_csv_columns
+
+Register = Callable[[argparse._SubParsersAction], None]
+
+
+def register_ir(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "ir",
+        help="refit the IR sensors' distance polynomial (eq. 1) from measured pairs",
+        description=(
+            "Refit eq. (1), the 5th-order polynomial from voltage to distance, for each IR "
+            "sensor from a CSV of (distance, voltage) pairs: header distance_mm,v0,v1,v2 "
+            "(a sensor's column may be absent, or a cell empty where it was not measured; "
+            "see docs/calibration_files.md). Prints R^2 and the RMS residual per sensor and "
+            "writes the [ir] section (poly_cm, valid_range_v: a fit is valid only over the "
+            "voltages it was fitted on)."
+        ),
+    )
+    p.add_argument("data", metavar="DATA.csv", help="distance_mm,v0,v1,v2 pairs")
+    p.add_argument("--out", metavar="TOML", help="configuration file to write (default: print)")
+    p.add_argument("--plot", metavar="PNG", help="draw the data, the fits and the residuals")
+    p.add_argument("--degree", type=int, default=5, help="polynomial degree (default: 5)")
+    p.set_defaults(func=run_ir)
+
+
+def register_force(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "force",
+        help="the load cell's offset and gain from readings under known weights",
+        description=(
+            "Fit force_n = gain * (raw - offset) to raw load cell readings under known "
+            "weights: a CSV with header mass_g,raw, one row per reading (repeat readings "
+            "of a weight are welcome; include 0 g, the empty cell). Weights must be within "
+            "the cell's 780 g. Prints the fit, R^2 and residuals and writes the [force] "
+            "section."
+        ),
+    )
+    p.add_argument("data", metavar="DATA.csv", help="mass_g,raw readings")
+    p.add_argument("--out", metavar="TOML", help="configuration file to write (default: print)")
+    p.add_argument("--plot", metavar="PNG", help="draw the readings, the fit and residuals")
+    p.add_argument("--full-scale-g", type=float, default=780.0,
+                   help="the load cell's rated capacity (default: 780 g, CZL616C)")
+    p.set_defaults(func=run_force)
+
+
+def _vision_register(name: str) -> Register | None:
+    """``calibrate_vision.register_<name>`` when that module has landed."""
+    module = "fydpad.commands.calibrate_vision"
+    if importlib.util.find_spec(module) is None:
+        return None
+    return getattr(importlib.import_module(module), f"register_{name}", None)
+
+
+#: Sub-subcommands in ``--help`` order: name -> ``register(sub)``, or a function that
+#: finds it (None when that part of the project has not landed).
+SUBCOMMANDS: dict[str, Register | Callable[[], Register | None]] = {
+    "ir": register_ir,
+    "force": register_force,
+    "camera": lambda: _vision_register("camera"),
+    "workspace": lambda: _vision_register("workspace"),
+}
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "calibrate",
+        help="calibrate the IR sensors, the load cell, the camera or the workspace",
+        description="Calibrate one part of the device; the result goes into the "
+        "configuration (TOML). Run 'fydpad calibrate WHAT --help' for each.",
+    )
+    inner = p.add_subparsers(dest="calibrate_what", metavar="WHAT", required=True)
+    for name, entry in SUBCOMMANDS.items():
+        if name in ("ir", "force"):
+            entry(inner)  # type: ignore[call-arg]
+            continue
+        found = entry()  # type: ignore[call-arg]
+        if found is not None:
+            found(inner)
+
+
+# --------------------------------------------------------------------------- common
+
+
+def _line_numbers(path: Path) -> list[int]:
+    """File line of each data row, as ``read_csv_columns`` reads them (comments before
+    the header and blank rows skipped), so errors can name the line."""
+    lines: list[int] = []
+    header_seen = False
+    with path.open(encoding="utf-8") as fh:
+        for no, text in enumerate(fh, start=1):
+            if not header_seen:
+                if text.lstrip().startswith("#"):
+                    continue
+                header_seen = True
+                continue
+            if not text.strip():
+                continue
+            lines.append(no)
+    return lines
+
+
+def _load_config(args: argparse.Namespace) -> Any | None:
+    """The device configuration when ``fydpad.config`` knows this section, else None."""
+    from fydpad.config import load_config
+
+    return load_config(getattr(args, "config", None))
+
+
+def _write_section(
+    args: argparse.Namespace, section: str, values: dict[str, Any], comments: list[str],
+) -> str:
+    """Into the whole configuration when it has ``section`` (written with the project's
+    TOML writer), else as a standalone ``[section]`` table to merge by hand."""
+    from fydpad.config import config_to_toml
+
+    config = _load_config(args)
+    if config is not None and hasattr(config, section):
+        setattr(config, section, replace(getattr(config, section), **values))
+        body = config_to_toml(config)
+    else:
+        body = f"[{section}]\n" + "".join(f"{k} = {_toml(v)}\n" for k, v in values.items())
+    text = "".join(f"# {c}\n" for c in comments) + body
+    if args.out:
+        try:
+            Path(args.out).write_text(text, encoding="utf-8")
+        except OSError as exc:
+            raise UserError(f"{args.out}: cannot write ({exc.strerror})") from None
+        print(f"written to {args.out} [{section}]")
+    else:
+        print(text, end="")
+    return text
+
+
+def _toml(v: Any) -> str:
+    if isinstance(v, tuple | list):
+        return "[" + ", ".join(_toml(x) for x in v) + "]"
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    return repr(float(v)) if isinstance(v, float) else repr(v)
+
+
+# --------------------------------------------------------------------------- ir
+
+
+def run_ir(args: argparse.Namespace) -> int:
+    path = Path(args.data)
+    cols = read_csv_columns(path, ("distance_mm",), optional=("v0", "v1", "v2"),
+                            empty_ok=("v0", "v1", "v2"))
+    sensors = [i for i in range(3) if f"v{i}" in cols]
+    if not sensors:
+        raise UserError(f"{path}: line 1: no voltage column (expected v0, v1 and/or v2)")
+    lines = _line_numbers(path)
+    d = cols["distance_mm"]
+    bad = np.flatnonzero(d <= 0)
+    if bad.size:
+        raise UserError(f"{path}: line {lines[bad[0]]}: distance_mm must be positive")
+    for i in sensors:
+        v = cols[f"v{i}"]
+        bad = np.flatnonzero((v <= 0) | (v > 5.5))
+        if bad.size:
+            raise UserError(f"{path}: line {lines[bad[0]]}: column 'v{i}': {v[bad[0]]:g} V is "
+                            "not a sensor voltage (0-5 V)")
+    if args.degree < 1:
+        raise UserError("--degree must be at least 1")
+    fits: dict[int, IRFit] = {}
+    for i in sensors:
+        try:
+            fits[i] = fit_ir_polynomial(d, cols[f"v{i}"], args.degree)
+        except IRCalibrationError as exc:
+            raise UserError(f"{path}: column 'v{i}': {exc}") from None
+    config = _load_config(args)
+    base: IRConfig = getattr(config, "ir", None) or IRConfig()
+    poly = [list(p) for p in base.poly_cm]
+    ranges = [list(r) for r in base.valid_range_v]
+    comments = [f"fydpad calibrate ir {path.name} ({date.today().isoformat()})"]
+    for i, fit in fits.items():
+        poly[i], ranges[i] = list(fit.poly_cm), list(fit.valid_range_v)
+        summary = (f"sensor {i}: {fit.n_points} points, R^2 {fit.r2:.5f}, RMS residual "
+                   f"{fit.rms_mm:.2f} mm, valid {fit.valid_range_v[0]:.3f}-"
+                   f"{fit.valid_range_v[1]:.3f} V")
+        print(summary)
+        comments.append(summary)
+        if not fit.monotonic:
+            warn = (f"sensor {i}: warning: the fit does not fall monotonically over its "
+                    "range; two distances read alike there (measure more points)")
+            print(warn)
+            comments.append(warn)
+    if args.plot:
+        _plot_ir(args.plot, d, cols, fits)
+    _write_section(args, "ir", {
+        "poly_cm": tuple(tuple(p) for p in poly),
+        "valid_range_v": tuple(tuple(r) for r in ranges),
+    }, comments)
+    return 0
+
+
+def _plot_ir(path: str, d_mm: np.ndarray, cols: dict[str, np.ndarray],
+             fits: dict[int, IRFit]) -> None:
+    from fydpad.plots import plt
+
+    fig, (ax, axr) = plt.subplots(2, 1, figsize=(8, 7), sharex=True,
+                                  gridspec_kw={"height_ratios": (2, 1)}, constrained_layout=True)
+    grid = np.linspace(0.42, 2.75, 300)
+    ax.plot(grid, np.polyval(PAPER_POLY_CM, grid) * 10, "k--", lw=1, label="paper eq. (1)")
+    for i, fit in fits.items():
+        v = cols[f"v{i}"]
+        g = np.linspace(*fit.valid_range_v, 300)
+        (line,) = ax.plot(g, np.polyval(fit.poly_cm, g) * 10, label=f"sensor {i} fit "
+                          f"(R$^2$ {fit.r2:.4f})")
+        ax.plot(v, d_mm, ".", color=line.get_color(), ms=4)
+        axr.plot(v, d_mm - np.polyval(fit.poly_cm, v) * 10, ".", color=line.get_color(), ms=4)
+    ax.set_ylabel("distance [mm]")
+    ax.legend()
+    axr.axhline(0, color="k", lw=0.8)
+    axr.set_xlabel("voltage [V]")
+    axr.set_ylabel("residual [mm]")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# --------------------------------------------------------------------------- force
+
+
+def run_force(args: argparse.Namespace) -> int:
+    path = Path(args.data)
+    cols = read_csv_columns(path, ("mass_g", "raw"))
+    lines = _line_numbers(path)
+    m = cols["mass_g"]
+    bad = np.flatnonzero((m < 0) | (m > args.full_scale_g))
+    if bad.size:
+        raise UserError(f"{path}: line {lines[bad[0]]}: mass_g {m[bad[0]]:g} is outside 0-"
+                        f"{args.full_scale_g:g} g (the load cell's range)")
+    try:
+        cal: ForceCalibration = calibrate_force(m, cols["raw"], args.full_scale_g)
+    except ForceCalibrationError as exc:
+        raise UserError(f"{path}: {exc}") from None
+    worst = int(np.argmax(np.abs(cal.residuals_n)))
+    summary = [
+        f"fydpad calibrate force {path.name} ({date.today().isoformat()})",
+        f"{cal.n_points} readings: offset {cal.offset_counts:.1f} counts, gain "
+        f"{cal.gain_n_per_count:.6g} N/count, R^2 {cal.r2:.6f}",
+        f"residuals: RMS {cal.rms_residual_n * 1000:.2f} mN, worst "
+        f"{cal.residuals_n[worst] * 1000:+.2f} mN (line {lines[worst]})",
+    ]
+    for s in summary[1:]:
+        print(s)
+    if args.plot:
+        _plot_force(args.plot, m, cols["raw"], cal)
+    cfg = ForceConfig(cal.offset_counts, cal.gain_n_per_count, args.full_scale_g)
+    _write_section(args, "force", {"offset_counts": cfg.offset_counts,
+                                   "gain_n_per_count": cfg.gain_n_per_count,
+                                   "full_scale_g": cfg.full_scale_g}, summary)
+    return 0
+
+
+def _plot_force(path: str, mass_g: np.ndarray, raw: np.ndarray, cal: ForceCalibration) -> None:
+    from fydpad.plots import plt
+    from vision.config import G_M_S2
+
+    fig, (ax, axr) = plt.subplots(2, 1, figsize=(7, 6), sharex=True, constrained_layout=True)
+    ax.plot(raw, mass_g * 1e-3 * G_M_S2, ".", label="known weights")
+    g = np.linspace(raw.min(), raw.max(), 2)
+    ax.plot(g, cal.gain_n_per_count * (g - cal.offset_counts), "-",
+            label=f"fit (R$^2$ {cal.r2:.5f})")
+    ax.set_ylabel("force [N]")
+    ax.legend()
+    axr.plot(raw, cal.residuals_n * 1000, ".")
+    axr.axhline(0, color="k", lw=0.8)
+    axr.set_xlabel("raw [counts]")
+    axr.set_ylabel("residual [mN]")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,107 @@
+"""From a pad session recording to the :class:`FingerState` stream, frame by frame.
+
+Tracking, speed, indentation and force come together here, causally (each frame uses
+only what was known at its time, as a live station would), so ``fydpad track``, the
+tele-operation replay and the demo see the same stream the station produces.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+
+from vision.config import IRConfig
+from vision.contact import Contact, ContactTracker
+from vision.indentation import IndentationEstimator, resample_distances_mm
+from vision.recording import PadRecording
+from vision.sources import Frame, VideoSource
+from vision.speed import SpeedState, speed_update
+from vision.state import FingerState
+
+#: IR samples within this time of a contact frame are not used for the rest distances.
+BASELINE_MARGIN_S = 0.1
+
+
+@dataclass
+class TrackedFrame:
+    frame: Frame
+    contact: Contact | None
+    state: FingerState
+
+
+class CausalIndentation:
+    """Indentation at each frame from the IR samples up to that frame.
+
+    The rest distances are the configured or ``meta.json`` ones; otherwise they are
+    estimated, at the first contact, from the samples taken before it (less a margin),
+    and kept for the rest of the session.
+    """
+
+    def __init__(self, estimator: IndentationEstimator, t_ir_s: np.ndarray, volts: np.ndarray):
+        self.estimator = estimator
+        self.t_ir_s = t_ir_s
+        self.volts = volts
+        self._dist, self._flags = estimator.distances_mm(volts)
+        self._resolved = estimator.baseline_mm is not None
+
+    def at(self, t_s: float, x_mm: float, y_mm: float, contact: bool) -> float:
+        if not contact:
+            return 0.0
+        if not self._resolved:
+            before = self.t_ir_s < t_s - BASELINE_MARGIN_S
+            self.estimator = self.estimator.with_baseline_from(self.volts[before],
+                                                               np.ones(int(before.sum()), bool))
+            self._resolved = True
+        d, fl = resample_distances_mm(self.t_ir_s, self._dist, self._flags, [t_s])
+        r = self.estimator.estimate_from_distances(d, [x_mm], [y_mm], [True], fl)
+        return float(r.indentation_mm[0])
+
+
+def recording_estimator(rec: PadRecording, ir_config: IRConfig | None = None
+                        ) -> IndentationEstimator:
+    """The indentation estimator for a recording: the device's polynomials, the
+    recording's sensor positions and rest distances (meta.json) where it gives them."""
+    m = rec.meta
+    return IndentationEstimator.from_config(
+        ir_config or IRConfig(), sensors_mm=m.ir_sensors_mm, baseline_mm=m.ir_baseline_mm,
+        base_to_fabric_mm=m.base_to_fabric_mm,
+    )
+
+
+def finger_states(
+    rec: PadRecording,
+    tracker: ContactTracker,
+    ir_config: IRConfig | None = None,
+    source: Iterator[Frame] | None = None,
+) -> Iterator[TrackedFrame]:
+    """Track every frame of ``rec`` and yield its finger state.
+
+    ``indentation_mm`` is NaN where the recording has no ``ir.csv``; ``force_n`` is the
+    load cell's latest sample at the frame's time (NaN without ``force.csv``).
+    """
+    ir = rec.read_ir()
+    indentation = (CausalIndentation(recording_estimator(rec, ir_config), *ir)
+                   if ir is not None else None)
+    force = rec.read_force()
+    speed = SpeedState()
+    frames = source if source is not None else VideoSource(rec).frames()
+    for frame in frames:
+        force_n = math.nan
+        if force is not None:
+            i = int(np.searchsorted(force[0], frame.t_s, side="right")) - 1
+            force_n = float(force[1][i]) if i >= 0 else math.nan
+        contact = tracker.process(frame.image)
+        if contact is None:
+            _, speed = speed_update(speed, frame.t_s, math.nan, math.nan, False)
+            ind = 0.0 if indentation is not None else math.nan
+            state = FingerState(frame.t_s, False, indentation_mm=ind, speed_mm_s=0.0,
+                                force_n=force_n)
+        else:
+            v, speed = speed_update(speed, frame.t_s, contact.x_mm, contact.y_mm, True)
+            ind = (indentation.at(frame.t_s, contact.x_mm, contact.y_mm, True)
+                   if indentation is not None else math.nan)
+            state = FingerState(frame.t_s, True, contact.x_mm, contact.y_mm, ind, v, force_n)
+        yield TrackedFrame(frame, contact, state)
