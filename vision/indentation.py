@@ -1,0 +1,513 @@
+"""Finger indentation from the three IR distance sensors: eq. (1), the plane of eq. (2),
+and a correction fitted beyond the plane (paper II-C).
+
+Sign convention. Each sensor on the base measures the distance z_i from the base *up*
+to the fabric above it. A finger pushes the fabric *down*, towards the base, so z_i
+shrinks: ``e_i = z_i - zbar_i`` (zbar_i the rest distance) is negative when pressing.
+The plane through the three points (x_i, y_i, e_i) evaluated at the contact centroid
+gives eq. (2)'s delta, also negative when pressing; the indentation (positive down,
+RECORDING_FORMAT.md) is ``-delta``.
+
+Eq. (2) is the plane for the paper's sensor positions (-22, -3), (0, 27), (22, -3) mm:
+solved for delta it is the barycentric interpolation of e_0, e_1, e_2. This module
+builds the same plane for any three non-collinear positions (``plane_weights``);
+``paper_eq2_delta_mm`` is eq. (2) as printed, kept for the test that they agree.
+
+The flat region of eq. (1). The fit's slope falls from about -80 mm/V at the rest
+distance (1.3 V, 100 mm) to about -2 mm/V at 2.3-2.4 V: the whole 2.2-2.5 V band maps
+onto 52.4-53.7 mm. One step of a 10-bit, 5 V ADC (4.9 mV) is 0.39 mm at rest but
+0.01 mm there; that apparent precision is the fit's artefact, not the sensor's (the
+datasheet curve still falls about 0.4 V/cm there): distances the sensor tells apart
+over several mm all read as about 53 mm. Readings in the band are valid but flagged
+``IRFlag.FLAT_REGION``; see docs/indentation.md for the table.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from vision.config import PAPER_SENSORS_MM, IRConfig
+from vision.ir import PAPER_POLY_CM, VALID_VOLTAGE_RANGE_V
+
+#: Voltages where eq. (1) is nearly flat (slope under about 13 mm/V): low resolution.
+FLAT_REGION_V: tuple[float, float] = (2.2, 2.5)
+
+
+class IRFlag(enum.IntFlag):
+    """Per-sample quality flags; any of ``INVALID`` makes the indentation NaN."""
+
+    OK = 0
+    INVALID_V0 = 1  # sensor 0 voltage NaN or outside its valid range: not extrapolated
+    INVALID_V1 = 2
+    INVALID_V2 = 4
+    FLAT_REGION = 8  # a voltage in eq. (1)'s flat band: valid, but distance poorly resolved
+    NO_CONTACT = 16  # no finger: indentation is 0 by the recording format
+    NO_CENTROID = 32  # contact without a finite (x, y): the plane cannot be evaluated
+    NO_IR = 64  # no IR sample close enough in time
+    EXTRAPOLATED = 128  # centroid outside the sensor triangle: the plane is extrapolated
+
+
+INVALID = (IRFlag.INVALID_V0 | IRFlag.INVALID_V1 | IRFlag.INVALID_V2 | IRFlag.NO_CENTROID
+           | IRFlag.NO_IR)
+_SENSOR_INVALID = (IRFlag.INVALID_V0, IRFlag.INVALID_V1, IRFlag.INVALID_V2)
+
+
+# --------------------------------------------------------------------------- eq. (1)
+
+
+def sensor_distances_mm(
+    volts: ArrayLike,
+    poly_cm: Sequence[Sequence[float]] = (PAPER_POLY_CM,) * 3,
+    valid_range_v: Sequence[tuple[float, float]] = (VALID_VOLTAGE_RANGE_V,) * 3,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Eq. (1) per sensor: ``volts[n, 3]`` -> (distances_mm[n, 3], flags[n]).
+
+    Out-of-range or NaN voltages give NaN and an ``INVALID_Vi`` flag; nothing is
+    extrapolated. Voltages in the flat band are flagged ``FLAT_REGION``.
+    """
+    v = np.atleast_2d(np.asarray(volts, dtype=np.float64))
+    if v.shape[-1] != 3:
+        raise ValueError(f"expected volts of shape (n, 3), got {v.shape}")
+    d = np.empty_like(v)
+    flags = np.zeros(v.shape[0], dtype=np.int64)
+    for i in range(3):
+        lo, hi = valid_range_v[i]
+        ok = (v[:, i] >= lo) & (v[:, i] <= hi)  # False for NaN too
+        d[:, i] = np.where(ok, np.polyval(np.asarray(poly_cm[i], np.float64), v[:, i]) * 10.0,
+                           np.nan)
+        flags |= np.where(ok, 0, int(_SENSOR_INVALID[i]))
+        flat = ok & (v[:, i] >= FLAT_REGION_V[0]) & (v[:, i] <= FLAT_REGION_V[1])
+        flags |= np.where(flat, int(IRFlag.FLAT_REGION), 0)
+    return d, flags
+
+
+def distance_resolution_mm(
+    voltage_v: ArrayLike, poly_cm: Sequence[float] = PAPER_POLY_CM,
+    adc_bits: int = 10, vref_v: float = 5.0,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Local slope of eq. (1) in mm/V and the distance one ADC step spans, in mm."""
+    slope = np.polyval(np.polyder(np.asarray(poly_cm, np.float64)), np.asarray(voltage_v)) * 10
+    return slope, np.abs(slope) * vref_v / 2**adc_bits
+
+
+# --------------------------------------------------------------------------- eq. (2)
+
+
+def plane_weights(
+    sensors_mm: Sequence[Sequence[float]], x_mm: ArrayLike, y_mm: ArrayLike,
+) -> NDArray[np.float64]:
+    """Barycentric weights w[n, 3] of (x, y) for the sensor triangle.
+
+    The plane through (x_i, y_i, e_i) takes the value ``sum_i w_i e_i`` at (x, y);
+    the weights sum to 1 and are all in [0, 1] inside the triangle.
+    """
+    s = np.asarray(sensors_mm, dtype=np.float64)
+    m = np.vstack([s[:, 0], s[:, 1], np.ones(3)])  # columns: sensors
+    area2 = np.linalg.det(m)
+    scale = max(float(np.ptp(s[:, 0])), float(np.ptp(s[:, 1])), 1e-12)
+    if abs(area2) < 1e-6 * scale**2:
+        raise ValueError(f"IR sensor positions {s.tolist()} are collinear: no plane through them")
+    rhs = np.vstack([np.ravel(np.asarray(x_mm, np.float64)),
+                     np.ravel(np.asarray(y_mm, np.float64)),
+                     np.ones(np.size(x_mm))])
+    return np.linalg.solve(m, rhs).T
+
+
+def plane_delta_mm(
+    e_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike,
+    sensors_mm: Sequence[Sequence[float]] = PAPER_SENSORS_MM,
+) -> NDArray[np.float64]:
+    """delta of eq. (2), generalised: the plane through (x_i, y_i, e_i) at (x, y)."""
+    e = np.atleast_2d(np.asarray(e_mm, dtype=np.float64))
+    return np.sum(plane_weights(sensors_mm, x_mm, y_mm) * e, axis=1)
+
+
+def paper_eq2_delta_mm(
+    e0: ArrayLike, e1: ArrayLike, e2: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike,
+) -> NDArray[np.float64]:
+    """Eq. (2) as printed, solved for delta:
+    ``e1(44y + 132) - 1320 delta - e0(30x + 22y - 594) + e2(30x - 22y + 594) = 0``."""
+    e0, e1, e2, x, y = (np.asarray(a, np.float64) for a in (e0, e1, e2, x_mm, y_mm))
+    return (e1 * (44 * y + 132) - e0 * (30 * x + 22 * y - 594) + e2 * (30 * x - 22 * y + 594)) \
+        / 1320.0
+
+
+# --------------------------------------------------------------------------- baselines
+
+
+def estimate_baseline_mm(
+    distances_mm: ArrayLike, no_contact: ArrayLike, min_samples: int = 5,
+) -> NDArray[np.float64]:
+    """Rest distance per sensor: the median of its valid samples taken without contact.
+
+    The median ignores the odd spike of these noisy sensors. NaN for a sensor with
+    fewer than ``min_samples`` such samples.
+    """
+    d = np.atleast_2d(np.asarray(distances_mm, dtype=np.float64))
+    free = np.asarray(no_contact, dtype=bool)
+    out = np.full(3, np.nan)
+    for i in range(3):
+        col = d[free, i]
+        col = col[np.isfinite(col)]
+        if col.size >= min_samples:
+            out[i] = float(np.median(col))
+    return out
+
+
+def resolve_baseline_mm(
+    configured_mm: Sequence[float] | None,
+    estimated_mm: ArrayLike | None,
+    base_to_fabric_mm: float,
+) -> NDArray[np.float64]:
+    """RECORDING_FORMAT.md's rule: the given ``baseline_mm``; where absent, the estimate
+    from samples without contact; where there is none, ``base_to_fabric_mm``."""
+    if configured_mm is not None:
+        return np.asarray(configured_mm, dtype=np.float64).copy()
+    out = np.full(3, float(base_to_fabric_mm))
+    if estimated_mm is not None:
+        est = np.asarray(estimated_mm, dtype=np.float64)
+        out = np.where(np.isfinite(est), est, out)  # per sensor
+    return out
+
+
+# --------------------------------------------------------------------------- correction
+
+
+@dataclass(frozen=True)
+class PlaneCorrection:
+    """Indentation beyond the plane: ``depth = sum_k c_k f_k(p, x, y)`` with p the plane
+    estimate and f_k = p^a / 50^(a-1) * u^i * v^j, for a = 1..``depth_degree`` and
+    i + j <= ``xy_degree`` (u = x/50, v = y/50).
+
+    A real fabric is not a plane: it sags towards the finger, so the sensors (22-30 mm
+    away) see less than the finger's depth, by a factor that depends on where the finger
+    is and, as the fabric wraps the finger, on the depth. Every feature vanishes at
+    p = 0, so no indentation stays no indentation. Fitted by ridge least squares,
+    shrunk towards the identity (depth = p).
+    """
+
+    coef: tuple[float, ...]
+    xy_degree: int = 4
+    depth_degree: int = 2
+
+    def __post_init__(self) -> None:
+        n = self.n_coef(self.xy_degree, self.depth_degree)
+        if len(self.coef) != n:
+            raise ValueError(f"correction: expected {n} coefficients for xy degree "
+                             f"{self.xy_degree} and depth degree {self.depth_degree}, "
+                             f"got {len(self.coef)}")
+
+    @staticmethod
+    def n_coef(xy_degree: int, depth_degree: int) -> int:
+        return depth_degree * (xy_degree + 1) * (xy_degree + 2) // 2
+
+    @staticmethod
+    def features(
+        plane_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike, xy_degree: int = 4,
+        depth_degree: int = 2,
+    ) -> NDArray[np.float64]:
+        p = np.asarray(plane_mm, np.float64)
+        # Scaled to about [-1, 1] over the workspace, so the powers stay well conditioned.
+        u, v = np.asarray(x_mm, np.float64) / 50.0, np.asarray(y_mm, np.float64) / 50.0
+        cols = []
+        for a in range(1, depth_degree + 1):
+            pa = p**a / 50.0 ** (a - 1)
+            for i in range(xy_degree + 1):
+                for j in range(xy_degree + 1 - i):
+                    cols.append(pa * u**i * v**j)
+        return np.stack(cols, axis=-1)
+
+    def apply(self, plane_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike) -> NDArray[np.float64]:
+        f = self.features(plane_mm, x_mm, y_mm, self.xy_degree, self.depth_degree)
+        return f @ np.asarray(self.coef)
+
+    @classmethod
+    def identity(cls, xy_degree: int = 4, depth_degree: int = 2) -> PlaneCorrection:
+        n = cls.n_coef(xy_degree, depth_degree)
+        return cls((1.0,) + (0.0,) * (n - 1), xy_degree, depth_degree)
+
+    @classmethod
+    def fit(
+        cls, plane_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike, truth_mm: ArrayLike,
+        xy_degree: int = 4, depth_degree: int = 2, ridge: float = 1e-4,
+    ) -> PlaneCorrection:
+        """Ridge least squares of the true depth on the features (``ridge`` relative to
+        the features' mean square), so sparse or clustered data cannot run away."""
+        n = cls.n_coef(xy_degree, depth_degree)
+        f = cls.features(plane_mm, x_mm, y_mm, xy_degree, depth_degree)
+        t = np.asarray(truth_mm, np.float64)
+        ok = np.all(np.isfinite(f), axis=1) & np.isfinite(t)
+        f, t = f[ok], t[ok]
+        if t.size < 3 * n:
+            raise ValueError(f"correction: need at least {3 * n} calibration samples with "
+                             f"valid readings, got {t.size}")
+        prior = np.asarray(cls.identity(xy_degree, depth_degree).coef)
+        lam = ridge * float(np.mean(np.sum(f * f, axis=1)))
+        a = f.T @ f + lam * np.eye(n)
+        coef = np.linalg.solve(a, f.T @ t + lam * prior)
+        return cls(tuple(float(c) for c in coef), xy_degree, depth_degree)
+
+
+def rmse(a: ArrayLike, b: ArrayLike) -> float:
+    d = np.asarray(a, np.float64) - np.asarray(b, np.float64)
+    d = d[np.isfinite(d)]
+    return float(np.sqrt(np.mean(d * d))) if d.size else math.nan
+
+
+# --------------------------------------------------------------------------- estimator
+
+
+@dataclass
+class IndentationResult:
+    """Per sample: the indentation (mm, positive down; NaN when invalid), the plane's
+    estimate -delta before correction, and ``IRFlag`` bits."""
+
+    indentation_mm: NDArray[np.float64]
+    plane_mm: NDArray[np.float64]
+    flags: NDArray[np.int64]
+
+    @property
+    def valid(self) -> NDArray[np.bool_]:
+        return (self.flags & int(INVALID)) == 0
+
+
+@dataclass(frozen=True)
+class IndentationEstimator:
+    """Sensor positions, eq. (1) per sensor, rest distances and an optional correction.
+
+    ``baseline_mm`` None means "not known yet": ``with_baseline_from`` resolves it by the
+    recording format's rule; until then ``base_to_fabric_mm`` is used for all three.
+    """
+
+    sensors_mm: tuple[tuple[float, float], ...] = PAPER_SENSORS_MM
+    poly_cm: tuple[tuple[float, ...], ...] = (PAPER_POLY_CM,) * 3
+    valid_range_v: tuple[tuple[float, float], ...] = (VALID_VOLTAGE_RANGE_V,) * 3
+    base_to_fabric_mm: float = 100.0
+    baseline_mm: tuple[float, float, float] | None = None
+    correction: PlaneCorrection | None = None
+
+    def __post_init__(self) -> None:
+        plane_weights(self.sensors_mm, 0.0, 0.0)  # collinear sensors: fail now, not later
+
+    @classmethod
+    def from_config(
+        cls, config: IRConfig, sensors_mm: Sequence[Sequence[float]] | None = None,
+        baseline_mm: Sequence[float] | None = None, base_to_fabric_mm: float | None = None,
+    ) -> IndentationEstimator:
+        """From the device configuration; a recording's ``meta.json`` ``ir`` values, when
+        given, take precedence (they describe the device that made the recording)."""
+        sensors = sensors_mm if sensors_mm is not None else config.sensors_mm
+        base = baseline_mm if baseline_mm is not None else config.baseline_mm
+        return cls(
+            sensors_mm=tuple((float(x), float(y)) for x, y in sensors),
+            poly_cm=tuple(tuple(p) for p in config.poly_cm),
+            valid_range_v=tuple(tuple(r) for r in config.valid_range_v),  # type: ignore[misc]
+            base_to_fabric_mm=float(base_to_fabric_mm if base_to_fabric_mm is not None
+                                    else config.base_to_fabric_mm),
+            baseline_mm=None if base is None else tuple(float(b) for b in base),  # type: ignore[arg-type]
+            correction=PlaneCorrection(tuple(config.correction_coef), config.correction_xy_degree,
+                                       config.correction_depth_degree)
+            if config.correction_coef else None,
+        )
+
+    def distances_mm(self, volts: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+        """Eq. (1) per sensor with this device's polynomials; see ``sensor_distances_mm``."""
+        return sensor_distances_mm(volts, self.poly_cm, self.valid_range_v)
+
+    def rest_mm(self) -> NDArray[np.float64]:
+        if self.baseline_mm is not None:
+            return np.asarray(self.baseline_mm, np.float64)
+        return np.full(3, self.base_to_fabric_mm)
+
+    def with_baseline_from(
+        self, volts: ArrayLike, no_contact: ArrayLike, min_samples: int = 5,
+    ) -> IndentationEstimator:
+        """The estimator with its rest distances resolved: kept if given, else the
+        median of the samples without contact, else ``base_to_fabric_mm``."""
+        if self.baseline_mm is not None:
+            return self
+        d, _ = self.distances_mm(volts)
+        est = estimate_baseline_mm(d, no_contact, min_samples)
+        base = resolve_baseline_mm(None, est, self.base_to_fabric_mm)
+        return replace(self, baseline_mm=tuple(float(b) for b in base))
+
+    def estimate_from_distances(
+        self, distances_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike,
+        contact: ArrayLike | None = None, flags: ArrayLike | None = None,
+    ) -> IndentationResult:
+        """Indentation from distances[n, 3] (NaN = invalid) at centroids (x, y)."""
+        d = np.atleast_2d(np.asarray(distances_mm, np.float64))
+        n = d.shape[0]
+        x = np.broadcast_to(np.asarray(x_mm, np.float64), (n,))
+        y = np.broadcast_to(np.asarray(y_mm, np.float64), (n,))
+        fl = np.zeros(n, np.int64) if flags is None else np.array(flags, np.int64).reshape(n)
+        for i in range(3):
+            fl |= np.where(np.isfinite(d[:, i]), 0, int(_SENSOR_INVALID[i]))
+        touching = np.ones(n, bool) if contact is None else \
+            np.broadcast_to(np.asarray(contact, bool), (n,))
+        has_xy = np.isfinite(x) & np.isfinite(y)
+        fl |= np.where(touching & ~has_xy, int(IRFlag.NO_CENTROID), 0)
+        fl |= np.where(touching, 0, int(IRFlag.NO_CONTACT))
+        # Evaluate at (0, 0) where there is no centroid; those samples are masked below.
+        xs, ys = np.where(has_xy, x, 0.0), np.where(has_xy, y, 0.0)
+        w = plane_weights(self.sensors_mm, xs, ys)
+        fl |= np.where(has_xy & np.any(w < -1e-9, axis=1), int(IRFlag.EXTRAPOLATED), 0)
+        e = d - self.rest_mm()  # negative when the finger presses the fabric down
+        plane = -np.sum(w * e, axis=1)  # indentation = -delta
+        depth = plane if self.correction is None else self.correction.apply(plane, xs, ys)
+        bad = (fl & int(INVALID)) != 0
+        plane = np.where(bad, np.nan, plane)
+        depth = np.where(bad, np.nan, depth)
+        # Without contact the format says 0, whatever the sensors read (noise, drift).
+        depth = np.where(touching, depth, 0.0)
+        plane = np.where(touching, plane, 0.0)
+        return IndentationResult(depth, plane, fl)
+
+    def estimate(
+        self, volts: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike,
+        contact: ArrayLike | None = None,
+    ) -> IndentationResult:
+        """Vectorised: volts[n, 3] and centroids (x, y)[n] -> indentation per sample."""
+        d, flags = self.distances_mm(volts)
+        return self.estimate_from_distances(d, x_mm, y_mm, contact, flags)
+
+    def estimate_one(
+        self, volts: Sequence[float], x_mm: float, y_mm: float, contact: bool = True,
+    ) -> tuple[float, IRFlag]:
+        """Per-sample path for a live loop; the same arithmetic as ``estimate``."""
+        r = self.estimate(np.asarray(volts, np.float64).reshape(1, 3), [x_mm], [y_mm],
+                          [contact])
+        return float(r.indentation_mm[0]), IRFlag(int(r.flags[0]))
+
+
+# --------------------------------------------------------------------------- recordings
+
+
+def resample_distances_mm(
+    t_ir_s: ArrayLike, distances_mm: ArrayLike, flags: ArrayLike, t_query_s: ArrayLike,
+    max_gap_s: float = 0.1,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """IR distances at other times (video frames) by linear interpolation between the two
+    neighbouring samples. An invalid neighbour makes the result NaN (never bridged); a
+    query with no sample within ``max_gap_s`` on either side is flagged ``NO_IR``."""
+    t = np.asarray(t_ir_s, np.float64)
+    d = np.atleast_2d(np.asarray(distances_mm, np.float64))
+    fl = np.asarray(flags, np.int64)
+    q = np.asarray(t_query_s, np.float64)
+    out_fl = np.zeros(q.size, np.int64)
+    if t.size == 0:
+        return np.full((q.size, 3), np.nan), out_fl | int(IRFlag.NO_IR)
+    hi = np.clip(np.searchsorted(t, q, side="left"), 0, t.size - 1)
+    lo = np.clip(hi - 1, 0, t.size - 1)
+    exact = t[hi] == q
+    lo = np.where(exact, hi, lo)
+    span = t[hi] - t[lo]
+    frac = np.where(span > 0, (q - t[lo]) / np.where(span > 0, span, 1.0), 0.0)
+    frac = np.clip(frac, 0.0, 1.0)[:, None]
+    out = d[lo] * (1 - frac) + d[hi] * frac  # NaN in either neighbour stays NaN
+    near = (np.abs(q - t[lo]) <= max_gap_s) & (np.abs(t[hi] - q) <= max_gap_s)
+    out_fl |= np.where(near, fl[lo] | fl[hi], int(IRFlag.NO_IR))
+    out[~near] = np.nan
+    return out, out_fl
+
+
+def no_contact_mask(
+    t_ir_s: ArrayLike, t_frames_s: ArrayLike, contact: ArrayLike, margin_s: float = 0.1,
+) -> NDArray[np.bool_]:
+    """IR samples taken surely without contact: at least one frame within ``margin_s``
+    and no contact in any of them (a finger landing or lifting is kept out)."""
+    t = np.asarray(t_ir_s, np.float64)
+    tf = np.asarray(t_frames_s, np.float64)
+    c = np.asarray(contact, bool)
+    order = np.argsort(tf, kind="stable")
+    tf, c = tf[order], c[order]
+    csum = np.concatenate([[0], np.cumsum(c)])
+    a = np.searchsorted(tf, t - margin_s, side="left")
+    b = np.searchsorted(tf, t + margin_s, side="right")
+    return (b > a) & (csum[b] - csum[a] == 0)
+
+
+def indentation_at_frames(
+    estimator: IndentationEstimator,
+    t_ir_s: ArrayLike, volts: ArrayLike,
+    t_frames_s: ArrayLike, contact: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike,
+    max_gap_s: float = 0.1,
+) -> tuple[IndentationResult, IndentationEstimator]:
+    """What ``fydpad track`` needs: the indentation at each video frame of a recording
+    from its ``ir.csv`` samples and the tracked centroids.
+
+    Rest distances are resolved first (given, else from the IR samples away from any
+    contact frame, else ``base_to_fabric_mm``); returns the result and the estimator
+    actually used (with its baseline), so the caller can report it.
+    """
+    est = estimator.with_baseline_from(volts, no_contact_mask(t_ir_s, t_frames_s, contact))
+    d, flags = est.distances_mm(volts)
+    d_f, fl_f = resample_distances_mm(t_ir_s, d, flags, t_frames_s, max_gap_s)
+    return est.estimate_from_distances(d_f, x_mm, y_mm, contact, fl_f), est
+
+
+# --------------------------------------------------------------------------- eq. (1) refit
+
+
+class IRCalibrationError(ValueError):
+    """(distance, voltage) pairs too few or degenerate for a fit; the message says why."""
+
+
+@dataclass
+class IRFit:
+    """One sensor's refitted eq. (1): polynomial in cm (highest power first), its R^2 on
+    distance, the RMS residual in mm and the voltage range it was fitted over (its
+    valid range: a fit is not trusted beyond its data)."""
+
+    poly_cm: tuple[float, ...]
+    r2: float
+    rms_mm: float
+    valid_range_v: tuple[float, float]
+    n_points: int
+    monotonic: bool
+
+
+def fit_ir_polynomial(
+    distance_mm: ArrayLike, voltage_v: ArrayLike, degree: int = 5,
+) -> IRFit:
+    """Least-squares fit of distance (cm, as eq. (1)) on voltage, 5th order by default.
+
+    Needs at least ``degree + 3`` points over ``degree + 1`` distinct voltages spanning
+    at least 0.2 V, and distance falling as voltage rises (the Sharp sensor's curve).
+    ``monotonic`` says whether the fit falls over its whole range; where it does not,
+    two distances read alike and the calibration should be redone with more points.
+    """
+    d = np.asarray(distance_mm, np.float64)
+    v = np.asarray(voltage_v, np.float64)
+    ok = np.isfinite(d) & np.isfinite(v)
+    d, v = d[ok], v[ok]
+    if d.size < degree + 3:
+        raise IRCalibrationError(f"{d.size} points, need at least {degree + 3} for a "
+                                 f"degree-{degree} fit")
+    if np.any(d <= 0):
+        raise IRCalibrationError("distances must be positive (mm)")
+    if np.ptp(v) < 0.2 or np.unique(v).size < degree + 1:
+        raise IRCalibrationError(
+            f"voltage nearly constant ({v.min():.3f}-{v.max():.3f} V over {np.unique(v).size} "
+            f"distinct values): sensor disconnected or the target did not move?")
+    if np.corrcoef(v, d)[0, 1] >= 0:
+        raise IRCalibrationError("voltage rises with distance: a Sharp sensor's falls "
+                                 "(columns swapped?)")
+    poly = np.polyfit(v, d / 10.0, degree)
+    resid_mm = d - np.polyval(poly, v) * 10.0
+    ss_tot = float(np.sum((d - d.mean()) ** 2))
+    r2 = 1.0 - float(np.sum(resid_mm**2)) / ss_tot
+    grid = np.linspace(v.min(), v.max(), 512)
+    monotonic = bool(np.all(np.polyval(np.polyder(poly), grid) <= 0))
+    return IRFit(
+        poly_cm=tuple(float(c) for c in poly), r2=r2,
+        rms_mm=float(np.sqrt(np.mean(resid_mm**2))),
+        valid_range_v=(float(v.min()), float(v.max())), n_points=int(d.size),
+        monotonic=monotonic,
+    )

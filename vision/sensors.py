@@ -1,0 +1,428 @@
+"""IR distance sensors and load cell behind two small Protocols, with backends: the
+serial sensor board (pyserial; docs/sensor_board_protocol.md), replay from a
+recording's ``ir.csv``/``force.csv``, and (elsewhere) the synthetic pad.
+
+``read()`` returns the next sample in time order, blocking until it arrives; it
+returns None when the source has ended (a replay or a simulation ran out) and raises
+``SensorError`` naming the device when a live device is missing, unplugged or silent
+for longer than its timeout. A live source never hangs and never crashes on bad bytes:
+malformed lines are counted in ``stats`` and skipped.
+"""
+
+from __future__ import annotations
+
+import collections
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from vision.config import ForceConfig, IRConfig
+from vision.force import raw_to_force, saturation_flags
+from vision.recording import PadRecording
+
+
+class SensorError(RuntimeError):
+    """A sensor device is missing, disconnected or silent; the message names it."""
+
+
+@dataclass(frozen=True, slots=True)
+class IRSample:
+    """The three IR sensors' voltages at ``t_s``; ``valid[i]`` is False where volts[i]
+    is outside the sensor's valid range (the indentation then is not computed)."""
+
+    t_s: float
+    volts: tuple[float, float, float]
+    valid: tuple[bool, bool, bool]
+
+
+@dataclass(frozen=True, slots=True)
+class ForceSample:
+    """Load cell force at ``t_s`` in N; ``raw`` the ADC counts when known."""
+
+    t_s: float
+    force_n: float
+    saturated: bool
+    raw: float | None = None
+
+
+@runtime_checkable
+class IRSource(Protocol):
+    """Anything giving the IR triple: serial board, replay, synthetic pad."""
+
+    def read(self) -> IRSample | None:
+        """The next sample (blocking); None when the source has ended."""
+        ...
+
+    def close(self) -> None: ...
+
+
+@runtime_checkable
+class ForceSource(Protocol):
+    """Anything giving the load cell force: serial board, replay, synthetic pad."""
+
+    def read(self) -> ForceSample | None:
+        """The next sample (blocking); None when the source has ended."""
+        ...
+
+    def close(self) -> None: ...
+
+
+def ir_valid_flags(
+    volts: Sequence[float], valid_range_v: Sequence[tuple[float, float]],
+) -> tuple[bool, bool, bool]:
+    """Per sensor: inside its valid range (eq. (1) is not extrapolated); NaN is invalid."""
+    return tuple(bool(lo <= v <= hi) for v, (lo, hi) in zip(volts, valid_range_v,
+                                                            strict=True))  # type: ignore[return-value]
+
+
+# --------------------------------------------------------------------------- replay
+
+
+class ReplayIR:
+    """IR samples from arrays or a recording's ``ir.csv``, in order, as fast as read."""
+
+    def __init__(self, t_s: ArrayLike, volts: ArrayLike, config: IRConfig | None = None):
+        self._t = np.asarray(t_s, np.float64)
+        self._v = np.asarray(volts, np.float64).reshape(-1, 3)
+        self._ranges = (config or IRConfig()).valid_range_v
+        self._k = 0
+
+    @classmethod
+    def from_recording(cls, recording: PadRecording, config: IRConfig | None = None) -> ReplayIR:
+        data = recording.read_ir()
+        if data is None:
+            raise SensorError(f"{recording.path / 'ir.csv'}: missing (no IR sensor data)")
+        return cls(data[0], data[1], config)
+
+    def read(self) -> IRSample | None:
+        if self._k >= self._t.size:
+            return None
+        v = tuple(float(x) for x in self._v[self._k])
+        s = IRSample(float(self._t[self._k]), v, ir_valid_flags(v, self._ranges))  # type: ignore[arg-type]
+        self._k += 1
+        return s
+
+    def close(self) -> None:
+        self._k = self._t.size
+
+
+class ReplayForce:
+    """Force samples from arrays or a recording's ``force.csv`` (already in N)."""
+
+    def __init__(self, t_s: ArrayLike, force_n: ArrayLike, config: ForceConfig | None = None):
+        self._t = np.asarray(t_s, np.float64)
+        self._f = np.asarray(force_n, np.float64)
+        self._sat = saturation_flags(self._f, None, config)
+        self._k = 0
+
+    @classmethod
+    def from_recording(cls, recording: PadRecording,
+                       config: ForceConfig | None = None) -> ReplayForce:
+        data = recording.read_force()
+        if data is None:
+            raise SensorError(f"{recording.path / 'force.csv'}: missing (no load cell data)")
+        return cls(data[0], data[1], config)
+
+    def read(self) -> ForceSample | None:
+        if self._k >= self._t.size:
+            return None
+        k = self._k
+        self._k += 1
+        return ForceSample(float(self._t[k]), float(self._f[k]), bool(self._sat[k]))
+
+    def close(self) -> None:
+        self._k = self._t.size
+
+
+# --------------------------------------------------------------------------- board protocol
+
+PROTOCOL_VERSION = 1
+BOARD_NAME = "FYDPAD-BOARD"
+#: Longest line the board sends is about 50 bytes; beyond this it is garbage.
+MAX_LINE_BYTES = 128
+
+
+def checksum(payload: bytes) -> int:
+    """XOR of the bytes between '$' and '*' (as NMEA 0183), two hex digits on the wire."""
+    c = 0
+    for b in payload:
+        c ^= b
+    return c
+
+
+def frame_line(payload: str) -> bytes:
+    """``$payload*HH\\n`` for a payload such as ``D,1234,512,498,530,-1022``."""
+    body = payload.encode("ascii")
+    return b"$" + body + b"*" + f"{checksum(body):02X}".encode("ascii") + b"\n"
+
+
+def data_line(t_ms: int, v_raw: Sequence[int], force_raw: int | None) -> bytes:
+    f = "" if force_raw is None else str(int(force_raw))
+    return frame_line(f"D,{int(t_ms) % 2**32},{int(v_raw[0])},{int(v_raw[1])},"
+                      f"{int(v_raw[2])},{f}")
+
+
+def hello_line(rate_hz: float, adc_bits: int, vref_mv: int) -> bytes:
+    return frame_line(f"H,{BOARD_NAME},{PROTOCOL_VERSION},{rate_hz:g},{adc_bits},{vref_mv}")
+
+
+@dataclass(frozen=True)
+class BoardInfo:
+    """From the board's hello line."""
+
+    name: str
+    version: int
+    rate_hz: float
+    adc_bits: int
+    vref_v: float
+
+
+@dataclass(frozen=True)
+class DataLine:
+    t_ms: int
+    v_raw: tuple[int, int, int]
+    force_raw: int | None
+
+
+class LineError(ValueError):
+    """A line that is not a valid board line; the message says why."""
+
+
+def parse_line(line: bytes, adc_bits: int = 10) -> DataLine | BoardInfo:
+    """One line (without the newline) -> DataLine or BoardInfo, or LineError."""
+    line = line.rstrip(b"\r")
+    start = line.rfind(b"$")  # a line cut short and followed by a good one: resync
+    if start < 0:
+        raise LineError("no '$'")
+    line = line[start:]
+    star = line.rfind(b"*")
+    if star < 0 or len(line) != star + 3:
+        raise LineError("no '*HH' checksum at the end")
+    body = line[1:star]
+    try:
+        expected = int(line[star + 1:], 16)
+    except ValueError:
+        raise LineError("checksum is not two hex digits") from None
+    if checksum(body) != expected:
+        raise ChecksumError("checksum mismatch")
+    try:
+        fields = body.decode("ascii").split(",")
+    except UnicodeDecodeError:
+        raise LineError("non-ASCII bytes") from None
+    try:
+        if fields[0] == "D" and len(fields) == 6:
+            v = (int(fields[2]), int(fields[3]), int(fields[4]))
+            if not all(0 <= x < 2**adc_bits for x in v):
+                raise LineError(f"ADC value out of 0..{2**adc_bits - 1}")
+            force = None if fields[5] == "" else int(fields[5])
+            return DataLine(int(fields[1]), v, force)  # type: ignore[arg-type]
+        if fields[0] == "H" and len(fields) == 6:
+            return BoardInfo(fields[1], int(fields[2]), float(fields[3]), int(fields[4]),
+                             int(fields[5]) / 1000.0)
+    except ValueError:
+        raise LineError("a field is not a number") from None
+    raise LineError(f"unknown line type or field count ({fields[0][:8]!r}, {len(fields)})")
+
+
+class ChecksumError(LineError):
+    """The checksum does not match (a corrupted line)."""
+
+
+@dataclass
+class BoardStats:
+    """What the reader saw: good data lines, and bad ones counted and skipped."""
+
+    lines_ok: int = 0
+    hello: int = 0
+    bad_checksum: int = 0
+    malformed: int = 0
+    overlong: int = 0
+    board_resets: int = 0
+    last_error: str = ""
+
+
+class _Clock:
+    """Board milliseconds -> seconds from the first sample: unwraps the 32-bit counter
+    and keeps time going forward across a board reset (its counter restarts)."""
+
+    def __init__(self) -> None:
+        self._last: int | None = None
+        self._offset_ms = 0
+        self._t0_ms: int | None = None
+        self.resets = 0
+
+    def seconds(self, t_ms: int, period_ms: float) -> float:
+        if self._last is not None and t_ms < self._last:
+            if self._last - t_ms > 2**31:
+                self._offset_ms += 2**32  # the counter wrapped (after 49.7 days)
+            else:
+                # The board restarted its counter: continue one period after the last.
+                self._offset_ms += self._last - t_ms + round(period_ms)
+                self.resets += 1
+        self._last = t_ms
+        t = t_ms + self._offset_ms
+        if self._t0_ms is None:
+            self._t0_ms = t
+        return (t - self._t0_ms) / 1000.0
+
+
+@dataclass
+class _Queues:
+    ir: collections.deque[IRSample] = field(default_factory=lambda: collections.deque(maxlen=1024))
+    force: collections.deque[ForceSample] = field(
+        default_factory=lambda: collections.deque(maxlen=1024))
+
+
+class SerialBoard:
+    """The microcontroller ADC board on a serial port (docs/sensor_board_protocol.md).
+
+    One line carries both IR and force, so the board is one reader with two views,
+    ``board.ir`` (an IRSource) and ``board.force`` (a ForceSource); each view returns
+    its samples in order, reading the port when it has none queued. Thread-safe: the
+    IR and force loops may each read their view.
+    """
+
+    def __init__(
+        self, port: str, baud: int = 115200, ir_config: IRConfig | None = None,
+        force_config: ForceConfig | None = None, timeout_s: float = 1.0,
+        serial_factory: Callable[..., Any] | None = None,
+    ):
+        import serial  # pyserial; imported here so replay works without it
+
+        self.port = port
+        self.timeout_s = float(timeout_s)
+        self.ir_config = ir_config or IRConfig()
+        self.force_config = force_config or ForceConfig()
+        self.adc_bits = self.ir_config.adc_bits
+        self.vref_v = self.ir_config.adc_vref_v
+        self.info: BoardInfo | None = None
+        self.stats = BoardStats()
+        self._serial_errors: tuple[type[BaseException], ...] = (serial.SerialException, OSError)
+        self._clock = _Clock()
+        self._buf = bytearray()
+        self._queues = _Queues()
+        self._lock = threading.Lock()
+        factory = serial_factory or serial.Serial
+        try:
+            self._ser = factory(port, baud, timeout=0.05, write_timeout=0.5)
+        except (serial.SerialException, OSError, ValueError) as exc:
+            raise SensorError(f"{port}: cannot open the sensor board ({exc})") from None
+        try:
+            self._ser.reset_input_buffer()  # stale bytes from before we opened
+            self._ser.write(b"?\n")  # ask for the hello line (adc bits, vref, rate)
+        except self._serial_errors as exc:
+            self._ser.close()
+            raise SensorError(f"{port}: sensor board not responding ({exc})") from None
+        self.ir: IRSource = _View(self, "ir")
+        self.force: ForceSource = _View(self, "force")
+
+    # The views call this with the lock held.
+    def _next(self, kind: str) -> IRSample | ForceSample:
+        q: collections.deque[Any] = getattr(self._queues, kind)
+        while not q:
+            self._read_one_data_line()
+        return q.popleft()
+
+    def _read_one_data_line(self) -> None:
+        deadline = time.monotonic() + self.timeout_s
+        while True:
+            nl = self._buf.find(b"\n")
+            if nl >= 0:
+                line = bytes(self._buf[:nl])
+                del self._buf[:nl + 1]
+                if self._handle(line):
+                    return
+                continue
+            if len(self._buf) > MAX_LINE_BYTES:
+                # No newline in sight: drop all but a trailing line start, if any.
+                self.stats.overlong += 1
+                start = self._buf.rfind(b"$")
+                del self._buf[:start if start > 0 else len(self._buf)]
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                bad = self.stats.bad_checksum + self.stats.malformed + self.stats.overlong
+                raise SensorError(
+                    f"{self.port}: no valid data from the sensor board for {self.timeout_s:g} s "
+                    f"({bad} bad lines so far; is it powered and sending?)")
+            try:
+                # The port's own timeout (50 ms, set at open) bounds this wait; changing
+                # it here would reconfigure the port on every read.
+                chunk = self._ser.read(max(1, min(self._ser.in_waiting, 4096)))
+            except self._serial_errors as exc:
+                raise SensorError(f"{self.port}: sensor board disconnected ({exc})") from None
+            self._buf += chunk
+
+    def _handle(self, line: bytes) -> bool:
+        """Parse one line; queue its samples. True for a data line."""
+        if not line.strip():
+            return False
+        if line.rfind(b"$") > 0:
+            # A line cut short and run into the next: the fragment is lost, count it.
+            self.stats.malformed += 1
+        try:
+            parsed = parse_line(line, self.adc_bits)
+        except ChecksumError as exc:
+            self.stats.bad_checksum += 1
+            self.stats.last_error = str(exc)
+            return False
+        except LineError as exc:
+            self.stats.malformed += 1
+            self.stats.last_error = f"{exc}: {line[:40]!r}"
+            return False
+        if isinstance(parsed, BoardInfo):
+            self.info = parsed
+            self.adc_bits, self.vref_v = parsed.adc_bits, parsed.vref_v
+            self.stats.hello += 1
+            return False
+        self.stats.lines_ok += 1
+        t_s = self._clock.seconds(parsed.t_ms, 1000.0 / self.ir_config.rate_hz)
+        self.stats.board_resets = self._clock.resets
+        scale = self.vref_v / 2**self.adc_bits  # Arduino convention: V = raw * Vref / 2^bits
+        volts = tuple(r * scale for r in parsed.v_raw)
+        valid = ir_valid_flags(volts, self.ir_config.valid_range_v)
+        self._queues.ir.append(IRSample(t_s, volts, valid))  # type: ignore[arg-type]
+        if parsed.force_raw is not None:
+            fr = raw_to_force(parsed.force_raw, self.force_config)
+            self._queues.force.append(ForceSample(t_s, float(fr.force_n), bool(fr.saturated),
+                                                  float(parsed.force_raw)))
+        return True
+
+    def close(self) -> None:
+        try:
+            self._ser.close()
+        except self._serial_errors:
+            pass
+
+    def __enter__(self) -> SerialBoard:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class _View:
+    """One kind of sample (IR or force) from a SerialBoard."""
+
+    def __init__(self, board: SerialBoard, kind: str):
+        self._board = board
+        self._kind = kind
+
+    def read(self) -> Any:
+        with self._board._lock:
+            return self._board._next(self._kind)
+
+    def close(self) -> None:
+        self._board.close()
+
+
+def volts_array(samples: Sequence[IRSample]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(t_s[n], volts[n, 3]) from a list of samples, invalid voltages as NaN."""
+    t = np.array([s.t_s for s in samples], np.float64)
+    v = np.array([[x if ok else np.nan for x, ok in zip(s.volts, s.valid, strict=True)]
+                  for s in samples], np.float64).reshape(-1, 3)
+    return t, v
