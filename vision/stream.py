@@ -32,6 +32,29 @@ class TrackedFrame:
     state: FingerState
 
 
+class FingerStateBuilder:
+    """Contact, indentation and force of one frame into a :class:`FingerState`, with the
+    speed differentiated from the centroid stream (paper III-B, 10 Hz low-pass)."""
+
+    def __init__(self, cutoff_hz: float = 10.0):
+        self.cutoff_hz = cutoff_hz
+        self._speed = SpeedState()
+
+    def build(
+        self, t_s: float, contact: Contact | None, indentation_mm: float = math.nan,
+        force_n: float = math.nan,
+    ) -> FingerState:
+        if contact is None:
+            _, self._speed = speed_update(self._speed, t_s, math.nan, math.nan, False,
+                                          self.cutoff_hz)
+            # Without contact the indentation is 0 wherever it is measured at all.
+            ind = 0.0 if math.isfinite(indentation_mm) else math.nan
+            return FingerState(t_s, False, indentation_mm=ind, speed_mm_s=0.0, force_n=force_n)
+        v, self._speed = speed_update(self._speed, t_s, contact.x_mm, contact.y_mm, True,
+                                      self.cutoff_hz)
+        return FingerState(t_s, True, contact.x_mm, contact.y_mm, indentation_mm, v, force_n)
+
+
 class CausalIndentation:
     """Indentation at each frame from the IR samples up to that frame.
 
@@ -86,7 +109,7 @@ def finger_states(
     indentation = (CausalIndentation(recording_estimator(rec, ir_config), *ir)
                    if ir is not None else None)
     force = rec.read_force()
-    speed = SpeedState()
+    builder = FingerStateBuilder()
     frames = source if source is not None else VideoSource(rec).frames()
     for frame in frames:
         force_n = math.nan
@@ -94,14 +117,16 @@ def finger_states(
             i = int(np.searchsorted(force[0], frame.t_s, side="right")) - 1
             force_n = float(force[1][i]) if i >= 0 else math.nan
         contact = tracker.process(frame.image)
-        if contact is None:
-            _, speed = speed_update(speed, frame.t_s, math.nan, math.nan, False)
-            ind = 0.0 if indentation is not None else math.nan
-            state = FingerState(frame.t_s, False, indentation_mm=ind, speed_mm_s=0.0,
-                                force_n=force_n)
-        else:
-            v, speed = speed_update(speed, frame.t_s, contact.x_mm, contact.y_mm, True)
+        ind = math.nan
+        if indentation is not None:
             ind = (indentation.at(frame.t_s, contact.x_mm, contact.y_mm, True)
-                   if indentation is not None else math.nan)
-            state = FingerState(frame.t_s, True, contact.x_mm, contact.y_mm, ind, v, force_n)
-        yield TrackedFrame(frame, contact, state)
+                   if contact is not None else 0.0)
+        yield TrackedFrame(frame, contact, builder.build(frame.t_s, contact, ind, force_n))
+
+
+def live_states(frames: Iterator[Frame], tracker: ContactTracker) -> Iterator[TrackedFrame]:
+    """The finger states of a camera without sensors: position and speed only."""
+    builder = FingerStateBuilder()
+    for frame in frames:
+        contact = tracker.process(frame.image)
+        yield TrackedFrame(frame, contact, builder.build(frame.t_s, contact))

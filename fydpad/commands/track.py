@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from collections.abc import Iterator
 from dataclasses import replace
@@ -24,9 +23,7 @@ from vision.evaluation import score_tracking
 from vision.mapping import workspace_to_roi
 from vision.recording import PadRecording, TrackWriter
 from vision.sources import CameraConfig, CameraSource, FrameSource, SourceError, VideoSource
-from vision.speed import SpeedState, speed_update
-from vision.state import FingerState
-from vision.stream import TrackedFrame, finger_states
+from vision.stream import TrackedFrame, finger_states, live_states
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -100,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
     if args.max_frames is not None:
         total = min(total or args.max_frames, args.max_frames)
     stream = (finger_states(recording, tracker, config.ir, source.frames())
-              if recording is not None else live_states(source, tracker))
+              if recording is not None else live_states(source.frames(), tracker))
     n_written = track_to_csv(
         stream, source, tracker, Path(args.out), total=total, video=args.video, truth=truth,
         max_frames=args.max_frames,
@@ -131,20 +128,6 @@ def make_tracker(
         threshold=cfg.threshold, beta=cfg.beta, processing_size=cfg.processing_size,
         robust=cfg.robust, calibration=calibration,
     )
-
-
-def live_states(source: FrameSource, tracker: ContactTracker) -> Iterator[TrackedFrame]:
-    """The finger states of a live camera without sensors: position and speed only."""
-    speed = SpeedState()
-    for frame in source.frames():
-        contact = tracker.process(frame.image)
-        if contact is None:
-            _, speed = speed_update(speed, frame.t_s, math.nan, math.nan, False)
-            yield TrackedFrame(frame, None, FingerState(frame.t_s, False, speed_mm_s=0.0))
-        else:
-            v, speed = speed_update(speed, frame.t_s, contact.x_mm, contact.y_mm, True)
-            yield TrackedFrame(frame, contact, FingerState(frame.t_s, True, contact.x_mm,
-                                                           contact.y_mm, speed_mm_s=v))
 
 
 def track_to_csv(

@@ -30,8 +30,8 @@ from fydpad.station.shared import SharedFingerState, SharedRecord
 from vision.contact import ContactTracker
 from vision.recording import PadMeta, PadRecordingWriter, TrackWriter
 from vision.sources import FrameSource
-from vision.speed import SpeedState, speed_update
 from vision.state import FingerState
+from vision.stream import FingerStateBuilder
 
 
 class StationFault(RuntimeError):
@@ -136,7 +136,7 @@ class Station:
                                   "frame_size": self.source.frame_size})
                 writer = PadRecordingWriter(rec, meta) if opts.record_video else None
                 track = TrackWriter(rec / "track.csv")
-            speed = SpeedState()
+            builder = FingerStateBuilder()
             timer.start(at=t0)
             for frame in self.source.frames():
                 if self.stop_event.is_set():
@@ -147,16 +147,12 @@ class Station:
                     arrival = timer.mark()
                 contact = self.tracker.process(frame.image)
                 s = self.latest
-                if contact is None:
-                    _, speed = speed_update(speed, frame.t_s, math.nan, math.nan, False)
-                    state = FingerState.no_contact(frame.t_s, force_n=s.force_n)
-                else:
-                    v, speed = speed_update(speed, frame.t_s, contact.x_mm, contact.y_mm, True)
+                ind = math.nan
+                if self.indentation is not None:
                     ind = (self.indentation(s, contact.x_mm, contact.y_mm)
-                           if self.indentation is not None else math.nan)
-                    state = FingerState(frame.t_s, True, contact.x_mm, contact.y_mm, ind, v,
-                                        s.force_n)
-                    self.contact_frames += 1
+                           if contact is not None else 0.0)
+                state = builder.build(frame.t_s, contact, ind, s.force_n)
+                self.contact_frames += state.contact
                 self.shared.publish(state, arrival, frame.index)
                 self.last_state = state
                 self.frames += 1
