@@ -13,6 +13,7 @@ import numpy as np
 
 from fydpad.config import StationConfig, load_config, save_config
 from fydpad.errors import UserError
+from fydpad.opening import open_source
 from fydpad.progress import progress
 from vision.calibration import (
     CalibrationError,
@@ -25,8 +26,7 @@ from vision.calibration import (
     raw_undistorted_point,
 )
 from vision.contact import ContactTracker
-from vision.recording import PadRecording
-from vision.sources import CameraSource, FrameSource, SourceError, VideoSource
+from vision.sources import CameraSource, FrameSource, SourceError
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 
@@ -147,26 +147,17 @@ def run_camera(args: argparse.Namespace) -> int:
 
 def run_workspace(args: argparse.Namespace) -> int:
     config = load_config(args.config)
-    if (args.recdir is None) == (args.camera is None):
-        raise UserError("give either a recording RECDIR of the presses or --camera N")
+    opened = open_source(config, args.recdir, args.camera)
+    m = opened.meta
+    # The recording's geometry (or the camera's configuration) is the one calibrated.
+    camera = opened.camera or replace(config.camera, roi_px=m.roi_px,
+                                      workspace_mm=m.workspace_mm, image_flip=m.image_flip)
     try:
-        targets = default_targets_mm(config.camera.workspace_mm, args.points)
+        targets = default_targets_mm(m.workspace_mm, args.points)
     except CalibrationError as exc:
         raise UserError(f"--points: {exc}") from None
-    source: FrameSource
-    if args.recdir is not None:
-        rec = PadRecording(args.recdir)
-        source = VideoSource(rec)
-        camera = replace(config.camera, roi_px=rec.meta.roi_px,
-                         workspace_mm=rec.meta.workspace_mm, image_flip=rec.meta.image_flip)
-        total = rec.frame_count
-    else:
-        camera = replace(config.camera, device=str(args.camera))
-        try:
-            source = CameraSource(camera)
-        except SourceError as exc:
-            raise UserError(str(exc)) from None
-        total = None
+    source, total = opened.source, opened.total_frames
+    if opened.camera is not None:
         print("keep the fabric clear for a second, then press each point in turn, holding "
               "still for about a second:")
         for i, (x, y) in enumerate(targets):

@@ -8,17 +8,15 @@ import math
 import os
 import signal
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 from fydpad.cli import add_config_argument
 from fydpad.commands.track import make_tracker
 from fydpad.config import load_config
 from fydpad.errors import UserError
+from fydpad.opening import open_source
 from fydpad.station.render import RenderSpec
 from fydpad.station.station import SensorFeed, Station, StationFault, StationOptions
-from vision.recording import PadMeta, PadRecording
-from vision.sources import CameraSource, SourceError, VideoSource
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -90,24 +88,11 @@ def _status_printer():
 
 def run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
-    if args.replay:
-        rec = PadRecording(args.replay)
-        source = VideoSource(rec)
-        meta = rec.meta
-        sensors = SensorFeed(rec.read_ir(), rec.read_force())
-        camera = None
-    else:
-        cam = replace(config.camera, device=str(args.camera))
-        try:
-            source = CameraSource(cam)
-        except SourceError as exc:
-            raise UserError(str(exc)) from None
-        meta = PadMeta(roi_px=cam.roi_px, workspace_mm=cam.workspace_mm, fps=source.fps,
-                       frame_size=source.frame_size, image_flip=cam.image_flip)
-        sensors = None
-        camera = cam
+    opened = open_source(config, args.replay, args.camera)
+    source, meta, rec = opened.source, opened.meta, opened.recording
+    sensors = SensorFeed(rec.read_ir(), rec.read_force()) if rec is not None else None
     tracker = make_tracker(config.tracker, meta.roi_px, meta.workspace_mm, meta.image_flip,
-                           camera)
+                           opened.camera)
     if args.record:
         Path(args.record).mkdir(parents=True, exist_ok=True)
     render = RenderSpec(

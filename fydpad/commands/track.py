@@ -15,14 +15,15 @@ from fydpad.annotate import AnnotatedVideoWriter, annotate_frame
 from fydpad.cli import add_config_argument
 from fydpad.config import load_config
 from fydpad.errors import UserError
+from fydpad.opening import open_source
 from fydpad.plots import plot_track
 from fydpad.progress import progress
 from vision.calibration import CalibratedMapping
 from vision.contact import METHODS, ContactTracker, TrackerConfig
 from vision.evaluation import score_tracking
 from vision.mapping import workspace_to_roi
-from vision.recording import PadRecording, TrackWriter
-from vision.sources import CameraConfig, CameraSource, FrameSource, SourceError, VideoSource
+from vision.recording import TrackWriter
+from vision.sources import CameraConfig, FrameSource, SourceError
 from vision.stream import TrackedFrame, finger_states, live_states
 
 
@@ -66,28 +67,11 @@ def run(args: argparse.Namespace) -> int:
         tracker_config = replace(tracker_config, **overrides)
     except ValueError as exc:
         raise UserError(str(exc)) from None
-    if (args.recdir is None) == (args.camera is None):
-        raise UserError("give either a recording directory RECDIR or --camera N")
-
-    recording: PadRecording | None = None
-    source: FrameSource
-    if args.recdir is not None:
-        recording = PadRecording(args.recdir)
-        source = VideoSource(recording)
-        roi_px, workspace_mm, image_flip = (
-            recording.meta.roi_px, recording.meta.workspace_mm, recording.meta.image_flip,
-        )
-        total = recording.frame_count or None
-    else:
-        cam = replace(config.camera, device=str(args.camera))
-        try:
-            source = CameraSource(cam)
-        except SourceError as exc:
-            raise UserError(str(exc)) from None
-        roi_px, workspace_mm, image_flip = cam.roi_px, cam.workspace_mm, cam.image_flip
-        total = None
+    opened = open_source(config, args.recdir, args.camera)
+    source, recording, m = opened.source, opened.recording, opened.meta
+    total = opened.total_frames
     use_calibration = args.camera is not None or args.calibrated
-    tracker = make_tracker(tracker_config, roi_px, workspace_mm, image_flip,
+    tracker = make_tracker(tracker_config, m.roi_px, m.workspace_mm, m.image_flip,
                            config.camera if use_calibration else None)
     if args.calibrated and config.camera.workspace_homography is None:
         raise UserError("--calibrated: the configuration has no [camera.workspace_homography] "
@@ -104,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
     )
     summary = summarise(Path(args.out), truth, n_written, tracker)
     if args.plot:
-        _plot(Path(args.plot), Path(args.out), workspace_mm, truth, str(source))
+        _plot(Path(args.plot), Path(args.out), m.workspace_mm, truth, str(source))
     print(format_summary(summary))
     if args.json:
         Path(args.json).write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
