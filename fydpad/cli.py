@@ -13,7 +13,7 @@ from fydpad.errors import UserError
 from vision.recording import RecordingError
 
 #: Subcommand modules, in the order ``--help`` lists them.
-COMMANDS = ("demo", "track", "run", "synth", "config")
+COMMANDS = ("demo", "track", "run", "synth", "calibrate", "config")
 
 
 def add_config_argument(parser: argparse.ArgumentParser) -> None:

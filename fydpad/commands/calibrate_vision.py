@@ -11,6 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from fydpad.cli import add_config_argument
 from fydpad.config import StationConfig, load_config, save_config
 from fydpad.errors import UserError
 from fydpad.opening import open_source
@@ -55,6 +56,7 @@ def register_camera(sub: argparse._SubParsersAction) -> None:
                    help="from a video, use every N-th frame (default: %(default)s)")
     p.add_argument("--out", metavar="TOML", required=True,
                    help="configuration file to write (the --config file updated, or new)")
+    add_config_argument(p)
     p.set_defaults(func=run_camera)
 
 
@@ -78,6 +80,7 @@ def register_workspace(sub: argparse._SubParsersAction) -> None:
                    help="shortest press that counts (default: %(default)s s)")
     p.add_argument("--out", metavar="TOML", required=True,
                    help="configuration file to write (the --config file updated, or new)")
+    add_config_argument(p)
     p.set_defaults(func=run_workspace)
 
 
