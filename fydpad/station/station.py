@@ -26,6 +26,7 @@ import numpy as np
 
 from fydpad.pacing import LoopTimer
 from fydpad.station.render import CONTROL_FIELDS, RenderSpec, render_main
+from fydpad.station.snapshot import Snapshot, View
 from fydpad.station.shared import SharedFingerState, SharedRecord
 from vision.contact import ContactTracker
 from vision.recording import PadMeta, PadRecordingWriter, TrackWriter
@@ -122,6 +123,8 @@ class Station:
         self.frames = 0
         self.contact_frames = 0
         self.last_state: FingerState | None = None
+        #: The latest frame, contact and state, for the web view and the status line.
+        self.snapshot = Snapshot()
 
     # -- loops ------------------------------------------------------------------
 
@@ -154,6 +157,7 @@ class Station:
                 state = builder.build(frame.t_s, contact, ind, s.force_n)
                 self.contact_frames += state.contact
                 self.shared.publish(state, arrival, frame.index)
+                self.snapshot.publish(View(frame.index, frame.image, contact, state))
                 self.last_state = state
                 self.frames += 1
                 if opts.teleop_send is not None:
