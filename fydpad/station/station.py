@@ -26,8 +26,8 @@ import numpy as np
 
 from fydpad.pacing import LoopTimer
 from fydpad.station.render import CONTROL_FIELDS, RenderSpec, render_main
-from fydpad.station.snapshot import Snapshot, View
 from fydpad.station.shared import SharedFingerState, SharedRecord
+from fydpad.station.snapshot import Snapshot, View
 from vision.contact import ContactTracker
 from vision.recording import PadMeta, PadRecordingWriter, TrackWriter
 from vision.sources import FrameSource
