@@ -113,6 +113,11 @@ class LoopTimer:
         self._record(0.0)
         return self._last
 
+    def stats_due(self, every_ticks: int | None = None) -> bool:
+        """True once every ``every_ticks`` ticks (default: once a second)."""
+        n = every_ticks or max(1, round(self.rate_hz))
+        return self._ticks % n == 0 and self._ticks > 0
+
     def _record(self, late_s: float) -> None:
         self._ticks += 1
         if late_s <= self.on_time_s:

@@ -136,6 +136,10 @@ def render_main(
                     last_seq = seq
                 if log is not None:
                     log.write(tick_time - t0, int(v[8]), *out)
+            if timer.stats_due():
+                # Once a second: the live figures for the status line and the web view.
+                results.put(("live", {"render": timer.stats().as_dict(),
+                                      "frame_to_command_ms": latency.percentiles_ms()}))
     except BaseException as exc:
         results.put(("fault", f"render loop: {exc!r}\n{traceback.format_exc()}"))
     finally:

@@ -120,6 +120,8 @@ class Station:
         self.stop_event = threading.Event()
         self.faults: list[str] = []
         self.stats: dict = {}
+        #: Figures updated while running (the render process posts them once a second).
+        self.live_stats: dict = {}
         self.frames = 0
         self.contact_frames = 0
         self.last_state: FingerState | None = None
@@ -158,6 +160,8 @@ class Station:
                 self.contact_frames += state.contact
                 self.shared.publish(state, arrival, frame.index)
                 self.snapshot.publish(View(frame.index, frame.image, contact, state))
+                if timer.stats_due():
+                    self.live_stats["vision"] = timer.stats().as_dict()
                 self.last_state = state
                 self.frames += 1
                 if opts.teleop_send is not None:
@@ -247,7 +251,9 @@ class Station:
                 kind, payload = results.get(timeout=max(0.0, deadline - time.monotonic()))
             except queue.Empty:
                 return
-            if kind == "fault":
+            if kind == "live":
+                self.live_stats.update(payload)
+            elif kind == "fault":
                 self.faults.append(payload)
                 self.stop_event.set()
             elif kind == "stats":
