@@ -83,6 +83,35 @@ class CausalIndentation:
         return float(r.indentation_mm[0])
 
 
+class LiveIndentation:
+    """Indentation from the latest IR voltages, frame by frame, for a live station.
+
+    Without configured rest distances, the voltages seen at frames without contact are
+    kept (the last ``keep`` of them) and their median becomes the rest distances at the
+    first contact.
+    """
+
+    def __init__(self, estimator: IndentationEstimator, keep: int = 60):
+        self.estimator = estimator
+        self._rest: list[np.ndarray] = []
+        self._keep = keep
+
+    def update(self, volts, contact: Contact | None) -> float:
+        v = np.asarray(volts, np.float64)
+        if not np.all(np.isfinite(v)):
+            return math.nan  # no IR sample yet
+        if contact is None:
+            if self.estimator.baseline_mm is None:
+                self._rest.append(v)
+                del self._rest[: -self._keep]
+            return 0.0
+        if self.estimator.baseline_mm is None:
+            rest = np.array(self._rest).reshape(-1, 3)
+            self.estimator = self.estimator.with_baseline_from(rest, np.ones(len(rest), bool))
+        value, _ = self.estimator.estimate_one(v, contact.x_mm, contact.y_mm)
+        return value
+
+
 def recording_estimator(rec: PadRecording, ir_config: IRConfig | None = None
                         ) -> IndentationEstimator:
     """The indentation estimator for a recording: the device's polynomials, the

@@ -17,6 +17,7 @@ from fydpad.errors import UserError
 from fydpad.opening import open_source
 from fydpad.station.render import RenderSpec
 from fydpad.station.station import SensorFeed, Station, StationFault, StationOptions
+from vision.stream import LiveIndentation, recording_estimator
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -91,6 +92,9 @@ def run(args: argparse.Namespace) -> int:
     opened = open_source(config, args.replay, args.camera)
     source, meta, rec = opened.source, opened.meta, opened.recording
     sensors = SensorFeed(rec.read_ir(), rec.read_force()) if rec is not None else None
+    indentation = None
+    if rec is not None and rec.has("ir.csv"):
+        indentation = LiveIndentation(recording_estimator(rec, config.ir))
     tracker = make_tracker(config.tracker, meta.roi_px, meta.workspace_mm, meta.image_flip,
                            opened.camera)
     if args.record:
@@ -109,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
         record_dir=args.record, record_video=not args.no_video, render=render,
         status=_status_printer(),
     )
-    station = Station(source, tracker, meta, options, sensors=sensors)
+    station = Station(source, tracker, meta, options, sensors=sensors, indentation=indentation)
     interrupts = _Interrupts()
     interrupts.station = station
     previous = signal.signal(signal.SIGINT, interrupts)

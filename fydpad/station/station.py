@@ -32,7 +32,7 @@ from vision.contact import ContactTracker
 from vision.recording import PadMeta, PadRecordingWriter, TrackWriter
 from vision.sources import FrameSource
 from vision.state import FingerState
-from vision.stream import FingerStateBuilder
+from vision.stream import FingerStateBuilder, LiveIndentation
 
 
 class StationFault(RuntimeError):
@@ -103,7 +103,7 @@ class Station:
         meta: PadMeta,
         options: StationOptions,
         sensors: SensorFeed | None = None,
-        indentation: Callable[[LatestSensors, float, float], float] | None = None,
+        indentation: LiveIndentation | None = None,
     ):
         self.source = source
         self.tracker = tracker
@@ -152,10 +152,8 @@ class Station:
                     arrival = timer.mark()
                 contact = self.tracker.process(frame.image)
                 s = self.latest
-                ind = math.nan
-                if self.indentation is not None:
-                    ind = (self.indentation(s, contact.x_mm, contact.y_mm)
-                           if contact is not None else 0.0)
+                ind = (self.indentation.update(s.volts, contact)
+                       if self.indentation is not None else math.nan)
                 state = builder.build(frame.t_s, contact, ind, s.force_n)
                 self.contact_frames += state.contact
                 self.shared.publish(state, arrival, frame.index)

@@ -37,8 +37,10 @@ def make_station(rec: Path, tmp_path: Path, tracker=None, **render_kw) -> Statio
                       commands_csv=str(tmp_path / "commands.csv"))
     opts = StationOptions(render=spec, record_dir=str(tmp_path / "session"))
     from vision.sources import VideoSource
+    from vision.stream import LiveIndentation, recording_estimator
     return Station(VideoSource(r), tracker, m, opts,
-                   sensors=SensorFeed(r.read_ir(), r.read_force()))
+                   sensors=SensorFeed(r.read_ir(), r.read_force()),
+                   indentation=LiveIndentation(recording_estimator(r)))
 
 
 def test_station_runs_records_and_stops_safely(circle_rec: Path, tmp_path: Path):
@@ -53,6 +55,9 @@ def test_station_runs_records_and_stops_safely(circle_rec: Path, tmp_path: Path)
     assert session.frame_count == 48
     track = read_track(tmp_path / "session" / "track.csv")
     assert (track["contact"] != 0).sum() == 40
+    # The replay's ir.csv gives an indentation at every frame (constant voltages: ~0 mm).
+    assert np.all(np.isfinite(track["indentation_mm"]))
+    assert np.abs(track["indentation_mm"]).max() < 0.5
     assert session.read_ir() is not None and session.read_force() is not None
     cmds = np.genfromtxt(tmp_path / "commands.csv", delimiter=",", names=True)
     assert set(np.unique(cmds["frame"]).astype(int)) >= set(range(5, 40))
