@@ -30,7 +30,10 @@ class SharedRecord:
         self.index = {f: i for i, f in enumerate(fields)}
         self.raw = raw if raw is not None else RawArray("d", len(fields) + 1)
         self._view = np.frombuffer(self.raw, dtype=np.float64)
-        self._view[1:] = math.nan
+        if raw is None:
+            # Only a new record starts empty: one attached in another process must not
+            # overwrite what the writer already published.
+            self._view[1:] = math.nan
         self._buf = np.empty(len(fields), np.float64)
 
     def __reduce__(self):

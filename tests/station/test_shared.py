@@ -45,3 +45,22 @@ def test_finger_state_round_trip():
     s.publish(st, arrival_s=10.0, frame=45)
     seq, got = s.latest()
     assert seq == 1 and got == st
+
+
+def _attach_and_report(shared: SharedFingerState, out) -> None:
+    out.put(shared.latest())
+
+
+def test_attaching_in_another_process_keeps_the_published_state():
+    # Regression: attaching used to reset the values to NaN under a published sequence.
+    ctx = mp.get_context("spawn")
+    s = SharedFingerState()
+    st = FingerState(t_s=2.0, contact=True, x_mm=1.0, y_mm=2.0)
+    s.publish(st, arrival_s=1.0, frame=7)
+    out = ctx.Queue()
+    p = ctx.Process(target=_attach_and_report, args=(s, out))
+    p.start()
+    seq, got = out.get(timeout=30)
+    p.join(timeout=10)
+    assert seq == 1 and got.x_mm == 1.0
+    assert s.latest()[1].x_mm == 1.0  # and the parent still sees it
