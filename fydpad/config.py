@@ -18,6 +18,10 @@ from pathlib import Path
 from typing import Any
 
 from fydpad.errors import UserError
+from fydpad.motors.base import MotorConfig
+from fydpad.motors.pwm import PwmConfig
+from fydpad.motors.qb import QbBoardConfig
+from fydpad.softness import SoftnessConfig
 from vision.config import ForceConfig, IRConfig
 from vision.contact import TrackerConfig
 from vision.sources import CameraConfig
@@ -50,6 +54,10 @@ class StationConfig:
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
     ir: IRConfig = field(default_factory=IRConfig)
     force: ForceConfig = field(default_factory=ForceConfig)
+    softness: SoftnessConfig = field(default_factory=SoftnessConfig)
+    motors: MotorConfig = field(default_factory=MotorConfig)
+    pwm: PwmConfig = field(default_factory=PwmConfig)
+    qb: QbBoardConfig = field(default_factory=QbBoardConfig)
     loops: LoopRates = field(default_factory=LoopRates)
     endpoints: Endpoints = field(default_factory=Endpoints)
 

@@ -107,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
         motors=args.motors,
         commands_csv=str(Path(args.record) / "commands.csv") if args.record else None,
         realtime=not args.no_realtime,
+        config=config,
     )
     options = StationOptions(
         duration_s=args.duration, real_time=not args.as_fast_as_possible,

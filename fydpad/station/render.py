@@ -20,7 +20,7 @@ import time
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 from fydpad.pacing import LatencyHistogram, LoopTimer
 from fydpad.station.shared import SharedFingerState, SharedRecord
@@ -62,6 +62,8 @@ class RenderSpec:
     realtime: bool = True
     #: A custom chain, "module:callable" taking the spec (labs' own actuators, tests).
     chain: str | None = None
+    #: The device configuration (motor, PWM, board and softness sections are used).
+    config: Any = None
 
 
 class NullChain:
@@ -108,6 +110,7 @@ def render_main(
     control: SharedRecord,
     stop_event,
     results,
+    ready_event=None,
 ) -> None:
     """Entry point of the render process; posts ("stats", dict) and maybe ("fault", text)."""
     scheduling = _try_realtime() if spec.realtime else "normal"
@@ -121,6 +124,8 @@ def render_main(
             log = CsvRowWriter(Path(spec.commands_csv), ("t_s", "frame", *chain.outputs))
         last_seq = 0
         timer.start()
+        if ready_event is not None:
+            ready_event.set()  # the chain is built: the station may start its sources
         while not stop_event.is_set():
             tick_time = timer.wait()
             seq, v = state.read()
@@ -149,5 +154,7 @@ def render_main(
             log.close()
         stats = timer.stats().as_dict()
         stats["scheduling"] = scheduling
+        if chain is not None and hasattr(chain, "stats"):
+            stats["chain"] = chain.stats()
         results.put(("stats", {"render": stats,
                                "frame_to_command_ms": latency.percentiles_ms()}))

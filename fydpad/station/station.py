@@ -91,6 +91,8 @@ class StationOptions:
     teleop_send: Callable[[FingerState], None] | None = None
     teleop_hold: Callable[[], None] | None = None
     status: Callable[[dict], None] | None = None
+    #: How long the render process may take to build its chain (a board to connect).
+    render_start_timeout_s: float = 30.0
 
 
 class Station:
@@ -198,14 +200,27 @@ class Station:
         """Run to the end; returns the statistics. Raises StationFault after a fault."""
         ctx = mp.get_context("spawn")
         render_stop = ctx.Event()
+        render_ready = ctx.Event()
         results = ctx.Queue()
         render = ctx.Process(
             target=render_main,
-            args=(self.options.render, self.shared, self.control, render_stop, results),
+            args=(self.options.render, self.shared, self.control, render_stop, results,
+                  render_ready),
             name="fydpad-render", daemon=True,
         )
         render.start()
-        t0 = time.perf_counter() + 0.3  # let the render process come up first
+        # No frame before the actuators are ready: wait for the render process's chain.
+        deadline = time.monotonic() + self.options.render_start_timeout_s
+        while not render_ready.wait(0.05):
+            self._drain(results)
+            if self.faults or not render.is_alive() or time.monotonic() > deadline:
+                render_stop.set()
+                render.join(timeout=5)
+                self._drain(results, final=True)
+                self.source.close()
+                raise StationFault("; ".join(f.splitlines()[0] for f in self.faults)
+                                   or "render process did not start")
+        t0 = time.perf_counter() + 0.05
         self._control[3] = t0
         self.control.write(self._control)
         threads = [threading.Thread(target=self._vision_loop, args=(t0,), name="vision")]

@@ -114,3 +114,35 @@ def test_run_command_writes_stats(circle_rec: Path, tmp_path: Path, capsys):
 def test_missing_camera_is_one_line(tmp_path: Path, capsys):
     assert main(["run", "--camera", "/dev/video-missing", "--duration", "1"]) == 2
     assert "camera '/dev/video-missing'" in capsys.readouterr().err
+
+
+def test_softness_request_drives_the_simulated_motors(circle_rec: Path, tmp_path: Path):
+    """--motors sim --softness: the render process turns the stiffness request into the
+    motor position the simulated plant's own softness table gives, and stops at rest."""
+    from fydpad.config import StationConfig
+    from fydpad.motors.sim import characterise_plant
+
+    r = PadRecording(circle_rec)
+    m = r.meta
+    spec = RenderSpec(motors="sim", stiffness_n_per_mm=0.6, realtime=False,
+                      commands_csv=str(tmp_path / "commands.csv"), config=StationConfig())
+    from vision.sources import VideoSource
+    station = Station(VideoSource(r), ContactTracker(roi_px=m.roi_px, workspace_mm=m.workspace_mm,
+                                                     image_flip=m.image_flip), m,
+                      StationOptions(render=spec))
+    stats = station.run()
+    cmds = np.genfromtxt(tmp_path / "commands.csv", delimiter=",", names=True)
+    expected = characterise_plant().theta_for(0.6)
+    assert cmds["theta_ref_rad"][-1] == pytest.approx(expected, abs=1e-6)
+    assert stats["render"]["chain"]["requested_k_n_per_mm"] == 0.6
+
+
+def test_missing_motor_board_is_a_clear_error(circle_rec: Path, tmp_path: Path, capsys):
+    # No QB board is plugged in here: a port that does not exist stands for an unplugged one.
+    cfg = tmp_path / "dev.toml"
+    cfg.write_text('[qb]\nport = "/dev/ttyUSB-missing"\n')
+    rc = main(["run", "--replay", str(circle_rec), "--motors", "qb", "--config", str(cfg),
+               "--no-realtime"])
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert "/dev/ttyUSB-missing" in err and len(err.strip().splitlines()) == 1
