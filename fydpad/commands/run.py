@@ -80,8 +80,11 @@ def _status_printer():
                    if s["contact"] else "no contact" + " " * 20)
         ind = s["indentation_mm"]
         force = s["force_n"]
-        print(f"\rframes {s['frames']:6d}  {contact}  z "
-              f"{ind if math.isfinite(ind) else float('nan'):5.1f} mm  F {force:5.2f} N ",
+        r = s.get("render") or {}
+        print(f"\rframes {s['frames']:6d}  {contact}  z {ind:5.1f} mm  F {force:5.2f} N  "
+              f"k {s['measured_n_per_mm']:.2f}/{s['requested_n_per_mm']:.2f} N/mm  "
+              f"render {r.get('rate_hz', math.nan):6.1f} Hz "
+              f"{r.get('on_time_pct', math.nan):5.1f} % on time ",
               end="", file=sys.stderr, flush=True)
 
     return show

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from fydpad.pacing import LoopTimer
+from fydpad.softness import LiveStiffness
 from fydpad.station.render import CONTROL_FIELDS, RenderSpec, render_main
 from fydpad.station.shared import SharedFingerState, SharedRecord
 from fydpad.station.snapshot import Snapshot, View
@@ -127,6 +128,7 @@ class Station:
         self.frames = 0
         self.contact_frames = 0
         self.last_state: FingerState | None = None
+        self.stiffness = LiveStiffness()
         #: The latest frame, contact and state, for the web view and the status line.
         self.snapshot = Snapshot()
 
@@ -157,6 +159,8 @@ class Station:
                 ind = (self.indentation.update(s.volts, contact)
                        if self.indentation is not None else math.nan)
                 state = builder.build(frame.t_s, contact, ind, s.force_n)
+                # The stiffness the finger actually feels: F / delta over each press.
+                self.stiffness.update(state.force_n, state.indentation_mm)
                 self.contact_frames += state.contact
                 self.shared.publish(state, arrival, frame.index)
                 self.snapshot.publish(View(frame.index, frame.image, contact, state))
@@ -253,6 +257,10 @@ class Station:
                 self.faults.append("render process did not stop in 5 s: killed")
             self._drain(results, final=True)
             self.source.close()
+        self.stats["softness"] = {
+            "requested_n_per_mm": self.options.render.stiffness_n_per_mm,
+            "measured_n_per_mm": self.stiffness.last_k_n_per_mm,
+        }
         if self.faults:
             raise StationFault("; ".join(f.splitlines()[0] for f in self.faults))
         return self.stats
@@ -283,4 +291,9 @@ class Station:
             "y_mm": s.y_mm if s else math.nan,
             "indentation_mm": s.indentation_mm if s else math.nan,
             "force_n": s.force_n if s else math.nan,
+            "requested_n_per_mm": self.options.render.stiffness_n_per_mm,
+            "measured_n_per_mm": (self.stiffness.k_n_per_mm
+                                  if math.isfinite(self.stiffness.k_n_per_mm)
+                                  else self.stiffness.last_k_n_per_mm),
+            "render": self.live_stats.get("render"),
         }
