@@ -64,6 +64,12 @@ class IRConfig:
         for i, p in enumerate(self.sensors_mm):
             if len(p) != 2:
                 raise ValueError(f"sensors_mm[{i}]: expected [x, y] in mm")
+        (x0, y0), (x1, y1), (x2, y2) = self.sensors_mm
+        area2 = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+        span = max(abs(x1 - x0), abs(x2 - x0), abs(y1 - y0), abs(y2 - y0), 1e-12)
+        if abs(area2) < 1e-6 * span**2:
+            raise ValueError(f"sensors_mm: {list(self.sensors_mm)} are collinear; eq. (2)'s "
+                             "plane needs three non-collinear sensors")
         for i, poly in enumerate(self.poly_cm):
             if len(poly) < 2:
                 raise ValueError(f"poly_cm[{i}]: expected at least two coefficients")
@@ -77,6 +83,14 @@ class IRConfig:
                                                   for b in self.baseline_mm)
         ):
             raise ValueError("baseline_mm: expected three positive distances in mm")
+        if self.correction_coef:
+            n = (self.correction_depth_degree * (self.correction_xy_degree + 1)
+                 * (self.correction_xy_degree + 2) // 2)
+            if len(self.correction_coef) != n:
+                raise ValueError(
+                    f"correction_coef: expected {n} coefficients for correction_xy_degree "
+                    f"{self.correction_xy_degree} and correction_depth_degree "
+                    f"{self.correction_depth_degree}, got {len(self.correction_coef)}")
         if not 1 <= self.adc_bits <= 24:
             raise ValueError("adc_bits: expected 1-24")
         if not self.adc_vref_v > 0 or not self.rate_hz > 0 or not self.serial_timeout_s > 0:

@@ -144,19 +144,25 @@ def paper_eq2_delta_mm(
 def estimate_baseline_mm(
     distances_mm: ArrayLike, no_contact: ArrayLike, min_samples: int = 5,
 ) -> NDArray[np.float64]:
-    """Rest distance per sensor: the median of its valid samples taken without contact.
+    """Rest distance per sensor from its valid samples taken without contact: the
+    interquartile mean (sorted, the lowest and highest quarter dropped, the rest
+    averaged).
 
-    The median ignores the odd spike of these noisy sensors. NaN for a sensor with
-    fewer than ``min_samples`` such samples.
+    Robust like the median (the odd spike of these noisy sensors falls outside the
+    quartiles), but where the median sticks to one of the 10-bit ADC's levels (0.38 mm
+    apart at rest), the mean of the central half averages the noise across levels
+    and resolves the rest distance finer than one step. NaN for a sensor with fewer
+    than ``min_samples`` such samples.
     """
     d = np.atleast_2d(np.asarray(distances_mm, dtype=np.float64))
     free = np.asarray(no_contact, dtype=bool)
     out = np.full(3, np.nan)
     for i in range(3):
         col = d[free, i]
-        col = col[np.isfinite(col)]
+        col = np.sort(col[np.isfinite(col)])
         if col.size >= min_samples:
-            out[i] = float(np.median(col))
+            cut = col.size // 4  # by rank, so ties at an ADC level are split fairly
+            out[i] = float(np.mean(col[cut:col.size - cut]))
     return out
 
 
@@ -232,13 +238,23 @@ class PlaneCorrection:
         n = cls.n_coef(xy_degree, depth_degree)
         return cls((1.0,) + (0.0,) * (n - 1), xy_degree, depth_degree)
 
+    @staticmethod
+    def penalty(xy_degree: int = 4, depth_degree: int = 2) -> NDArray[np.float64]:
+        """Ridge weight per term: (order in x, y plus extra power of p) squared, so the
+        plane's own term is free and higher orders give way first when data are few."""
+        return np.array([float(i + j + a - 1) ** 2
+                         for a in range(1, depth_degree + 1)
+                         for i in range(xy_degree + 1)
+                         for j in range(xy_degree + 1 - i)])
+
     @classmethod
     def fit(
         cls, plane_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike, truth_mm: ArrayLike,
-        xy_degree: int = 4, depth_degree: int = 2, ridge: float = 1e-4,
+        xy_degree: int = 4, depth_degree: int = 2, ridge: float = 1e-2,
     ) -> PlaneCorrection:
-        """Ridge least squares of the true depth on the features (``ridge`` relative to
-        the features' mean square), so sparse or clustered data cannot run away."""
+        """Ridge least squares of the true depth on the features, the ridge (relative to
+        the features' mean square) weighted by ``penalty`` and shrinking towards
+        depth = p, so sparse data (few press positions) cannot run away."""
         n = cls.n_coef(xy_degree, depth_degree)
         f = cls.features(plane_mm, x_mm, y_mm, xy_degree, depth_degree)
         t = np.asarray(truth_mm, np.float64)
@@ -248,10 +264,32 @@ class PlaneCorrection:
             raise ValueError(f"correction: need at least {3 * n} calibration samples with "
                              f"valid readings, got {t.size}")
         prior = np.asarray(cls.identity(xy_degree, depth_degree).coef)
-        lam = ridge * float(np.mean(np.sum(f * f, axis=1)))
-        a = f.T @ f + lam * np.eye(n)
-        coef = np.linalg.solve(a, f.T @ t + lam * prior)
+        lam = ridge * float(np.mean(np.sum(f * f, axis=1))) * np.diag(
+            cls.penalty(xy_degree, depth_degree))
+        coef = np.linalg.solve(f.T @ f + lam, f.T @ t + lam @ prior)
         return cls(tuple(float(c) for c in coef), xy_degree, depth_degree)
+
+    @classmethod
+    def fit_cv(
+        cls, plane_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike, truth_mm: ArrayLike,
+        groups: ArrayLike, xy_degree: int = 4, depth_degree: int = 2,
+        ridges: Sequence[float] = (1e-3, 1e-2, 1e-1, 1.0, 10.0),
+    ) -> tuple[PlaneCorrection, float, dict[float, float]]:
+        """The ridge chosen by two-fold cross-validation over ``groups`` (e.g. press
+        numbers: even presses fit, odd ones score, and back), then fitted on all data.
+        Returns the correction, its held-out RMSE and the RMSE per ridge tried."""
+        p, x, y, t = (np.asarray(a, np.float64) for a in (plane_mm, x_mm, y_mm, truth_mm))
+        half = np.asarray(groups) % 2
+        scores: dict[float, float] = {}
+        for ridge in ridges:
+            held = np.full(t.size, np.nan)
+            for g in (0, 1):
+                a, b = half == g, half != g
+                c = cls.fit(p[a], x[a], y[a], t[a], xy_degree, depth_degree, ridge)
+                held[b] = c.apply(p[b], x[b], y[b])
+            scores[ridge] = rmse(held, t)
+        best = min(scores, key=lambda r: scores[r])
+        return cls.fit(p, x, y, t, xy_degree, depth_degree, best), scores[best], scores
 
 
 def rmse(a: ArrayLike, b: ArrayLike) -> float:
@@ -294,6 +332,10 @@ class IndentationEstimator:
 
     def __post_init__(self) -> None:
         plane_weights(self.sensors_mm, 0.0, 0.0)  # collinear sensors: fail now, not later
+        s = np.asarray(self.sensors_mm, np.float64)
+        # Barycentric weights are inv(M) @ [x, y, 1]: invert once, not per sample.
+        object.__setattr__(self, "_m_inv",
+                           np.linalg.inv(np.vstack([s[:, 0], s[:, 1], np.ones(3)])))
 
     @classmethod
     def from_config(
@@ -356,7 +398,7 @@ class IndentationEstimator:
         fl |= np.where(touching, 0, int(IRFlag.NO_CONTACT))
         # Evaluate at (0, 0) where there is no centroid; those samples are masked below.
         xs, ys = np.where(has_xy, x, 0.0), np.where(has_xy, y, 0.0)
-        w = plane_weights(self.sensors_mm, xs, ys)
+        w = (self._m_inv @ np.vstack([xs, ys, np.ones(n)])).T  # type: ignore[attr-defined]
         fl |= np.where(has_xy & np.any(w < -1e-9, axis=1), int(IRFlag.EXTRAPOLATED), 0)
         e = d - self.rest_mm()  # negative when the finger presses the fabric down
         plane = -np.sum(w * e, axis=1)  # indentation = -delta

@@ -324,7 +324,12 @@ class SerialBoard:
     # The views call this with the lock held.
     def _next(self, kind: str) -> IRSample | ForceSample:
         q: collections.deque[Any] = getattr(self._queues, kind)
+        deadline = time.monotonic() + self.timeout_s
         while not q:
+            if time.monotonic() > deadline:
+                # Data lines arrive, but none with this kind (an empty force field).
+                raise SensorError(f"{self.port}: the sensor board sends no {kind} data "
+                                  f"(for {self.timeout_s:g} s; load cell not connected?)")
             self._read_one_data_line()
         return q.popleft()
 
@@ -361,9 +366,6 @@ class SerialBoard:
         """Parse one line; queue its samples. True for a data line."""
         if not line.strip():
             return False
-        if line.rfind(b"$") > 0:
-            # A line cut short and run into the next: the fragment is lost, count it.
-            self.stats.malformed += 1
         try:
             parsed = parse_line(line, self.adc_bits)
         except ChecksumError as exc:
@@ -374,6 +376,9 @@ class SerialBoard:
             self.stats.malformed += 1
             self.stats.last_error = f"{exc}: {line[:40]!r}"
             return False
+        if line.rfind(b"$") > 0:
+            # A line cut short and run into this one: its fragment is lost, count it.
+            self.stats.malformed += 1
         if isinstance(parsed, BoardInfo):
             self.info = parsed
             self.adc_bits, self.vref_v = parsed.adc_bits, parsed.vref_v
@@ -391,6 +396,17 @@ class SerialBoard:
             self._queues.force.append(ForceSample(t_s, float(fr.force_n), bool(fr.saturated),
                                                   float(parsed.force_raw)))
         return True
+
+    def read(self) -> tuple[IRSample, ForceSample | None]:
+        """For one sensor loop reading both: the next IR sample and the force from the
+        same line (None when that line had none). Do not mix with the views' reads."""
+        with self._lock:
+            ir = self._next("ir")
+            f = self._queues.force
+            while f and f[0].t_s < ir.t_s:
+                f.popleft()
+            force = f.popleft() if f and f[0].t_s == ir.t_s else None
+            return ir, force  # type: ignore[return-value]
 
     def close(self) -> None:
         try:

@@ -1,7 +1,9 @@
 """``fydpad calibrate``: one sub-subcommand per thing to calibrate.
 
-``ir`` refits eq. (1) per IR sensor from (distance, voltage) pairs; ``force`` fits the
-load cell's offset and gain from known weights (docs/calibration_files.md). ``camera``
+``ir`` refits eq. (1) per IR sensor from (distance, voltage) pairs; ``indentation`` fits
+the correction beyond the plane from recordings of presses of known depth; ``force``
+fits the load cell's offset and gain from known weights (docs/calibration_files.md).
+``camera``
 and ``workspace`` come from ``fydpad.commands.calibrate_vision`` when it is there. To
 add one, put its ``register(sub)`` in ``SUBCOMMANDS``.
 """
@@ -22,9 +24,17 @@ import numpy as np
 from fydpad.errors import UserError
 from vision.config import ForceConfig, IRConfig
 from vision.force import ForceCalibration, ForceCalibrationError, calibrate_force
-from vision.indentation import IRCalibrationError, IRFit, fit_ir_polynomial
+from vision.indentation import (
+    IndentationEstimator,
+    IRCalibrationError,
+    IRFit,
+    PlaneCorrection,
+    fit_ir_polynomial,
+    indentation_at_frames,
+    rmse,
+)
 from vision.ir import PAPER_POLY_CM
-from vision.recording import read_csv_columns
+from vision.recording import PadRecording, read_csv_columns
 
 Register = Callable[[argparse._SubParsersAction], None]
 
@@ -69,6 +79,28 @@ def register_force(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run_force)
 
 
+def register_indentation(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "indentation",
+        help="fit the indentation correction beyond the plane from presses of known depth",
+        description=(
+            "Fit the correction beyond eq. (2)'s plane (docs/indentation.md) from pad "
+            "session recordings that have ir.csv and truth.csv (presses of known depth: an "
+            "indenter, or the synthetic pad). The truth's contact and centroid are used, so "
+            "the fit concerns the indentation alone. Prints the plane's RMSE and the "
+            "corrected one on held-out presses (two-fold, alternate presses), and writes "
+            "correction_coef into the [ir] section."
+        ),
+    )
+    p.add_argument("recdirs", nargs="+", metavar="RECDIR", help="recordings with truth.csv")
+    p.add_argument("--out", metavar="TOML", help="configuration file to write (default: print)")
+    p.add_argument("--xy-degree", type=int, default=4,
+                   help="degree in the centroid position (default: 4)")
+    p.add_argument("--depth-degree", type=int, default=2,
+                   help="degree in the plane estimate (default: 2)")
+    p.set_defaults(func=run_indentation)
+
+
 def _vision_register(name: str) -> Register | None:
     """``calibrate_vision.register_<name>`` when that module has landed."""
     module = "fydpad.commands.calibrate_vision"
@@ -81,6 +113,7 @@ def _vision_register(name: str) -> Register | None:
 #: finds it (None when that part of the project has not landed).
 SUBCOMMANDS: dict[str, Register | Callable[[], Register | None]] = {
     "ir": register_ir,
+    "indentation": register_indentation,
     "force": register_force,
     "camera": lambda: _vision_register("camera"),
     "workspace": lambda: _vision_register("workspace"),
@@ -96,7 +129,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     inner = p.add_subparsers(dest="calibrate_what", metavar="WHAT", required=True)
     for name, entry in SUBCOMMANDS.items():
-        if name in ("ir", "force"):
+        if name in ("ir", "indentation", "force"):
             entry(inner)  # type: ignore[call-arg]
             continue
         found = entry()  # type: ignore[call-arg]
@@ -242,6 +275,69 @@ def _plot_ir(path: str, d_mm: np.ndarray, cols: dict[str, np.ndarray],
     axr.set_ylabel("residual [mm]")
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+# --------------------------------------------------------------------------- indentation
+
+
+def _press_samples(path: str, ir_config: IRConfig) -> dict[str, np.ndarray]:
+    rec = PadRecording(path)
+    ir, truth = rec.read_ir(), rec.read_truth()
+    for name, data in (("ir.csv", ir), ("truth.csv", truth)):
+        if data is None:
+            raise UserError(f"{rec.path / name}: missing (needed to fit the correction)")
+    m = rec.meta
+    est = IndentationEstimator.from_config(
+        replace(ir_config, correction_coef=()), sensors_mm=m.ir_sensors_mm,
+        baseline_mm=m.ir_baseline_mm, base_to_fabric_mm=m.base_to_fabric_mm)
+    r, _ = indentation_at_frames(est, ir[0], ir[1], truth.t_s, truth.contact,  # type: ignore[index]
+                                 truth.x_mm, truth.y_mm)  # type: ignore[union-attr]
+    c = truth.contact & r.valid & np.isfinite(truth.indentation_mm)  # type: ignore[union-attr]
+    # Number the presses (runs of contact) so held-out halves never share one.
+    press = np.cumsum(np.diff(np.concatenate([[0], truth.contact.astype(int)])) == 1)  # type: ignore[union-attr]
+    return {"plane": r.plane_mm[c], "x": truth.x_mm[c], "y": truth.y_mm[c],  # type: ignore[union-attr]
+            "depth": truth.indentation_mm[c], "press": press[c]}  # type: ignore[union-attr]
+
+
+def run_indentation(args: argparse.Namespace) -> int:
+    config = _load_config(args)
+    ir_config: IRConfig = getattr(config, "ir", None) or IRConfig()
+    if args.xy_degree < 0 or args.depth_degree < 1:
+        raise UserError("--xy-degree must be >= 0 and --depth-degree >= 1")
+    parts = [_press_samples(p, ir_config) for p in args.recdirs]
+    offset = 0
+    for part in parts:  # presses of different recordings are different presses
+        part["press"] = part["press"] + offset
+        offset = int(part["press"].max(initial=offset)) + 1
+    data = {k: np.concatenate([part[k] for part in parts]) for k in parts[0]}
+    need = 3 * PlaneCorrection.n_coef(args.xy_degree, args.depth_degree)
+    n = int(data["depth"].size)
+    names = ", ".join(args.recdirs)
+    if n < need:
+        raise UserError(f"{names}: {n} contact frames with valid IR readings and known depth; "
+                        f"the correction needs at least {need}")
+    if np.unique(data["press"] % 2).size < 2:
+        raise UserError(f"{names}: a single press; record several, at different places")
+    try:
+        final, held_rmse, scores = PlaneCorrection.fit_cv(
+            data["plane"], data["x"], data["y"], data["depth"], data["press"],
+            args.xy_degree, args.depth_degree)
+    except ValueError as exc:
+        raise UserError(f"{names}: {exc}") from None
+    d = data["depth"]
+    summary = [
+        f"fydpad calibrate indentation {names} ({date.today().isoformat()})",
+        f"{n} contact frames in {len(np.unique(data['press']))} presses, depth "
+        f"{d.min():.1f}-{d.max():.1f} mm",
+        f"RMSE against the true depth: plane {rmse(data['plane'], d):.2f} mm, corrected "
+        f"{held_rmse:.2f} mm (held-out presses; ridge {min(scores, key=scores.get):g})",
+    ]
+    for line in summary[1:]:
+        print(line)
+    _write_section(args, "ir", {"correction_coef": final.coef,
+                                "correction_xy_degree": final.xy_degree,
+                                "correction_depth_degree": final.depth_degree}, summary)
+    return 0
 
 
 # --------------------------------------------------------------------------- force
