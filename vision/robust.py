@@ -44,8 +44,8 @@ class RobustParams:
     #: Pixels darker than this contrast may belong to a candidate region.
     contrast_floor: float = 0.12
     #: Peak contrast needed to start a contact, and to keep one (hysteresis).
-    contrast_on: float = 0.30
-    contrast_off: float = 0.22
+    contrast_on: float = 0.55
+    contrast_off: float = 0.42
     #: The core of a region: pixels above this fraction of its peak contrast.
     core_fraction: float = 0.5
     #: Centroid weights: contrast minus this fraction of the peak, where positive.
@@ -53,10 +53,17 @@ class RobustParams:
     #: Fingertip contact area limits, in mm^2 of the workspace.
     min_area_mm2: float = 10.0
     max_area_mm2: float = 900.0
+    #: A dark region this large (mm^2) that enters the view from its edge is the hand.
+    max_edge_shadow_mm2: float = 600.0
     #: Largest ratio of the core's principal axes.
     max_elongation: float = 3.0
     #: Smallest ratio of the core's area to the area above a quarter of the peak.
     min_sharpness: float = 0.55
+    #: A light touch: its darkest spot stands out of its surroundings (white top-hat over
+    #: prominence_size_mm) by this much to start a contact, and to keep one.
+    prominence_on: float = 0.095
+    prominence_off: float = 0.07
+    prominence_size_mm: float = 9.0
     #: Background update rates per frame: towards darker (slow) and brighter (fast).
     bg_rate_darker: float = 0.02
     bg_rate_brighter: float = 0.25
@@ -147,6 +154,11 @@ class RobustTracker:
         self._basis_full = np.stack([np.ones_like(U), U, V, U * U, U * V, V * V]).reshape(6, -1)
         self._basis_grid = self._basis_full[:, gv.ravel() * sw + gu.ravel()].T.astype(np.float64)
         self._gain = np.empty((sh, sw), np.float32)
+        # Top-hat structuring element: an ellipse of prominence_size_mm across.
+        kw = 2 * round(p.prominence_size_mm / self._cell_w_mm / 2) + 1
+        kh = 2 * round(p.prominence_size_mm / self._cell_h_mm / 2) + 1
+        self._tophat_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (kw, kh))
+        self._ring_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
         self._contrast = np.empty((sh, sw), np.float32)
 
     # -- per frame --------------------------------------------------------------
@@ -214,24 +226,50 @@ class RobustTracker:
             region = np.where(inside, sub, 0.0)
             peak_idx = int(np.argmax(region))
             peak = float(region.flat[peak_idx])
-            if peak < needed:
-                continue
             py, px = divmod(peak_idx, bw)
             py += y0
             px += x0
             if px == 0 or py == 0 or px == sw - 1 or py == sh - 1:
                 continue  # darkest at the edge of the view: a hand outside it, not a contact
+            touches_edge = x0 == 0 or y0 == 0 or x0 + bw == sw or y0 + bh == sh
+            if touches_edge and area * self._cell_area_mm2 > p.max_edge_shadow_mm2:
+                continue  # a large shadow coming in from the edge: the rest of the hand
             core = region > peak * p.core_fraction
             core_cells = int(np.count_nonzero(core))
             core_area = core_cells * self._cell_area_mm2
             if not p.min_area_mm2 <= core_area <= p.max_area_mm2:
                 continue
             sharpness = core_cells / max(1, int(np.count_nonzero(region > peak * 0.25)))
-            if sharpness < p.min_sharpness:
+            # How far the darkest spot stands out of its surroundings (white top-hat):
+            # a light touch is a small dark core on the fingertip's shadow; a hovering
+            # finger's shadow is a broad plateau that the opening keeps whole.
+            tophat = self._tophat(contrast, x0, y0, bw, bh)
+            prominence = float(np.max(np.where(inside, tophat, 0.0)))
+            firm = peak >= needed and sharpness >= p.min_sharpness
+            light = prominence >= (p.prominence_off if self.in_contact else p.prominence_on)
+            if not (firm or light):
                 continue
-            # Soft weights (contrast above a fraction of the peak) rather than the hard
-            # core: a hard cut jumps by whole pyramid cells as the edge crosses them.
-            w = np.maximum(region - peak * p.weight_floor_fraction, 0.0)
+            # Soft weights (contrast above a floor) rather than the hard core: a hard cut
+            # jumps by whole pyramid cells as the edge crosses them. The floor sits above
+            # the shadow the contact stands out of (its level on a ring just outside the
+            # core): the fingertip's shadow is not centred on the contact and would pull
+            # the centroid towards the fingertip's end.
+            # The core (above half the peak) may take in a dark shadow around a contact;
+            # re-cut it halfway between the shadow's level and the peak, and look again.
+            shadow = 0.0
+            cut = core
+            for _ in range(3):
+                ring = cv2.dilate(cut.astype(np.uint8), self._ring_kernel).astype(bool)
+                ring &= inside & ~cut
+                if not ring.any():
+                    break
+                level = float(np.median(region[ring]))
+                if level <= shadow + 0.01:
+                    break
+                shadow = level
+                cut = region > shadow + 0.5 * (peak - shadow)
+            f = p.weight_floor_fraction
+            w = np.maximum(region - max(peak * f, shadow + f * (peak - shadow)), 0.0)
             total = float(w.sum())
             wu = w.sum(axis=0)
             wv = w.sum(axis=1)
@@ -239,7 +277,8 @@ class RobustTracker:
             cv_ = float(wv @ np.arange(y0, y0 + bh)) / total
             if _elongation(w, cu - x0, cv_ - y0, total) > p.max_elongation:
                 continue
-            score = total
+            # Of several candidates, the darkest and most prominent is the fingertip.
+            score = peak + prominence
             if score > best_score:
                 best_score = score
                 best = RobustResult(
@@ -252,6 +291,19 @@ class RobustTracker:
                 self._best_box = (x0, y0, bw, bh)
         self.in_contact = best is not None
         return best
+
+    def _tophat(self, contrast: NDArray[np.float32], x0: int, y0: int, bw: int, bh: int
+                ) -> NDArray[np.float32]:
+        """White top-hat of the contrast over one region's box (with the kernel's margin
+        around it, so the result inside the box is the whole image's)."""
+        kh, kw = self._tophat_kernel.shape
+        my, mx = kh, kw
+        sh, sw = contrast.shape
+        ya, yb = max(0, y0 - my), min(sh, y0 + bh + my)
+        xa, xb = max(0, x0 - mx), min(sw, x0 + bw + mx)
+        th = cv2.morphologyEx(contrast[ya:yb, xa:xb], cv2.MORPH_TOPHAT, self._tophat_kernel,
+                              borderType=cv2.BORDER_REPLICATE)
+        return th[y0 - ya : y0 - ya + bh, x0 - xa : x0 - xa + bw]
 
     def _update_background(self, img: NDArray[np.float32], result: RobustResult | None) -> None:
         p = self.params
