@@ -22,6 +22,7 @@ from fydpad.motors.base import MotorConfig
 from fydpad.motors.pwm import PwmConfig
 from fydpad.motors.qb import QbBoardConfig
 from fydpad.softness import SoftnessConfig
+from teleop.config import TeleopConfig
 from vision.config import ForceConfig, IRConfig
 from vision.contact import TrackerConfig
 from vision.sources import CameraConfig
@@ -58,6 +59,7 @@ class StationConfig:
     motors: MotorConfig = field(default_factory=MotorConfig)
     pwm: PwmConfig = field(default_factory=PwmConfig)
     qb: QbBoardConfig = field(default_factory=QbBoardConfig)
+    teleop: TeleopConfig = field(default_factory=TeleopConfig)
     loops: LoopRates = field(default_factory=LoopRates)
     endpoints: Endpoints = field(default_factory=Endpoints)
 
