@@ -493,10 +493,17 @@ class PadRecordingWriter:
         self.path.mkdir(parents=True, exist_ok=True)
         self.meta = meta
         write_meta(self.path, meta)
-        fourcc = cv2.VideoWriter_fourcc(*("MJPG" if video_name.endswith(".avi") else "mp4v"))
-        self._video = cv2.VideoWriter(
-            str(self.path / video_name), fourcc, float(meta.fps), tuple(meta.frame_size)
-        )
+        if video_name.endswith(".avi"):
+            # OpenCV's own MJPEG writer: the only backend that honours the JPEG quality.
+            self._video = cv2.VideoWriter(
+                str(self.path / video_name), cv2.CAP_OPENCV_MJPEG,
+                cv2.VideoWriter_fourcc(*"MJPG"), float(meta.fps), tuple(meta.frame_size),
+            )
+        else:
+            self._video = cv2.VideoWriter(
+                str(self.path / video_name), cv2.VideoWriter_fourcc(*"mp4v"), float(meta.fps),
+                tuple(meta.frame_size),
+            )
         if not self._video.isOpened():
             raise RecordingError(f"{self.path / video_name}: OpenCV cannot write this video")
         self._video.set(cv2.VIDEOWRITER_PROP_QUALITY, float(jpeg_quality))

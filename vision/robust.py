@@ -45,7 +45,7 @@ class RobustParams:
     contrast_floor: float = 0.12
     #: Peak contrast needed to start a contact, and to keep one (hysteresis).
     contrast_on: float = 0.55
-    contrast_off: float = 0.42
+    contrast_off: float = 0.5
     #: The core of a region: pixels above this fraction of its peak contrast.
     core_fraction: float = 0.5
     #: Centroid weights: contrast minus this fraction of the peak, where positive.
@@ -62,7 +62,7 @@ class RobustParams:
     #: A light touch: its darkest spot stands out of its surroundings (white top-hat over
     #: prominence_size_mm) by this much to start a contact, and to keep one.
     prominence_on: float = 0.095
-    prominence_off: float = 0.07
+    prominence_off: float = 0.085
     prominence_size_mm: float = 9.0
     #: Background update rates per frame: towards darker (slow) and brighter (fast).
     bg_rate_darker: float = 0.02

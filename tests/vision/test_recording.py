@@ -166,3 +166,19 @@ def test_meta_written_by_writer_is_read_back(tmp_path: Path):
     rec = PadRecording(tmp_path / "r")
     assert rec.meta.ir_baseline_mm == (99.0, 100.0, 101.0)
     assert rec.video_path.name == "video.mp4" and rec.frame_count == 3
+
+
+def test_mjpg_quality_is_honoured(tmp_path: Path):
+    from vision.recording import PadRecordingWriter
+    rng = np.random.default_rng(0)
+    frame = rng.integers(100, 200, (120, 160, 3), dtype=np.uint8)
+    sizes = {}
+    for q in (40, 95):
+        meta = PadMeta(roi_px=(0, 0, 160, 120), workspace_mm=(100.0, 70.0), fps=30.0,
+                       frame_size=(160, 120))
+        with PadRecordingWriter(tmp_path / f"q{q}", meta, jpeg_quality=q) as w:
+            for _ in range(3):
+                w.write_frame(frame)
+        sizes[q] = (tmp_path / f"q{q}" / "video.avi").stat().st_size
+        assert PadRecording(tmp_path / f"q{q}").frame_count == 3
+    assert sizes[95] > sizes[40] * 1.1

@@ -1,0 +1,150 @@
+"""`teleop` command: run a slave, generate CurveZMQ keys."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import logging
+import signal
+import sys
+import threading
+import tomllib
+from pathlib import Path
+
+from teleop.config import TeleopConfig
+
+log = logging.getLogger("teleop")
+
+
+def load_config(path: str | None) -> TeleopConfig:
+    """TeleopConfig from a TOML file: sections [link] [safety] [mapping] [prediction]
+    [slave] at the top level or under [teleop]. Unknown keys are refused by name."""
+    cfg = TeleopConfig()
+    if path is None:
+        return cfg
+    try:
+        with open(path, "rb") as f:
+            data = tomllib.load(f)
+    except (OSError, tomllib.TOMLDecodeError) as e:
+        raise SystemExit(f"teleop: cannot read config {path}: {e}") from e
+    data = data.get("teleop", data)
+    for section, value in data.items():
+        if not hasattr(cfg, section) or not isinstance(value, dict):
+            if section == "baseline_rate_hz":
+                cfg.baseline_rate_hz = float(value)
+                continue
+            raise SystemExit(f"teleop: {path}: unknown section [{section}]")
+        sub = getattr(cfg, section)
+        names = {f.name: f for f in dataclasses.fields(sub)}
+        for k, v in value.items():
+            if k not in names:
+                raise SystemExit(f"teleop: {path}: unknown key {section}.{k} "
+                                 f"(known: {', '.join(names)})")
+            setattr(sub, k, tuple(v) if isinstance(v, list) else v)
+    return cfg
+
+
+def _cmd_slave(args: argparse.Namespace) -> int:
+    from teleop.link import SlaveSocket
+    from teleop.mapping import Mapping
+    from teleop.slave import SlaveLoop, make_arm
+    from teleop.slaves import ArmFault
+
+    cfg = load_config(args.config)
+    cfg.slave.robot = args.robot
+    if args.ur_host:
+        cfg.slave.ur_host = args.ur_host
+    if args.curve:
+        cfg.link.curve = args.curve
+    if args.keys:
+        cfg.link.keys_dir = args.keys
+    stop = threading.Event()
+
+    def on_signal(signum: int, _frame: object) -> None:
+        log.info("signal %d: stopping the robot", signum)
+        stop.set()
+
+    old_handlers = (signal.signal(signal.SIGTERM, on_signal),
+                    signal.signal(signal.SIGINT, on_signal))
+    arm = make_arm(cfg)
+    try:
+        with SlaveSocket(args.bind, cfg.link) as sock:
+            arm.start(Mapping(cfg.mapping).to_robot([0.0, 0.0, 0.0]))
+            loop = SlaveLoop(arm, sock, cfg)
+            print(f"teleop slave ({args.robot}) listening on {sock.endpoint}"
+                  f"{' (CurveZMQ)' if sock.curve else ''}", flush=True)
+            try:
+                loop.run(stop, duration_s=args.duration)
+            finally:
+                arm.close()
+                rep = loop.report()
+                if args.report:
+                    Path(args.report).write_text(json.dumps(rep, indent=2) + "\n")
+                print(json.dumps(rep), flush=True)
+    except (OSError, FileNotFoundError, ArmFault, ValueError) as e:
+        print(f"teleop slave: {e}", file=sys.stderr)
+        return 2
+    finally:
+        arm.close()
+        signal.signal(signal.SIGTERM, old_handlers[0])
+        signal.signal(signal.SIGINT, old_handlers[1])
+    return 0
+
+
+def _cmd_keys(args: argparse.Namespace) -> int:
+    from teleop.keys import generate
+
+    try:
+        files = generate(Path(args.dir))
+    except FileExistsError as e:
+        print(f"teleop keys: {e}", file=sys.stderr)
+        return 2
+    for f in files:
+        print(f)
+    print(f"copy {args.dir}/server.key and the client pair to the master; keep "
+          "server.key_secret on the slave only")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="teleop",
+        description="FYD-pad tele-operation: the finger on the pad drives a robot arm over "
+                    "ZeroMQ (docs/teleop.md, docs/protocol.md).")
+    ap.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    sub = ap.add_subparsers(dest="command", required=True)
+    s = sub.add_parser("slave", help="run a slave robot until Ctrl-C",
+                       description="Bind ENDPOINT, follow the master's samples with the robot; "
+                                   "Ctrl-C stops the robot and writes the report.")
+    s.add_argument("--robot", choices=("sim", "ur"), default="sim",
+                   help="sim: PyBullet KUKA iiwa (default); ur: Universal Robots via ur-rtde")
+    s.add_argument("--bind", required=True,
+                   help="ZeroMQ endpoint, e.g. tcp://0.0.0.0:5555 or tcp://127.0.0.1:* "
+                        "(random port, printed)")
+    s.add_argument("--report", metavar="FILE", help="write the slave's counts as JSON here")
+    s.add_argument("--config", metavar="FILE", help="TOML with [link] [safety] [mapping] "
+                                                    "[prediction] [slave] sections")
+    s.add_argument("--ur-host", help="UR controller address (with --robot ur)")
+    s.add_argument("--curve", choices=("auto", "on", "off"),
+                   help="CurveZMQ: auto = on unless the endpoint is loopback")
+    s.add_argument("--keys", metavar="DIR", help="CurveZMQ key directory")
+    s.add_argument("--duration", type=float, help=argparse.SUPPRESS)  # tests
+    s.set_defaults(func=_cmd_slave)
+    k = sub.add_parser("keys", help="CurveZMQ key files")
+    ksub = k.add_subparsers(dest="keys_command", required=True)
+    g = ksub.add_parser("generate", help="create server and client key pairs in DIR")
+    g.add_argument("dir", metavar="DIR")
+    g.set_defaults(func=_cmd_keys)
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
+                        format="%(asctime)s %(name)s %(levelname)s: %(message)s")
+    return int(args.func(args))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

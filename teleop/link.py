@@ -1,0 +1,141 @@
+"""ZeroMQ sockets of the link, with CurveZMQ when the endpoint leaves the machine.
+
+Pattern (docs/protocol.md): the slave binds a ROUTER, the master connects a DEALER.
+One socket each way carries samples and states, several masters can reconnect, and
+the slave answers whoever sent the last sample. A stale sample never waits behind a
+fresh one: the master's queue is in order, bounded (``send_hwm``) and refuses to queue
+for an absent peer (ZMQ_IMMEDIATE); the slave drains everything readable each tick, drops
+what aged past ``safety.max_age_s`` and acts on the newest sample only.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import logging
+from pathlib import Path
+from urllib.parse import urlparse
+
+import zmq
+import zmq.auth
+from zmq.auth.thread import ThreadAuthenticator
+
+from teleop.config import LinkConfig
+from teleop.keys import client_keys, server_keys
+
+log = logging.getLogger(__name__)
+
+
+def is_loopback(endpoint: str) -> bool:
+    """True for ipc/inproc and tcp to 127.0.0.0/8, ::1 or localhost."""
+    if endpoint.startswith(("ipc://", "inproc://")):
+        return True
+    host = urlparse(endpoint.replace("tcp://", "tcp://", 1)).hostname or ""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False  # a name or interface: assume it leaves the machine
+
+
+def curve_enabled(cfg: LinkConfig, endpoint: str) -> bool:
+    if cfg.curve not in ("auto", "on", "off"):
+        raise ValueError(f"link.curve must be 'auto', 'on' or 'off', got {cfg.curve!r}")
+    return cfg.curve == "on" or (cfg.curve == "auto" and not is_loopback(endpoint))
+
+
+class LoggingAuthenticator(ThreadAuthenticator):
+    """ZAP handler that logs and counts refused clients (the default only logs at debug)."""
+
+    denied = 0
+
+    async def _authenticate_curve(self, domain: str, client_key: bytes) -> tuple[bool, bytes]:
+        allowed, reason = await super()._authenticate_curve(domain, client_key)
+        if not allowed:
+            type(self).denied += 1
+            log.warning("refused a client with an unknown CURVE key %s (%s): add its public "
+                        "key to authorized_clients/ to allow it",
+                        zmq.utils.z85.encode(client_key).decode(), reason.decode())
+        return allowed, reason
+
+
+class SlaveSocket:
+    """The slave's bound ROUTER (+ authenticator). Context manager: always closes."""
+
+    def __init__(self, endpoint: str, cfg: LinkConfig | None = None,
+                 ctx: zmq.Context | None = None) -> None:
+        cfg = cfg or LinkConfig()
+        self.ctx = ctx or zmq.Context.instance()
+        self.auth: LoggingAuthenticator | None = None
+        self.sock = self.ctx.socket(zmq.ROUTER)
+        self.sock.linger = 0
+        self.sock.setsockopt(zmq.RCVHWM, 1000)
+        self.curve = curve_enabled(cfg, endpoint)
+        if self.curve:
+            keys_dir = Path(cfg.keys_dir)
+            pub, sec = server_keys(keys_dir)
+            self.auth = LoggingAuthenticator(self.ctx)
+            self.auth.start()
+            self.auth.configure_curve(domain="*", location=str(keys_dir / "authorized_clients"))
+            self.sock.curve_secretkey = sec
+            self.sock.curve_publickey = pub
+            self.sock.curve_server = True
+        try:
+            self.sock.bind(endpoint)
+        except zmq.ZMQError as e:
+            self.close()
+            raise OSError(f"slave cannot bind {endpoint}: {e}") from e
+        self.endpoint = self.sock.getsockopt_string(zmq.LAST_ENDPOINT)
+
+    def close(self) -> None:
+        self.sock.close(linger=0)
+        if self.auth is not None:
+            self.auth.stop()
+            self.auth = None
+
+    def __enter__(self) -> SlaveSocket:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class MasterSocket:
+    """The master's DEALER. Context manager: always closes."""
+
+    def __init__(self, endpoint: str, cfg: LinkConfig | None = None,
+                 ctx: zmq.Context | None = None) -> None:
+        cfg = cfg or LinkConfig()
+        self.ctx = ctx or zmq.Context.instance()
+        self.sock = self.ctx.socket(zmq.DEALER)
+        self.sock.linger = 0
+        self.sock.sndhwm = cfg.send_hwm
+        self.sock.setsockopt(zmq.IMMEDIATE, 1)  # never queue samples for a slave not there
+        self.sock.setsockopt(zmq.RECONNECT_IVL, 50)
+        self.sock.setsockopt(zmq.RECONNECT_IVL_MAX, 500)
+        if curve_enabled(cfg, endpoint):
+            keys_dir = Path(cfg.keys_dir)
+            pub, sec = client_keys(keys_dir)
+            server_pub, _ = server_keys(keys_dir, public_only=True)
+            self.sock.curve_publickey = pub
+            self.sock.curve_secretkey = sec
+            self.sock.curve_serverkey = server_pub
+        self.sock.connect(endpoint)
+        self.endpoint = endpoint
+
+    def send(self, data: bytes) -> bool:
+        """Non-blocking send; False when the slave is absent or the queue is full."""
+        try:
+            self.sock.send(data, zmq.NOBLOCK)
+            return True
+        except zmq.Again:
+            return False
+
+    def close(self) -> None:
+        self.sock.close(linger=0)
+
+    def __enter__(self) -> MasterSocket:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

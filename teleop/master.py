@@ -1,0 +1,262 @@
+"""Master side: stream FingerState samples to a slave at their real rate, collect its state,
+and build the report of RECORDING_FORMAT.md (paper IV-B, eq. 6).
+
+    from teleop.master import run_session
+    session = run_session(states, "tcp://127.0.0.1:5555", truth=truth_rows)
+    print(session.report)
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import zmq
+
+from teleop import protocol as P
+from teleop.config import TeleopConfig
+from teleop.link import MasterSocket
+from teleop.report import axes_dict, best_lag_s, latency_ms, mae_per_axis, plot_tracking
+from vision.state import FingerState
+
+
+@dataclass
+class StreamLog:
+    """What one streaming pass saw, in the master's clock."""
+
+    t_s: list[float] = field(default_factory=list)  # capture time of every recording sample
+    master_mm: list[tuple[float, float, float]] = field(default_factory=list)
+    contact: list[bool] = field(default_factory=list)
+    sent: int = 0
+    send_failed: int = 0
+    states: list[tuple[float, P.State]] = field(default_factory=list)  # (arrival, state)
+    t0_s: float = 0.0  # master clock of recording time t_s0
+    t_s0: float = 0.0
+    next_seq: int = 1  # where a following pass continues the sequence
+
+    def offset_s(self) -> float:
+        """Slave clock - master clock, from the echo with the shortest round trip (NTP)."""
+        best = (math.inf, 0.0)
+        for t4, st in self.states:
+            if st.reason != P.REASON_ACK or not math.isfinite(st.t_echo_send_s):
+                continue
+            t1, t2, t3 = st.t_echo_send_s, st.t_echo_recv_s, st.t_slave_s
+            rtt = (t4 - t1) - (t3 - t2)
+            if rtt < best[0]:
+                best = (rtt, ((t2 - t1) + (t3 - t4)) / 2.0)
+        return best[1]
+
+    def latencies_s(self) -> np.ndarray:
+        """One-way master -> slave latency of each acknowledged sample."""
+        off = self.offset_s()
+        seen: dict[int, float] = {}
+        for _, st in self.states:
+            if st.reason == P.REASON_ACK and st.echo_seq not in seen:
+                seen[st.echo_seq] = st.t_echo_recv_s - off - st.t_echo_send_s
+        return np.array(list(seen.values()))
+
+    def slave_log(self) -> tuple[np.ndarray, np.ndarray]:
+        """Slave actual positions (workspace frame) against master-clock time, sorted."""
+        off = self.offset_s()
+        rows = sorted({st.t_slave_s: st.actual_mm for _, st in self.states
+                       if st.reason == P.REASON_TICK}.items())
+        if not rows:
+            return np.empty(0), np.empty((0, 3))
+        t = np.array([r[0] for r in rows]) - off
+        return t, np.array([r[1] for r in rows])
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return (np.array(self.t_s), np.array(self.master_mm, float).reshape(-1, 3),
+                np.array(self.contact, bool))
+
+
+def _position(fs: FingerState) -> tuple[float, float, float]:
+    z = fs.indentation_mm if math.isfinite(fs.indentation_mm) else 0.0
+    if not fs.contact:
+        return (math.nan, math.nan, 0.0)
+    return (fs.x_mm, fs.y_mm, z)
+
+
+def stream(states: Iterable[FingerState], sock: MasterSocket, *, rate_hz: float | None = None,
+           hold_mode: bool = False, preroll_s: float = 0.5, tail_s: float = 0.3,
+           first_seq: int = 1, preroll_state: FingerState | None = None,
+           clock: Callable[[], float] = time.monotonic) -> StreamLog:
+    """Send ``states`` at the times their ``t_s`` say, collecting slave states meanwhile.
+
+    ``rate_hz`` decimates (the paper's 10 Hz master); every input sample is still logged
+    as the master position to score against. ``preroll_s`` of ``preroll_state`` (default:
+    the first sample) brings the arm to the start first (not scored).
+    """
+    log = StreamLog()
+    seq = first_seq
+    poller = zmq.Poller()
+    poller.register(sock.sock, zmq.POLLIN)
+
+    def collect_until(t_end: float) -> None:
+        while True:
+            now = clock()
+            if now >= t_end and not poller.poll(0):
+                return
+            if now < t_end and not poller.poll(max(0.0, (t_end - now) * 1e3)):
+                continue
+            while True:
+                try:
+                    buf = sock.sock.recv(zmq.NOBLOCK)
+                except zmq.Again:
+                    break
+                try:
+                    log.states.append((clock(), P.decode_state(buf)))
+                except P.ProtocolError:
+                    pass  # not ours; the slave never sends these
+
+    def send(fs: FingerState, t_cap: float) -> None:
+        nonlocal seq
+        x, y, z = _position(fs)
+        force = fs.force_n if math.isfinite(fs.force_n) else math.nan
+        msg = P.Sample(seq, t_cap, clock(), x, y, z, force, fs.contact, hold_mode)
+        seq += 1
+        if sock.send(P.encode_sample(msg)):
+            log.sent += 1
+        else:
+            log.send_failed += 1
+
+    it = iter(states)
+    first = next(it, None)
+    if first is None:
+        return log
+    period_pre = 1.0 / 30.0
+    t_start = clock() + 0.05
+    n_pre = round(preroll_s / period_pre)
+    for k in range(n_pre):
+        t_due = t_start + k * period_pre
+        collect_until(t_due)
+        send(preroll_state or first, t_due)
+    log.t0_s = t_start + n_pre * period_pre
+    log.t_s0 = first.t_s
+    last_sent_t = -math.inf
+    for fs in _chain(first, it):
+        t_due = log.t0_s + (fs.t_s - log.t_s0)
+        collect_until(t_due)
+        log.t_s.append(t_due)
+        log.master_mm.append(_position(fs))
+        log.contact.append(bool(fs.contact))
+        if rate_hz is None or fs.t_s - last_sent_t >= 1.0 / rate_hz - 1e-6:
+            send(fs, t_due)
+            last_sent_t = fs.t_s
+    collect_until(clock() + tail_s)
+    log.next_seq = seq
+    return log
+
+
+def _chain(first: FingerState, rest: Iterable[FingerState]) -> Iterable[FingerState]:
+    yield first
+    yield from rest
+
+
+def _dropped(log: StreamLog) -> int:
+    """Samples the slave refused during this pass, plus those never sent."""
+    acks = [st for _, st in log.states]
+    if not acks:
+        return log.sent + log.send_failed
+    delivered = acks[-1].received - acks[0].received + 1
+    refused = acks[-1].dropped - acks[0].dropped
+    return log.send_failed + max(0, log.sent - delivered) + refused
+
+
+@dataclass
+class Session:
+    """A finished session: the report and the logs behind it (for plots)."""
+
+    report: dict
+    main: StreamLog
+    baseline: StreamLog | None
+
+    def plot(self, path: str, title: str = "") -> None:
+        """Fig. 11-like PNG: master vs slave per axis, with the paper condition if run."""
+        t, m, _ = self.main.arrays()
+        tl, sl = self.main.slave_log()
+        base = None
+        if self.baseline is not None:
+            tb, sb = self.baseline.slave_log()
+            base = (tb - self.baseline.t0_s + self.main.t0_s, sb)
+        t0 = self.main.t0_s
+        plot_tracking(path, t - t0, m, tl - t0,  sl,
+                      None if base is None else (base[0] - t0, base[1]), title)
+
+
+def run_session(states: Sequence[FingerState], endpoint: str, cfg: TeleopConfig | None = None,
+                *, truth: np.ndarray | None = None, baseline: bool = True) -> Session:
+    """Stream a recording's states to the slave at ``endpoint`` and build the report.
+
+    ``truth``: rows ``t_s, contact, x_mm, y_mm, z_mm`` on the recording's time base
+    (truth.csv) for ``truth_mae_mm``. ``baseline``: a second pass under the paper's
+    condition (``cfg.baseline_rate_hz`` master, slave holds each sample).
+    """
+    cfg = cfg or TeleopConfig()
+    # Pre-roll on the first touch: the arm starts where the finger first lands.
+    pre = next((s for s in states if s.contact), None)
+    with MasterSocket(endpoint, cfg.link) as sock:
+        _wait_for_slave(sock, endpoint)
+        main = stream(states, sock, preroll_state=pre)
+        base = None
+        if baseline:
+            base = stream(states, sock, rate_hz=cfg.baseline_rate_hz, hold_mode=True,
+                          first_seq=main.next_seq,
+                          preroll_state=pre)
+    return Session(build_report(main, base, truth), main, base)
+
+
+def build_report(main: StreamLog, base: StreamLog | None,
+                 truth: np.ndarray | None = None) -> dict:
+    """The RECORDING_FORMAT.md report from a main pass and an optional baseline pass."""
+    t, m, c = main.arrays()
+    tl, sl = main.slave_log()
+    mae = mae_per_axis(t, m, c, tl, sl)
+    rep: dict = {"mae_mm": axes_dict(mae)}
+    if base is not None:
+        tb, mb, cb = base.arrays()
+        tlb, slb = base.slave_log()
+        rep["baseline_mae_mm"] = axes_dict(mae_per_axis(tb, mb, cb, tlb, slb))
+    rep["lag_ms"] = round(best_lag_s(t, m, c, tl, sl) * 1e3, 1)
+    rep["latency_ms"] = latency_ms(main.latencies_s())
+    rep["samples"] = int(t.size)
+    rep["dropped"] = _dropped(main)
+    rep["duration_s"] = round(float(t[-1] - t[0]) if t.size else 0.0, 3)
+    if truth is not None:
+        tt = np.asarray(truth, float)
+        t_true = main.t0_s + (tt[:, 0] - main.t_s0)
+        rep["truth_mae_mm"] = axes_dict(mae_per_axis(t_true, tt[:, 2:5], tt[:, 1] > 0.5,
+                                                      tl, sl))
+    return rep
+
+
+def _wait_for_slave(sock: MasterSocket, endpoint: str, timeout_s: float = 5.0) -> None:
+    """ZMQ_IMMEDIATE refuses to queue before the connection is up: wait for it."""
+    t_end = time.monotonic() + timeout_s
+    probe = P.encode_sample(P.Sample(0, 0.0, 0.0, math.nan, math.nan, math.nan, math.nan,
+                                     False))
+    # seq 0 with NaN: the slave counts it as malformed data and drops it, nothing moves.
+    while time.monotonic() < t_end:
+        if sock.send(probe):
+            return
+        time.sleep(0.01)
+    raise TimeoutError(f"no slave answered at {endpoint} within {timeout_s:.0f} s: is "
+                       "`teleop slave` running there, and are the CurveZMQ keys the same?")
+
+
+def run_local_sim(states: Sequence[FingerState], cfg: TeleopConfig | None = None, *,
+                  truth: np.ndarray | None = None, plot_path: str | None = None,
+                  baseline: bool = True) -> Session:
+    """The demo: a simulated slave in a thread of this process on a random loopback port,
+    driven over a real socket by run_session; optionally the Fig. 11 plot."""
+    from teleop.slave import SlaveThread
+
+    cfg = cfg or TeleopConfig()
+    with SlaveThread(cfg, bind="tcp://127.0.0.1:*") as slave:
+        session = run_session(states, slave.endpoint, cfg, truth=truth, baseline=baseline)
+    if plot_path is not None:
+        session.plot(plot_path)
+    return session

@@ -1,0 +1,146 @@
+"""Slave-side safety: sample admission, workspace box, speed/acceleration limits, watchdog.
+
+Pure: the caller passes times in. Counting every reason a sample was refused is what
+makes a bad link visible in the report.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+
+import numpy as np
+
+from teleop.config import SafetyConfig
+from teleop.protocol import Sample
+
+
+class SampleGate:
+    """Admit a sample only if finite, fresh, new and in order; count the others."""
+
+    def __init__(self, cfg: SafetyConfig) -> None:
+        self.cfg = cfg
+        self.last_seq = 0
+        self.last_t_capture_s = -math.inf
+        self.dropped: Counter[str] = Counter()
+
+    def reset_sequence(self) -> None:
+        """A new master session (e.g. the master restarted, seq from 1 again)."""
+        self.last_seq = 0
+        self.last_t_capture_s = -math.inf
+
+    def admit(self, s: Sample, age_s: float) -> bool:
+        """``age_s``: capture to arrival, in one clock (the caller applies the offset)."""
+        # Force may be NaN (no load cell); positions are needed, x and y only in contact.
+        need = (s.t_capture_s, s.t_send_s, s.z_mm) + ((s.x_mm, s.y_mm) if s.contact else ())
+        if not all(math.isfinite(v) for v in need):
+            self.dropped["nonfinite"] += 1
+            return False
+        if s.seq == self.last_seq:
+            self.dropped["duplicate"] += 1
+            return False
+        if s.seq < self.last_seq or s.t_capture_s <= self.last_t_capture_s:
+            self.dropped["out_of_order"] += 1
+            return False
+        if age_s > self.cfg.max_age_s:
+            self.dropped["stale"] += 1
+            return False
+        self.last_seq = s.seq
+        self.last_t_capture_s = s.t_capture_s
+        return True
+
+    @property
+    def dropped_total(self) -> int:
+        return sum(self.dropped.values())
+
+
+class MotionLimiter:
+    """Turn a target into a command that respects the box and the speed/accel limits.
+
+    Speed is also capped at sqrt(2 a d) towards the target (d: distance left), so a far
+    target is approached with braking, not overshoot.
+    """
+
+    def __init__(self, cfg: SafetyConfig, start_mm: np.ndarray) -> None:
+        self.cfg = cfg
+        self.box_min = np.asarray(cfg.box_min_mm, float)
+        self.box_max = np.asarray(cfg.box_max_mm, float)
+        if np.any(self.box_min >= self.box_max):
+            raise ValueError(f"safety box min {cfg.box_min_mm} must be below max {cfg.box_max_mm}")
+        self.cmd_mm = self.clamp(np.asarray(start_mm, float))
+        self.vel_mm_s = np.zeros(3)
+        self.speed_cap_mm_s = cfg.max_speed_mm_s
+        self.clamped = 0  # ticks where the box changed the target
+        self._prev_tgt: np.ndarray | None = None
+
+    def clamp(self, p_mm: np.ndarray) -> np.ndarray:
+        return np.clip(p_mm, self.box_min, self.box_max)
+
+    def step(self, target_mm: np.ndarray, dt_s: float) -> np.ndarray:
+        """One control tick towards ``target_mm``; returns the new command."""
+        tgt = self.clamp(target_mm)
+        if not np.array_equal(tgt, target_mm):
+            self.clamped += 1
+        # Feed-forward the target's own velocity (a moving finger), unless it jumped: the
+        # braking law below then only acts on what is left, so tracking is not slowed.
+        v_tgt = np.zeros(3) if self._prev_tgt is None else (tgt - self._prev_tgt) / dt_s
+        if float(np.linalg.norm(v_tgt)) > self.speed_cap_mm_s:
+            v_tgt = np.zeros(3)
+        self._prev_tgt = tgt
+        err = tgt - self.cmd_mm - v_tgt * dt_s
+        dist = float(np.linalg.norm(err))
+        a_max = self.cfg.max_accel_mm_s2
+        v_des = v_tgt.copy()
+        if dist > 1e-9:
+            # Discrete-time braking speed: stopping in whole ticks lands on the target
+            # instead of sqrt(2 a d), which overshoots by up to a dt^2.
+            adt = a_max * dt_s
+            v_brake = adt * (math.sqrt(0.25 + 2.0 * dist / (adt * dt_s)) - 0.5)
+            v_des += err / dist * min(dist / dt_s, v_brake)
+        speed = float(np.linalg.norm(v_des))
+        if speed > self.speed_cap_mm_s:
+            v_des *= self.speed_cap_mm_s / speed
+        dv = v_des - self.vel_mm_s
+        dv_norm = float(np.linalg.norm(dv))
+        if dv_norm > a_max * dt_s:
+            dv *= a_max * dt_s / dv_norm
+        self.vel_mm_s = self.vel_mm_s + dv
+        self.cmd_mm = self.clamp(self.cmd_mm + self.vel_mm_s * dt_s)
+        return self.cmd_mm.copy()
+
+    def hold(self, dt_s: float) -> np.ndarray:
+        """Decelerate to rest within the acceleration limit, then stay."""
+        self._prev_tgt = None
+        v = float(np.linalg.norm(self.vel_mm_s))
+        dv = self.cfg.max_accel_mm_s2 * dt_s
+        self.vel_mm_s = np.zeros(3) if v <= dv else self.vel_mm_s * (1.0 - dv / v)
+        self.cmd_mm = self.clamp(self.cmd_mm + self.vel_mm_s * dt_s)
+        return self.cmd_mm.copy()
+
+
+class Watchdog:
+    """True while the last valid sample is younger than ``timeout_s`` (slave clock)."""
+
+    def __init__(self, timeout_s: float) -> None:
+        self.timeout_s = timeout_s
+        self.last_valid_s = -math.inf
+        self.trips = 0
+        self.trip_delays_s: list[float] = []  # last valid sample -> hold, per trip
+        # Per trip: last valid sample -> the check before the trip (<= timeout: the hold came
+        # at the first check past the deadline, however late the scheduler ran it).
+        self.pre_trip_checks_s: list[float] = []
+        self._alive = False
+        self._last_check_s = -math.inf
+
+    def feed(self, now_s: float) -> None:
+        self.last_valid_s = now_s
+
+    def alive(self, now_s: float) -> bool:
+        ok = now_s - self.last_valid_s <= self.timeout_s
+        if self._alive and not ok:
+            self.trips += 1
+            self.trip_delays_s.append(now_s - self.last_valid_s)
+            self.pre_trip_checks_s.append(self._last_check_s - self.last_valid_s)
+        self._alive = ok
+        self._last_check_s = now_s
+        return ok

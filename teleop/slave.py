@@ -1,0 +1,288 @@
+"""The slave loop: read samples, keep the newest valid one, predict, limit, servo, report.
+
+Runs at ``slave.period_s`` (2 ms); the sim arm steps its 1 kHz physics inside. Each tick
+drains every readable message (latest-only: a stale sample never waits behind a fresh
+one), so the link latency is the socket's, not the tick's.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from collections import Counter, deque
+from collections.abc import Callable
+
+import numpy as np
+import zmq
+
+from teleop import protocol as P
+from teleop.config import TeleopConfig
+from teleop.link import LoggingAuthenticator, SlaveSocket
+from teleop.mapping import Mapping
+from teleop.predict import Predictor
+from teleop.safety import MotionLimiter, SampleGate, Watchdog
+from teleop.slaves import Arm, ArmFault
+
+log = logging.getLogger(__name__)
+
+
+class SlaveLoop:
+    """One slave: an arm, a bound socket, the safety chain. Not thread-safe; one thread runs it."""
+
+    def __init__(self, arm: Arm, sock: SlaveSocket, cfg: TeleopConfig | None = None,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.cfg = cfg or TeleopConfig()
+        self.arm = arm
+        self.sock = sock
+        self.clock = clock
+        self.mapping = Mapping(self.cfg.mapping)
+        self.gate = SampleGate(self.cfg.safety)
+        self.watchdog = Watchdog(self.cfg.safety.watchdog_s)
+        pc = self.cfg.prediction
+        # x, y restart at every touch (unknown while lifted). z restarts too, seeded with
+        # the last lifted sample (indentation 0): the touch-down is then a ramp from 0.
+        self.predictor = Predictor(pc.window, pc.degree, pc.max_horizon_s)
+        self.predictor_z = Predictor(pc.window_z, pc.degree, pc.max_horizon_s)
+        self.lag_s = pc.arm_lag_s if pc.arm_lag_s > 0 else arm.lag_s
+        self.home_mm = self.mapping.to_robot(np.zeros(3))
+        self.limiter = MotionLimiter(self.cfg.safety, self.home_mm)
+        self.status = P.STATUS_IDLE
+        self.counts: Counter[str] = Counter()
+        self.peer: bytes | None = None
+        self._offsets: deque[float] = deque(maxlen=200)
+        self.offset_s: float | None = None  # slave clock - master clock (+ min latency)
+        self._latest: P.Sample | None = None
+        self._latest_recv_s = math.nan
+        self._contact = False
+        self._gliding = False
+        self._touchdown = False
+        self._was_alive = False
+        self._actual_mm = self.home_mm.copy()
+        self.t_start_s = math.nan
+        self.t_end_s = math.nan
+
+    # -- receiving ----------------------------------------------------------------------
+    def _on_message(self, frames: list[bytes], now_s: float) -> None:
+        self.counts["messages"] += 1
+        if len(frames) != 2:
+            self.counts["malformed"] += 1
+            return
+        ident, buf = frames
+        try:
+            s = P.decode_sample(buf)
+        except P.ProtocolError as e:
+            self.counts["malformed"] += 1
+            log.debug("malformed message: %s", e)
+            return
+        self.counts["received"] += 1
+        if ident != self.peer:
+            # A new master (or the same one after a restart): its seq starts again.
+            if self.peer is not None:
+                log.info("new master connection: sequence and clock offset reset")
+            self.peer = ident
+            self.gate.reset_sequence()
+            self._offsets.clear()
+        d = now_s - s.t_send_s
+        offset = min(min(self._offsets, default=d), d)
+        age_s = now_s - offset - s.t_capture_s
+        if self.gate.admit(s, age_s):
+            self._offsets.append(d)
+            self.offset_s = min(self._offsets)
+            self.watchdog.feed(now_s)
+            self._accept(s)
+            self._latest_recv_s = now_s
+        self._send_state(P.REASON_ACK, now_s, s)
+
+    def _accept(self, s: P.Sample) -> None:
+        self.counts["accepted"] += 1
+        # Predictors run on the master's capture clock (strictly increasing, checked by the
+        # gate); "now" is mapped into it with the offset, which may still be refined.
+        t_slave = s.t_capture_s
+        if s.contact != self._contact or (self._latest is not None
+                                          and s.hold_mode != self._latest.hold_mode):
+            # Never extrapolate across a touch-down or lift-off (z keeps its seed: below).
+            self.predictor.reset()
+            if s.contact == self._contact:
+                self.predictor_z.reset()
+        if s.contact and not self._contact:
+            self._touchdown = True
+        if s.contact:
+            self.predictor.add(t_slave, np.array([s.x_mm, s.y_mm]))
+            self.predictor_z.add(t_slave, np.array([s.z_mm]))
+        else:
+            self.predictor_z.reset()
+            self.predictor_z.add(t_slave, np.array([0.0]))  # seed for the next touch-down
+        self._contact = s.contact
+        self._latest = s
+
+    def _send_state(self, reason: int, now_s: float, echo: P.Sample | None) -> None:
+        if self.peer is None:
+            return
+        cmd_ws = self.mapping.to_workspace(self.limiter.cmd_mm)
+        act_ws = self.mapping.to_workspace(self._actual_mm)
+        e = echo or self._latest
+        st = P.State(status=self.status, reason=reason, echo_seq=e.seq if e else 0,
+                     t_echo_send_s=e.t_send_s if e else math.nan,
+                     t_echo_recv_s=now_s if echo is not None else self._latest_recv_s,
+                     t_slave_s=self.clock() if reason == P.REASON_ACK else now_s,
+                     cmd_mm=tuple(cmd_ws), actual_mm=tuple(act_ws),
+                     received=self.counts["received"], dropped=self.gate.dropped_total)
+        try:
+            self.sock.sock.send_multipart([self.peer, P.encode_state(st)], zmq.NOBLOCK)
+        except zmq.ZMQError:
+            self.counts["state_send_failed"] += 1
+
+    # -- control ------------------------------------------------------------------------
+    def _target_ws(self, now_s: float) -> np.ndarray | None:
+        """Workspace target for this tick, or None to hold."""
+        alive = self.watchdog.alive(now_s)
+        if not alive:
+            if self._was_alive:
+                log.warning("no valid sample for %.0f ms: holding", 1e3 * self.watchdog.timeout_s)
+                self.predictor.reset()
+                self.predictor_z.reset()
+            self._was_alive = False
+            if self._latest is not None:
+                self.status = P.STATUS_WATCHDOG_HOLD
+            return None
+        if not self._was_alive:
+            self._gliding = True  # resume: glide to the finger, no jump
+        self._was_alive = True
+        s = self._latest
+        cmd_ws = self.mapping.to_workspace(self.limiter.cmd_mm)
+        if not s.contact:
+            self.status = P.STATUS_CLUTCH
+            return np.array([cmd_ws[0], cmd_ws[1], 0.0])  # hold x, y; back to the surface
+        self.status = P.STATUS_TRACKING
+        if s.hold_mode or not self.cfg.prediction.enabled:
+            tgt = np.array([s.x_mm, s.y_mm, s.z_mm])
+        else:
+            t_ahead = now_s - (self.offset_s or 0.0) + self.lag_s
+            tgt = np.concatenate([self.predictor.predict_flat(t_ahead),
+                                  self.predictor_z.predict_flat(t_ahead)])
+        tgt[2] = max(tgt[2], 0.0)  # in contact the finger is never above the fabric
+        if self._touchdown:
+            # After a clutch the finger may touch elsewhere: glide there instead of jumping.
+            self._touchdown = False
+            if float(np.linalg.norm(tgt[:2] - cmd_ws[:2])) > self.cfg.safety.reengage_jump_mm:
+                self._gliding = True
+        return tgt
+
+    def tick(self, now_s: float, dt_s: float) -> None:
+        tgt_ws = self._target_ws(now_s)
+        if tgt_ws is None:
+            cmd = self.limiter.hold(dt_s)
+        else:
+            tgt = self.mapping.to_robot(tgt_ws)
+            if self._gliding:
+                if np.linalg.norm(tgt - self.limiter.cmd_mm) <= self.cfg.safety.resume_done_mm:
+                    self._gliding = False
+            self.limiter.speed_cap_mm_s = (self.cfg.safety.resume_speed_mm_s if self._gliding
+                                           else self.cfg.safety.max_speed_mm_s)
+            cmd = self.limiter.step(tgt, dt_s)
+        try:
+            if self.status != P.STATUS_FAULT:
+                self.arm.servo(cmd, now_s)
+                self._actual_mm = self.arm.actual_mm()
+        except ArmFault as e:
+            self.status = P.STATUS_FAULT
+            self.counts["arm_faults"] += 1
+            log.error("robot fault, holding: %s", e)
+            try:
+                self.arm.hold()
+            except Exception:  # the arm is already gone; nothing more to do safely
+                log.exception("hold after fault failed")
+        self._send_state(P.REASON_TICK, now_s, None)
+
+    def run(self, stop: threading.Event, duration_s: float | None = None) -> None:
+        """Loop until ``stop`` is set (or ``duration_s`` passes)."""
+        period = self.cfg.slave.period_s
+        poller = zmq.Poller()
+        poller.register(self.sock.sock, zmq.POLLIN)
+        self.t_start_s = t_next = self.clock()
+        t_prev = t_next
+        while not stop.is_set():
+            now = self.clock()
+            if duration_s is not None and now - self.t_start_s >= duration_s:
+                break
+            while now < t_next:
+                ev = dict(poller.poll(max(0.0, (t_next - now) * 1e3)))
+                now = self.clock()
+                if ev:
+                    while True:
+                        try:
+                            frames = self.sock.sock.recv_multipart(zmq.NOBLOCK)
+                        except zmq.Again:
+                            break
+                        self._on_message(frames, self.clock())
+            self.tick(now, min(max(now - t_prev, 1e-4), 0.05))
+            t_prev = now
+            t_next += period
+            if now - t_next > 0.05:  # starved (e.g. CI load): skip ahead, don't burst
+                t_next = now + period
+        self.t_end_s = self.clock()
+
+    def report(self) -> dict:
+        """The slave's own counts (the MAE report is the master's)."""
+        return {
+            "robot": self.arm.name,
+            "duration_s": round(self.t_end_s - self.t_start_s, 3),
+            "messages": self.counts["messages"],
+            "malformed": self.counts["malformed"],
+            "received": self.counts["received"],
+            "accepted": self.counts["accepted"],
+            "dropped": dict(self.gate.dropped),
+            "watchdog_trips": self.watchdog.trips,
+            "box_clamped_ticks": self.limiter.clamped,
+            "arm_faults": self.counts["arm_faults"],
+            "auth_denied": LoggingAuthenticator.denied,
+        }
+
+
+def make_arm(cfg: TeleopConfig) -> Arm:
+    """The arm named by ``cfg.slave.robot``."""
+    mapping = Mapping(cfg.mapping)
+    if cfg.slave.robot == "sim":
+        from teleop.slaves.sim import SimArm
+        return SimArm(cfg.slave.sim_joint_speed_rad_s, lag_s=0.002,
+                      tool_down=tuple(mapping.tool_down()))
+    if cfg.slave.robot == "ur":
+        from teleop.slaves.ur import URArm
+        return URArm(cfg.slave, tool_down=tuple(mapping.tool_down()))
+    raise ValueError(f"slave.robot must be 'sim' or 'ur', got {cfg.slave.robot!r}")
+
+
+class SlaveThread:
+    """A slave running in a thread of this process (the demo; tests). Context manager."""
+
+    def __init__(self, cfg: TeleopConfig | None = None, bind: str = "tcp://127.0.0.1:*",
+                 arm: Arm | None = None) -> None:
+        self.cfg = cfg or TeleopConfig()
+        self.arm = arm or make_arm(self.cfg)
+        self.sock = SlaveSocket(bind, self.cfg.link)
+        self.endpoint = self.sock.endpoint
+        self._stop = threading.Event()
+        self.loop: SlaveLoop | None = None
+        self._thread: threading.Thread | None = None
+
+    def __enter__(self) -> SlaveThread:
+        try:
+            self.arm.start(Mapping(self.cfg.mapping).to_robot(np.zeros(3)))
+            self.loop = SlaveLoop(self.arm, self.sock, self.cfg)
+        except Exception:
+            self.arm.close()
+            self.sock.close()
+            raise
+        self._thread = threading.Thread(target=self.loop.run, args=(self._stop,),
+                                        name="teleop-slave", daemon=True)
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(5.0)
+        self.arm.close()
+        self.sock.close()

@@ -1,0 +1,71 @@
+"""The report's figures as RECORDING_FORMAT.md defines them (eq. 6), on hand-made logs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from teleop.config import SafetyConfig
+from teleop.report import best_lag_s, interp_log, latency_ms, mae_per_axis
+from teleop.safety import MotionLimiter
+
+
+def test_mae_starts_at_first_contact_interpolates_the_slave_and_skips_missing_axes():
+    t = np.array([0.0, 0.1, 0.2, 0.3])
+    contact = np.array([False, True, True, False])
+    master = np.array([[np.nan, np.nan, 0.0], [1.0, 2.0, 3.0], [2.0, 2.0, 3.0],
+                       [np.nan, np.nan, 0.0]])
+    # Slave log at other instants: linear in time, so interpolation is exact.
+    tl = np.array([0.0, 0.05, 0.15, 0.25, 0.35])
+    sl = np.column_stack([10 * tl, np.full(5, 2.5), np.full(5, 1.0)])
+    mae = mae_per_axis(t, master, contact, tl, sl)
+    # x: |1 - 1| and |2 - 2| -> 0; y: 0.5 twice; z: |3-1|, |3-1|, |0-1| over 3 samples.
+    np.testing.assert_allclose(mae, [0.0, 0.5, 5.0 / 3.0])
+
+
+def test_slave_log_outside_its_span_is_not_extrapolated():
+    out = interp_log(np.array([-1.0, 0.5, 2.0]), np.array([0.0, 1.0]), np.ones((2, 3)))
+    assert np.isnan(out[0]).all() and np.isnan(out[2]).all() and (out[1] == 1).all()
+
+
+def test_lag_finds_the_delay_and_mae_applies_none():
+    t = np.arange(0, 4, 1 / 30)
+    master = np.column_stack([20 * np.sin(2 * t), 10 * np.cos(3 * t), np.full(t.size, 2.0)])
+    tl = np.arange(-0.5, 4.5, 0.002)
+    delayed = np.column_stack([20 * np.sin(2 * (tl - 0.05)), 10 * np.cos(3 * (tl - 0.05)),
+                               np.full(tl.size, 2.0)])
+    contact = np.ones(t.size, bool)
+    assert best_lag_s(t, master, contact, tl, delayed) == pytest.approx(0.05, abs=0.0011)
+    assert mae_per_axis(t, master, contact, tl, delayed)[0] > 0.5  # the delay is an error
+
+
+def test_latency_percentiles_in_ms():
+    assert latency_ms(np.array([0.001] * 99 + [0.010])) == {"p50": 1.0, "p99": 1.09}
+    assert latency_ms(np.array([])) == {"p50": None, "p99": None}
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.floats(-500, 500), st.floats(-500, 500), st.floats(-500, 500)),
+                min_size=1, max_size=40),
+       st.integers(1, 50))
+def test_limiter_never_breaks_its_limits(targets, hold_ticks):
+    """Whatever the targets (jumps, out of the box), the command stays in the box and its
+    speed and acceleration within the limits."""
+    cfg = SafetyConfig(box_min_mm=(-100, -100, -100), box_max_mm=(100, 100, 100))
+    dt = 0.002
+    lim = MotionLimiter(cfg, np.zeros(3))
+    cmds = [lim.cmd_mm.copy()]
+    for tgt in targets:
+        for _ in range(hold_ticks):
+            cmds.append(lim.step(np.array(tgt), dt))
+    c = np.array(cmds)
+    assert (c >= -100 - 1e-9).all() and (c <= 100 + 1e-9).all()
+    v = np.diff(c, axis=0) / dt
+    assert np.linalg.norm(v, axis=1).max() <= cfg.max_speed_mm_s * (1 + 1e-9)
+    a = np.diff(v, axis=0) / dt
+    # Clamping to the box can stop the command harder than the limit (a wall), so the
+    # acceleration bound is checked where the box did not act.
+    inside = (np.abs(c[1:-1]) < 100 - 1e-6).all(axis=1) & (np.abs(c[2:]) < 100 - 1e-6).all(axis=1)
+    assert (np.linalg.norm(a[inside], axis=1) <= cfg.max_accel_mm_s2 * (1 + 1e-6)).all()

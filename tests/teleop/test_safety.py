@@ -1,0 +1,92 @@
+"""Slave safety: admission of samples, box, speed and acceleration limits, watchdog."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from teleop.config import SafetyConfig
+from teleop.protocol import Sample
+from teleop.safety import MotionLimiter, SampleGate, Watchdog
+
+
+def smp(seq, t, x=0.0, contact=True, force=1.0):
+    return Sample(seq, t, t, x, 0.0, 1.0, force, contact)
+
+
+def test_gate_drops_and_counts_each_kind_of_bad_sample():
+    g = SampleGate(SafetyConfig(max_age_s=0.2))
+    assert g.admit(smp(1, 0.0), 0.001)
+    assert not g.admit(smp(2, 0.1, x=math.nan), 0.001)
+    assert not g.admit(smp(3, 0.2, x=math.inf), 0.001)
+    assert g.admit(smp(4, 0.3), 0.001)
+    assert not g.admit(smp(4, 0.3), 0.001)  # replayed
+    assert not g.admit(smp(2, 0.05), 0.001)  # reordered (older seq)
+    assert not g.admit(smp(5, 0.25), 0.001)  # newer seq but older capture time
+    assert not g.admit(smp(6, 0.4), 0.5)  # stale
+    assert g.admit(smp(7, 0.5, force=math.nan), 0.001)  # no load cell: fine
+    assert g.admit(Sample(8, 0.6, 0.6, math.nan, math.nan, 0.0, 0.0, False), 0.0)  # lifted
+    assert dict(g.dropped) == {"nonfinite": 2, "duplicate": 1, "out_of_order": 2, "stale": 1}
+
+
+def run_limiter(lim, targets, dt):
+    out = [lim.cmd_mm.copy()]
+    for tgt in targets:
+        out.append(lim.step(np.asarray(tgt, float), dt))
+    return np.array(out)
+
+
+def test_box_clamps_targets():
+    cfg = SafetyConfig(box_min_mm=(0, 0, 0), box_max_mm=(10, 10, 10))
+    lim = MotionLimiter(cfg, np.array([5.0, 5.0, 5.0]))
+    out = run_limiter(lim, [[50.0, -50.0, 5.0]] * 2000, 0.002)
+    np.testing.assert_allclose(out[-1], [10.0, 0.0, 5.0], atol=1e-6)
+    assert out[:, 0].max() <= 10.0 and out[:, 1].min() >= 0.0
+
+
+def test_a_jump_is_limited_in_speed_and_acceleration_and_does_not_overshoot():
+    cfg = SafetyConfig(box_min_mm=(-1e3,) * 3, box_max_mm=(1e3,) * 3)
+    dt = 0.002
+    lim = MotionLimiter(cfg, np.zeros(3))
+    out = run_limiter(lim, [[100.0, 0.0, 0.0]] * 1000, dt)
+    v = np.diff(out[:, 0]) / dt
+    a = np.diff(v) / dt
+    assert v.max() <= cfg.max_speed_mm_s + 1e-6
+    assert np.abs(a).max() <= cfg.max_accel_mm_s2 * (1 + 1e-6)
+    assert out[:, 0].max() <= 100.0 + 0.01  # discrete braking: at most 0.01 mm past
+    assert out[-1, 0] == pytest.approx(100.0, abs=1e-6)
+
+
+def test_a_100_mm_s_tap_passes_the_default_limits():
+    """A tap at 100 mm/s peak (sin^2 press, 8 mm deep) is followed within 0.05 mm."""
+    cfg = SafetyConfig(box_min_mm=(-1e3,) * 3, box_max_mm=(1e3,) * 3)
+    dt = 0.002
+    press = 0.3
+    depth = 100.0 * press / math.pi
+    t = np.arange(0, 1.0, dt)
+    z = np.where(np.mod(t, 0.5) < press, depth * np.sin(math.pi * np.mod(t, 0.5) / press) ** 2, 0)
+    lim = MotionLimiter(cfg, np.zeros(3))
+    out = run_limiter(lim, [[0.0, 0.0, zi] for zi in z], dt)
+    assert np.abs(out[1:, 2] - z).max() < 0.05
+
+
+def test_hold_decelerates_within_limits_then_stays():
+    cfg = SafetyConfig(box_min_mm=(-1e3,) * 3, box_max_mm=(1e3,) * 3)
+    dt = 0.002
+    lim = MotionLimiter(cfg, np.zeros(3))
+    run_limiter(lim, [[k * 0.4, 0, 0] for k in range(1, 200)], dt)  # 200 mm/s
+    x = [lim.hold(dt)[0] for _ in range(100)]
+    v = np.diff(x) / dt
+    assert np.abs(np.diff(v) / dt).max() <= cfg.max_accel_mm_s2 * (1 + 1e-6)
+    assert v[-1] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_watchdog():
+    w = Watchdog(0.25)
+    assert not w.alive(0.0)
+    w.feed(1.0)
+    assert w.alive(1.2)
+    assert not w.alive(1.26)
+    assert w.trips == 1

