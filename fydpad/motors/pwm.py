@@ -25,9 +25,11 @@ class PwmConfig:
     duty_max: float = 1.0
     #: Share of duty_max reserved to the vibration; the position part gets the rest.
     vibration_headroom: float = 0.3
-    #: Duty per unit of the texture signal (the synthesized vibration), before the
-    #: per-texture gain; the paper drove the motors with the LPC output directly (gain 1).
-    vibration_duty_per_unit: float = 1.0
+    #: Duty per unit of the texture signal (the synthesized vibration, m/s^2), before
+    #: the per-texture gain (the paper's gain 1). A device constant, not a texture's:
+    #: 0.05 puts a rough texture's ~2 m/s^2 RMS at a third of the 0.3 headroom, so its
+    #: peaks are rarely clipped. The actuator-chain identification will calibrate it.
+    vibration_duty_per_unit: float = 0.05
 
     def __post_init__(self) -> None:
         if not 0.0 < self.duty_max <= 1.0:

@@ -36,15 +36,19 @@ class DriveChain:
         vib = 0.0
         if self.texture is not None:
             vib = self.texture.tick(t_s, contact, x_mm, y_mm)
-        d = drive.tick(vib if vibration_gain > 0 else 0.0)
+        # The per-texture gain is applied by the composer (drive.composer.gain).
+        d = drive.tick(vib)
         return (vib, d[0], d[1], drive.theta_ref_rad)
 
     def safe_stop(self) -> None:
         self.drive.safe_stop()
 
     def stats(self) -> dict:
-        """Clipping counts of eq. (3) and the softness request."""
-        return self.drive.stats()
+        """Clipping counts of eq. (3), the softness request and texture limiter resets."""
+        out = self.drive.stats()
+        if self.texture is not None:
+            out["texture_limiter_resets"] = self.texture.resets
+        return out
 
 
 def build_render_chain(spec: RenderSpec) -> DriveChain:

@@ -11,14 +11,16 @@ from fydpad.motors.pwm import PwmComposer, PwmConfig
 
 
 def test_eq3_is_the_sum_per_motor_with_vibration_sign():
-    c = PwmComposer(PwmConfig(duty_max=1.0, vibration_headroom=0.3), vibration_sign=(1, -1))
+    c = PwmComposer(PwmConfig(duty_max=1.0, vibration_headroom=0.3, vibration_duty_per_unit=1.0),
+                    vibration_sign=(1, -1))
     d = c.compose(0.2, 0.25, 0.1)
     assert d == pytest.approx([0.3, 0.15])
     assert c.position_clips == c.vibration_clips == 0 and c.ticks == 1
 
 
 def test_headroom_clips_each_part_and_counts():
-    c = PwmComposer(PwmConfig(duty_max=1.0, vibration_headroom=0.3), vibration_sign=(1, 1))
+    c = PwmComposer(PwmConfig(duty_max=1.0, vibration_headroom=0.3, vibration_duty_per_unit=1.0),
+                    vibration_sign=(1, 1))
     d = c.compose(0.9, -0.95, 0.5)
     # Position limited to 0.7, vibration to 0.3: the sum reaches 1.0 at most.
     assert d == pytest.approx([1.0, -0.4])
@@ -30,7 +32,8 @@ def test_headroom_clips_each_part_and_counts():
 @given(p0=st.floats(-5, 5), p1=st.floats(-5, 5), v=st.floats(-5, 5),
        gain=st.floats(0, 4), headroom=st.floats(0.0, 0.9))
 def test_sum_never_exceeds_full_scale_and_position_keeps_its_share(p0, p1, v, gain, headroom):
-    c = PwmComposer(PwmConfig(duty_max=1.0, vibration_headroom=headroom))
+    c = PwmComposer(PwmConfig(duty_max=1.0, vibration_headroom=headroom,
+                                  vibration_duty_per_unit=1.0))
     c.gain = gain
     d = c.compose(p0, p1, v)
     assert abs(d[0]) <= 1.0 + 1e-12 and abs(d[1]) <= 1.0 + 1e-12
@@ -41,7 +44,8 @@ def test_sum_never_exceeds_full_scale_and_position_keeps_its_share(p0, p1, v, ga
 
 
 def test_gain_scales_and_disable_removes_vibration():
-    c = PwmComposer(PwmConfig(vibration_headroom=0.5), vibration_sign=(1, -1))
+    c = PwmComposer(PwmConfig(vibration_headroom=0.5, vibration_duty_per_unit=1.0),
+                    vibration_sign=(1, -1))
     c.gain = 2.0
     assert c.compose(0.0, 0.0, 0.1) == pytest.approx([0.2, -0.2])
     c.vibration_enabled = False
@@ -49,7 +53,7 @@ def test_gain_scales_and_disable_removes_vibration():
 
 
 def test_duty_list_is_reused():
-    c = PwmComposer()
+    c = PwmComposer(PwmConfig(vibration_duty_per_unit=1.0))
     a = c.compose(0.1, 0.1, 0.0)
     b = c.compose(0.2, 0.2, 0.0)
     assert a is b is c.duty

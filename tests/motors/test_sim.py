@@ -10,15 +10,20 @@ import pytest
 
 from fydpad.motors.base import MotorConfig, MotorError, MotorPair
 from fydpad.motors.drive import MotorDrive, build_drive
+from fydpad.motors.pwm import PwmConfig
 from fydpad.motors.sim import FabricMotorPlant, SimMotors, indenter_press
 from fydpad.softness import SoftnessError, SoftnessWarning, characterise_fabric, fit_through_origin
 
 DEPTHS_MM = np.linspace(0.5, 10.0, 20)
 
 
+#: Vibration in duty units, so the tests read eq. (3) directly.
+UNIT_PWM = PwmConfig(vibration_duty_per_unit=1.0)
+
+
 def make_drive():
     plant = FabricMotorPlant()
-    drive = MotorDrive(SimMotors(plant))
+    drive = MotorDrive(SimMotors(plant), pwm=UNIT_PWM)
     drive.start()
     return plant, drive
 
@@ -180,7 +185,8 @@ def test_accel_log_samples_every_tick():
 
 def test_position_mode_adds_vibration_to_the_reference():
     plant = FabricMotorPlant()
-    drive = MotorDrive(SimMotors(plant), mode="position", vibration_rad_per_duty=0.02)
+    drive = MotorDrive(SimMotors(plant), mode="position", vibration_rad_per_duty=0.02,
+                       pwm=UNIT_PWM)
     drive.start()
     drive.set_theta_rad(0.5)
     run(drive, 600)

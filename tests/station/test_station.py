@@ -146,3 +146,42 @@ def test_missing_motor_board_is_a_clear_error(circle_rec: Path, tmp_path: Path, 
     assert rc == 2
     err = capsys.readouterr().err
     assert "/dev/ttyUSB-missing" in err and len(err.strip().splitlines()) == 1
+
+
+@pytest.fixture(scope="module")
+def r1_model(tmp_path_factory) -> Path:
+    """An LPC model of the paper's R1 grating, fitted from generated scans."""
+    d = tmp_path_factory.mktemp("texture")
+    assert main(["texture", "generate-scans", "--out-dir", str(d / "scans"), "--textures", "R1",
+                 "--speeds", "10,20,30,40", "--strokes", "1", "--seconds", "4"]) == 0
+    model = d / "R1.json"
+    assert main(["texture", "fit", *map(str, sorted((d / "scans").glob("R1_*.csv"))),
+                 "--out", str(model)]) == 0
+    return model
+
+
+def test_texture_vibration_only_while_the_finger_moves(circle_rec: Path, tmp_path: Path,
+                                                       r1_model: Path):
+    """--texture with the simulated motors: eq. (3)'s vibration term is the LPC synthesis,
+    silent before the first touch and after the last, within the duty headroom."""
+    from fydpad.config import StationConfig
+
+    r = PadRecording(circle_rec)
+    m = r.meta
+    spec = RenderSpec(motors="sim", texture=str(r1_model), realtime=False,
+                      commands_csv=str(tmp_path / "commands.csv"), config=StationConfig())
+    from vision.sources import VideoSource
+    station = Station(VideoSource(r), ContactTracker(roi_px=m.roi_px, workspace_mm=m.workspace_mm,
+                                                     image_flip=m.image_flip), m,
+                      StationOptions(render=spec))
+    stats = station.run()
+    cmds = np.genfromtxt(tmp_path / "commands.csv", delimiter=",", names=True)
+    touching = (cmds["frame"] >= 5) & (cmds["frame"] <= 43)
+    rms = np.sqrt(np.mean(cmds["vibration"][touching] ** 2))
+    assert rms > 0.1
+    assert np.all(cmds["vibration"][cmds["frame"] < 4] == 0.0)
+    # After the release the output ramps down (no click) to nothing within two frames.
+    assert np.all(np.abs(cmds["vibration"][cmds["frame"] > 45]) < 0.01 * rms)
+    chain = stats["render"]["chain"]
+    assert chain["texture_limiter_resets"] == 0
+    assert chain["vibration_clip_pct"] < 5.0

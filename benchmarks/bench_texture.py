@@ -1,0 +1,147 @@
+"""Texture benchmarks (issue 7 targets), run on demand: ``python benchmarks/bench_texture.py``.
+
+Each figure is printed beside a baseline measured in the same run:
+- block synthesis of 1 s at order 200 (target <= 1 ms, i.e. >= 1000x real time) against
+  a naive Python loop of eq. 5;
+- the per-sample path ``TextureRenderer.tick`` (target <= 20 us) against the same loop;
+- fitting one speed from 10 s of 1 kHz data (target <= 100 ms) against Burg's method.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+
+import numpy as np
+
+from fydpad.texture.dft321 import preprocess
+from fydpad.texture.fit import fit_speed
+from fydpad.texture.lpc import h_from_poly
+from fydpad.texture.model_file import TextureModel
+from fydpad.texture.scan_generator import generate_scan
+from fydpad.texture.synthesis import TextureRenderer
+
+
+def best(fn, repeat: int = 7) -> float:
+    times = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t)
+    return min(times)
+
+
+def main() -> None:
+    warnings.simplefilter("ignore")
+    fs = 1000.0
+    scans = {s: generate_scan("canvas", s, 11.0, seed=1) for s in (10.0, 20.0, 30.0, 40.0)}
+    xs = {s: preprocess(sc.acc, fs)[500:10_500] for s, sc in scans.items()}
+    polys = {s: fit_speed([x], 200)[0] for s, x in xs.items()}
+    model = TextureModel("canvas", fs, np.array(sorted(polys)),
+                         np.vstack([h_from_poly(polys[s]) for s in sorted(polys)]),
+                         np.full(4, 1e-3))
+    print("texture benchmarks (order 200, 1 kHz)")
+
+    # Fitting one speed from 10 s.
+    x = xs[20.0]
+    t_fit = best(lambda: fit_speed([x], 200))
+    t_burg = best(lambda: fit_speed([x], 200, "burg"), 3)
+    t_pre = best(lambda: preprocess(scans[20.0].acc[:10_000], fs), 3)
+    print(f"  fit one speed, 10 s: {t_fit * 1e3:.1f} ms (target <= 100 ms); "
+          f"Burg baseline {t_burg * 1e3:.1f} ms ({t_burg / t_fit:.1f}x); "
+          f"+ high-pass and DFT321 of the 3 axes {t_pre * 1e3:.1f} ms")
+
+    # Block synthesis.
+    r = TextureRenderer(model, seed=0)
+    r.warmup(25.0)
+    t_block = best(lambda: r.block(25.0, True, 1000), 50)
+    v = np.linspace(10.0, 40.0, 1000)
+    t_vary = best(lambda: r.block(v, True), 20)
+    h = model.h[1]
+    sigma = 0.03
+
+    def naive(n: int = 1000) -> None:
+        hist = [0.0] * 200
+        rng = np.random.default_rng(0)
+        for _ in range(n):
+            y = sigma * rng.standard_normal() + sum(c * a for c, a in zip(h, hist, strict=True))
+            hist.insert(0, y)
+            hist.pop()
+
+    t_naive = best(lambda: naive(200), 3) * 5
+    print(f"  block synthesis, 1 s at constant speed: {t_block * 1e3:.3f} ms = "
+          f"{1 / t_block:.0f}x real time (target >= 1000x); speed sweeping 10-40 mm/s "
+          f"through {r.table.h.shape[0]} table filters: "
+          f"{t_vary * 1e3:.2f} ms = {1 / t_vary:.0f}x; naive Python loop {t_naive * 1e3:.0f} ms "
+          f"({t_naive / t_block:.0f}x slower)")
+
+    # Per-sample path.
+    n = 20_000
+    speeds = 10.0 + 30.0 * np.random.default_rng(1).random(n)
+    tick = r.tick
+
+    def ticks() -> None:
+        for s in speeds:
+            tick(s, True)
+
+    t_tick = best(ticks, 3) / n
+    print(f"  per-sample tick (speed changing every tick): {t_tick * 1e6:.2f} us/sample "
+          f"(target <= 20 us); naive loop {t_naive / 1000 * 1e6:.0f} us/sample "
+          f"({t_naive / 1000 / t_tick:.0f}x slower)")
+
+
+def quality(textures: list[str] | None = None) -> None:
+    """Held-out figures of the issue's targets for every texture (minutes; --quality)."""
+    from fydpad.texture.evaluate import compare, evaluate_scan, evaluation_mask
+    from fydpad.texture.fit import fit_texture
+    from fydpad.texture.identify import identify
+    from fydpad.texture.scan_generator import TEXTURES
+
+    warnings.simplefilter("ignore")
+    names = textures or list(TEXTURES)
+    methods = ("lsf", "linear")
+    rows: dict[tuple[str, float], list] = {}
+    models = []
+    for name in names:
+        train = [generate_scan(name, s, 8.0, seed=k) for s in (10.0, 20.0, 30.0, 40.0)
+                 for k in (1, 2)]
+        model, _ = fit_texture(train)
+        models.append(model)
+        for v in (10.0, 15.0, 20.0, 25.0, 30.0, 35.0, 40.0):
+            held = generate_scan(name, v, 10.0, seed=100)
+            second = generate_scan(name, v, 10.0, seed=200)
+            mask = evaluation_mask(held, model)
+            ceil, *_ = compare(preprocess(held.acc, 1000.0), preprocess(second.acc, 1000.0),
+                               1000.0, mask & evaluation_mask(second, model))
+            res = [ceil.psd_correlation, ceil.lsd_db]
+            for m in methods:
+                c, _ = evaluate_scan(model, held, method=m, mask=mask)
+                res += [c.psd_correlation, c.lsd_db]
+            rows[(name, v)] = res
+            print(f"  {name:15s} {v:4.0f} mm/s  ceiling corr {res[0]:.3f} LSD {res[1]:.2f} | "
+                  + " | ".join(f"{m} {res[2 + 2 * i]:.3f} {res[3 + 2 * i]:.2f}"
+                               for i, m in enumerate(methods)), flush=True)
+    print("summary (mean over textures; 'ok' = corr >= 0.95 and LSD <= ceiling + 0.25 dB)")
+    for v in (10.0, 15.0, 20.0, 25.0, 30.0, 35.0, 40.0):
+        r = np.array([rows[(n, v)] for n in names])
+        parts = [f"ceiling LSD {r[:, 1].mean():.2f}"]
+        for i, m in enumerate(methods):
+            corr, lsd = r[:, 2 + 2 * i], r[:, 3 + 2 * i]
+            ok = np.mean((corr >= 0.95) & (lsd <= r[:, 1] + 0.25))
+            parts.append(f"{m}: corr {corr.mean():.3f} (min {corr.min():.3f}) "
+                         f"LSD {lsd.mean():.2f} ok {ok:.0%}")
+        print(f"  {v:4.0f} mm/s  " + "; ".join(parts))
+    scans = [generate_scan(n, v, 6.0, seed=300) for n in names for v in (15.0, 25.0, 35.0)]
+    for m in methods:
+        ident = identify(models, scans, method=m)
+        print(f"  identification ({len(names)} textures, 15/25/35 mm/s held-out strokes), "
+              f"{m}: {ident.rate:.1%}")
+
+
+if __name__ == "__main__":
+    import sys
+
+    if "--quality" in sys.argv:
+        quality([a for a in sys.argv[1:] if not a.startswith("--")] or None)
+    else:
+        main()

@@ -1,0 +1,52 @@
+"""The texture term of eq. (3) in the render process: an LPC texture model rendered at
+1 kHz from the finger's speed (paper III-B, Fig. 9)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+class TextureSource:
+    """Speed from the centroid stream (10 Hz low-pass, evaluated every tick), eq. (5).
+
+    An output limiter guards the motors: switching between very different per-speed
+    filters can grow the filter's history even though each filter is stable, so a
+    sample beyond ``limit_factor`` times the largest RMS the model produces at its own
+    speeds clears the filter (counted in ``resets``) and is clipped.
+    """
+
+    def __init__(self, model_path: str, rate_hz: float = 1000.0, limit_factor: float = 10.0):
+        from fydpad.texture.model_file import load_model
+        from fydpad.texture.synthesis import CentroidSpeed, TextureRenderer
+
+        self.model = load_model(model_path)
+        self.renderer = TextureRenderer(self.model, method="lsf")
+        self.speed = CentroidSpeed(cutoff_hz=10.0)
+        self.dt_s = 1.0 / rate_hz
+        rms = 0.0
+        n = int(0.5 * self.model.fs_hz)
+        for s in self.model.speeds_mm_s:
+            y = self.renderer.block(np.full(n, float(s)), np.ones(n, bool))
+            rms = max(rms, float(np.sqrt(np.mean(y[n // 2 :] ** 2))))
+        self.renderer.reset()
+        self.limit = limit_factor * rms if rms > 0 else math.inf
+        self.resets = 0
+        self._last_xy = (math.nan, math.nan, False)
+
+    def tick(self, t_s: float, contact: bool, x_mm: float, y_mm: float) -> float:
+        if (x_mm, y_mm, contact) != self._last_xy:
+            # A new camera frame's centroid: differentiate it (held between frames).
+            self.speed.position(t_s, x_mm, y_mm, contact)
+            self._last_xy = (x_mm, y_mm, contact)
+        v = self.renderer.tick(self.speed.tick(self.dt_s), self.speed.contact)
+        if not abs(v) <= self.limit:
+            self.renderer.reset()
+            self.resets += 1
+            v = math.copysign(self.limit, v) if math.isfinite(v) else 0.0
+        return v
+
+
+def open_texture(path: str, rate_hz: float) -> TextureSource:
+    return TextureSource(path, rate_hz)

@@ -1,0 +1,160 @@
+"""Linear prediction (paper eq. 4): autocorrelation + Levinson-Durbin, Burg, stability.
+
+Conventions. The paper writes the predictor as ``a_hat(k) = h^T a(k-1)`` (eq. 4) and
+synthesis as ``a(k) = e(k) + h^T a(k-1)`` (eq. 5). In scipy.signal terms that is the
+all-pole filter ``b = [1]``, ``A = [1, -h_1, ..., -h_p]``; this module returns ``A``
+(the "polynomial", leading 1) and ``h = -A[1:]`` converts between the two.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+Array = NDArray[np.float64]
+
+
+def autocorrelation(x: ArrayLike, maxlag: int) -> Array:
+    """Biased autocorrelation r[0..maxlag] (sum over the segment, not divided by n)."""
+    x = np.asarray(x, float)
+    n = x.size
+    nfft = 1 << int(np.ceil(np.log2(2 * n - 1)))
+    spec = np.fft.rfft(x, nfft)
+    r = np.fft.irfft(spec.real**2 + spec.imag**2, nfft)[: maxlag + 1]
+    if r.size < maxlag + 1:
+        r = np.concatenate([r, np.zeros(maxlag + 1 - r.size)])
+    return r
+
+
+def levinson(r: ArrayLike, order: int) -> tuple[Array, float, Array]:
+    """Levinson-Durbin: polynomial A (leading 1), prediction-error power, reflection coefs.
+
+    ``r`` is the autocorrelation normalised so r[0] is the signal power; the returned
+    error power is then the residual variance sigma^2 of eq. 5. A positive-definite
+    ``r`` (any biased estimate) gives |k_i| < 1, hence a stable 1/A.
+    """
+    r = np.asarray(r, float)
+    if r.size < order + 1:
+        raise ValueError(f"autocorrelation has {r.size} lags, order {order} needs {order + 1}")
+    if not r[0] > 0:
+        raise ValueError("signal has no power (r[0] <= 0)")
+    a = np.zeros(order + 1)
+    a[0] = 1.0
+    k = np.zeros(order)
+    err = float(r[0])
+    for m in range(1, order + 1):
+        acc = r[m] + np.dot(a[1:m], r[m - 1:0:-1])
+        km = -acc / err
+        k[m - 1] = km
+        a[1:m] = a[1:m] + km * a[m - 1:0:-1]
+        a[m] = km
+        err *= 1.0 - km * km
+        if err <= 0:  # numerically singular: the rest of the predictor adds nothing
+            err = np.finfo(float).tiny
+            break
+    return a, float(err), k
+
+
+def lpc_autocorrelation(
+    segments: Sequence[ArrayLike], order: int, lag_window_hz: float = 0.0, fs_hz: float = 1000.0
+) -> tuple[Array, float]:
+    """LPC over several segments: their autocorrelations summed (no seams), then Levinson.
+
+    Returns (A, sigma^2) with sigma^2 in the signal's units squared. A small white-noise
+    floor (1e-9 of r[0]) keeps the Toeplitz matrix well conditioned at order 200.
+    """
+    total = np.zeros(order + 1)
+    n = 0
+    for seg in segments:
+        seg = np.asarray(seg, float)
+        total += autocorrelation(seg, order)
+        n += seg.size
+    if n <= order:
+        raise ValueError(f"{n} samples cannot fit an order-{order} model")
+    r = total / n
+    if lag_window_hz > 0:  # Gaussian lag window: smooths spectral lines by ~lag_window_hz
+        lags = np.arange(order + 1) / fs_hz
+        r = r * np.exp(-0.5 * (2 * np.pi * lag_window_hz * lags) ** 2)
+    r[0] *= 1.0 + 1e-9
+    a, err, _ = levinson(r, order)
+    return a, err
+
+
+def lpc_burg(x: ArrayLike, order: int) -> tuple[Array, float]:
+    """Burg's method on one segment: (A, sigma^2). Stable by construction (|k| <= 1)."""
+    x = np.asarray(x, float)
+    if x.size <= order:
+        raise ValueError(f"{x.size} samples cannot fit an order-{order} model")
+    f = x[1:].copy()
+    b = x[:-1].copy()
+    a = np.zeros(order + 1)
+    a[0] = 1.0
+    err = float(np.dot(x, x) / x.size)
+    for m in range(1, order + 1):
+        den = np.dot(f, f) + np.dot(b, b)
+        km = -2.0 * np.dot(f, b) / den if den > 0 else 0.0
+        a[1:m + 1] = a[1:m + 1] + km * a[m - 1::-1][:m]
+        err *= 1.0 - km * km
+        f, b = f[1:] + km * b[1:], b[:-1] + km * f[:-1]
+    return a, err
+
+
+def poly_to_reflection(a: ArrayLike) -> Array:
+    """Step-down recursion: reflection coefficients of A (nan-free; |k|>=1 means unstable)."""
+    a = np.asarray(a, float)
+    a = a / a[0]
+    p = a.size - 1
+    k = np.zeros(p)
+    cur = a[1:].copy()
+    for m in range(p, 0, -1):
+        km = cur[m - 1]
+        k[m - 1] = km
+        if abs(km) >= 1.0:
+            k[: m - 1] = np.nan  # undefined below an unstable stage; caller sees |k| >= 1
+            break
+        cur = (cur[: m - 1] - km * cur[m - 2::-1][: m - 1]) / (1.0 - km * km)
+    return k
+
+
+def reflection_to_poly(k: ArrayLike) -> Array:
+    """Step-up recursion: polynomial A from reflection coefficients."""
+    k = np.asarray(k, float)
+    a = np.array([1.0])
+    for km in k:
+        a = np.concatenate([a, [0.0]]) + km * np.concatenate([[0.0], a[::-1]])
+    return a
+
+
+def is_stable(a: ArrayLike) -> bool:
+    """True when every pole of 1/A lies strictly inside the unit circle (|k_i| < 1)."""
+    k = poly_to_reflection(a)
+    return bool(np.all(np.isfinite(k)) and np.all(np.abs(k) < 1.0))
+
+
+def max_pole_radius(a: ArrayLike) -> float:
+    """Largest pole modulus of 1/A (eigenvalues of the companion matrix)."""
+    a = np.asarray(a, float)
+    if a.size < 2:
+        return 0.0
+    return float(np.max(np.abs(np.roots(a))))
+
+
+def h_from_poly(a: ArrayLike) -> Array:
+    """The paper's h (eq. 4/5) from A = [1, -h]."""
+    a = np.asarray(a, float)
+    return -a[1:] / a[0]
+
+
+def poly_from_h(h: ArrayLike) -> Array:
+    """A = [1, -h] from the paper's h."""
+    return np.concatenate([[1.0], -np.asarray(h, float)])
+
+
+def ar_psd(a: ArrayLike, sigma2: float, freqs_hz: ArrayLike, fs_hz: float) -> Array:
+    """One-sided PSD of the AR process sigma^2 / |A|^2 in units^2/Hz (eq. 5's spectrum)."""
+    a = np.asarray(a, float)
+    w = 2 * np.pi * np.asarray(freqs_hz, float) / fs_hz
+    resp = np.exp(-1j * np.outer(w, np.arange(a.size))) @ a
+    return 2.0 * sigma2 / fs_hz / np.abs(resp) ** 2

@@ -1,0 +1,255 @@
+"""Synthetic texture scans from a physical picture, not an AR process.
+
+A hand drags a tool (tip + accelerometer) over a surface. Per stroke:
+
+- the hand's speed wanders around the target like a hand's (ramps at both ends, a
+  slow sway and a random drift), so the stroke is only partly within 5 mm/s;
+- the tip follows the surface profile h(x) (gratings, ribs, random roughness, pits),
+  smoothed by the tip's contact patch; its vertical acceleration is d^2 h(x(t))/dt^2;
+- the tip loses contact where the profile falls faster than the preload can pull it
+  down (a clipped acceleration) and lands with an impact (the lost momentum returned
+  at once): a non-linearity no linear model holds exactly;
+- friction stick-slip: the tip sticks, the tangential force builds and releases at
+  random slip distances, each release an impulse along the stroke;
+- the tool resonates (a second-order mode whose frequency depends on the contact
+  stiffness of the surface), and the accelerometer adds white noise;
+- the hand's slow motion and gravity (with a slowly tilting hand) appear on all axes.
+
+Simulated at 10 kHz, decimated (anti-aliased) to the output rate. Deterministic per
+seed: the surface itself depends only on the texture's name, the stroke on ``seed``.
+The paper's specimens R1 and R2 are rectangular gratings of period 3.90 mm and
+2.15 mm with a ridge 90 % of the period: every tenth harmonic of speed/period
+vanishes.
+"""
+
+from __future__ import annotations
+
+import zlib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import scipy.signal as ss
+from numpy.typing import NDArray
+
+from fydpad.texture.scan_io import Scan, write_scan
+
+Array = NDArray[np.float64]
+SIM_FS_HZ = 10_000.0
+DX_MM = 0.004
+SURFACE_MM = 2400.0
+G = 9.81
+
+
+@dataclass(frozen=True)
+class Texture:
+    """Parameters of one synthetic surface (lengths in mm, accelerations in m/s^2)."""
+
+    name: str
+    period_mm: float = 0.0  # periodic relief (0: none)
+    ridge_fraction: float = 0.9  # rectangular grating; 0 means sinusoidal ribs
+    period_jitter: float = 0.0  # relative jitter of each period (wood grain)
+    relief_mm: float = 0.0
+    rough_mm: float = 0.0  # random roughness RMS
+    rough_band_mm: tuple[float, float] = (0.05, 1.0)  # wavelengths
+    pits_per_mm: float = 0.0
+    pit_mm: float = 0.0  # pit depth
+    tip_mm: float = 0.03  # contact patch (Gaussian sigma) smoothing the profile
+    resonance_hz: float = 200.0
+    damping: float = 0.08
+    preload_m_s2: float = 40.0  # largest downward acceleration the contact can follow
+    slip_mm: float = 0.0  # mean stick-slip distance (0: none)
+    slip_m_s2: float = 0.0  # impulse strength per slip
+
+
+TEXTURES: dict[str, Texture] = {t.name: t for t in (
+    # The paper's silicone specimens (SS1/SS3: R1, SS2/SS4: R2): soft, a large patch.
+    Texture("R1", period_mm=3.90, ridge_fraction=0.9, relief_mm=0.02, tip_mm=0.06,
+            resonance_hz=160.0, damping=0.12, preload_m_s2=1e9, slip_mm=0.4, slip_m_s2=0.4),
+    Texture("R2", period_mm=2.15, ridge_fraction=0.9, relief_mm=0.02, tip_mm=0.06,
+            resonance_hz=160.0, damping=0.12, preload_m_s2=1e9, slip_mm=0.4, slip_m_s2=0.4),
+    Texture("sandpaper_p80", rough_mm=0.006, rough_band_mm=(0.08, 1.5), tip_mm=0.02,
+            resonance_hz=310.0, damping=0.06, preload_m_s2=60.0),
+    Texture("sandpaper_p320", rough_mm=0.0008, rough_band_mm=(0.03, 0.3), tip_mm=0.01,
+            resonance_hz=290.0, damping=0.05, preload_m_s2=25.0),
+    Texture("wood_grain", period_mm=0.8, ridge_fraction=0.0, period_jitter=0.2,
+            relief_mm=0.006, rough_mm=0.001, rough_band_mm=(0.05, 0.5), resonance_hz=240.0,
+            damping=0.07),
+    Texture("canvas", period_mm=1.2, ridge_fraction=0.5, relief_mm=0.01, tip_mm=0.08,
+            resonance_hz=200.0, damping=0.1, slip_mm=0.15, slip_m_s2=0.3),
+    Texture("felt", rough_mm=0.02, rough_band_mm=(0.2, 3.0), tip_mm=0.1,
+            resonance_hz=90.0, damping=0.25),
+    Texture("glass", rough_mm=0.0002, rough_band_mm=(0.02, 0.2), resonance_hz=330.0,
+            damping=0.04, slip_mm=0.05, slip_m_s2=0.8),
+    Texture("cork", pits_per_mm=0.6, pit_mm=0.03, rough_mm=0.002, rough_band_mm=(0.1, 1.0),
+            tip_mm=0.05, resonance_hz=150.0, damping=0.12),
+    Texture("brick", rough_mm=0.03, rough_band_mm=(0.1, 3.0), pits_per_mm=0.3, pit_mm=0.08,
+            tip_mm=0.04, resonance_hz=260.0, damping=0.06, preload_m_s2=40.0),
+    Texture("mesh_steel", period_mm=0.6, ridge_fraction=0.5, relief_mm=0.004, tip_mm=0.03,
+            resonance_hz=350.0, damping=0.04),
+    Texture("corduroy", period_mm=2.5, ridge_fraction=0.0, relief_mm=0.15, tip_mm=0.05,
+            rough_mm=0.001, resonance_hz=120.0, damping=0.15),
+    Texture("rubber", rough_mm=0.001, rough_band_mm=(0.05, 0.5), resonance_hz=110.0,
+            damping=0.1, slip_mm=0.3, slip_m_s2=1.5),
+    Texture("aluminum_knurl", period_mm=1.0, ridge_fraction=0.6, relief_mm=0.008,
+            tip_mm=0.025, resonance_hz=380.0, damping=0.03, preload_m_s2=30.0),
+)}
+PAPER_SPECIMENS = ("R1", "R2")
+
+
+def _surface_rng(texture: Texture) -> np.random.Generator:
+    return np.random.default_rng(zlib.crc32(texture.name.encode()))
+
+
+def surface_profile(texture: Texture) -> Array:
+    """h(x) in mm on a grid of DX_MM over SURFACE_MM, tip smoothing applied."""
+    rng = _surface_rng(texture)
+    n = int(SURFACE_MM / DX_MM)
+    x = np.arange(n) * DX_MM
+    h = np.zeros(n)
+    if texture.period_mm > 0 and texture.relief_mm > 0:
+        if texture.period_jitter > 0:  # each period stretched a little: grain
+            periods = texture.period_mm * (1 + texture.period_jitter * rng.uniform(
+                -1, 1, int(SURFACE_MM / texture.period_mm) + 10))
+            edges = np.concatenate([[0.0], np.cumsum(periods)])
+            k = np.searchsorted(edges, x, side="right") - 1
+            phase = (x - edges[k]) / periods[np.minimum(k, periods.size - 1)]
+        else:
+            phase = (x / texture.period_mm) % 1.0
+        if texture.ridge_fraction > 0:  # rectangular: ridge then groove
+            h += np.where(phase < texture.ridge_fraction, 0.0, -texture.relief_mm)
+        else:
+            h += 0.5 * texture.relief_mm * np.cos(2 * np.pi * phase)
+    if texture.rough_mm > 0:
+        spec = np.fft.rfft(rng.standard_normal(n))
+        k = np.fft.rfftfreq(n, DX_MM)  # cycles per mm
+        lo, hi = 1.0 / texture.rough_band_mm[1], 1.0 / texture.rough_band_mm[0]
+        shape = np.where((k >= lo) & (k <= hi), 1.0 / np.maximum(k, lo) ** 0.5, 0.0)
+        r = np.fft.irfft(spec * shape, n)
+        h += texture.rough_mm * r / (np.std(r) + 1e-30)
+    if texture.pits_per_mm > 0:
+        npits = rng.poisson(texture.pits_per_mm * SURFACE_MM)
+        centres = rng.uniform(0, SURFACE_MM, npits)
+        widths = rng.uniform(0.1, 0.4, npits)
+        depth = texture.pit_mm * rng.uniform(0.5, 1.5, npits)
+        idx = (centres / DX_MM).astype(int)
+        for c, w, d in zip(idx, widths, depth, strict=True):
+            half = int(w / DX_MM / 2)
+            a, b = max(0, c - half), min(n, c + half)
+            h[a:b] -= d  # flat-bottomed pits: sharp edges
+    if texture.tip_mm > 0:  # a linear smoothing: keeps the grating's spectral zeros
+        half = int(4 * texture.tip_mm / DX_MM)
+        ker = np.exp(-0.5 * ((np.arange(-half, half + 1) * DX_MM) / texture.tip_mm) ** 2)
+        h = ss.fftconvolve(h, ker / ker.sum(), mode="same")
+    return h
+
+
+_PROFILE_CACHE: dict[str, Array] = {}
+
+
+def _profile(texture: Texture) -> Array:
+    if texture.name not in _PROFILE_CACHE:
+        _PROFILE_CACHE[texture.name] = surface_profile(texture)
+    return _PROFILE_CACHE[texture.name]
+
+
+def hand_speed(speed_mm_s: float, seconds: float, fs: float, rng: np.random.Generator,
+               variation: float = 1.0) -> Array:
+    """A hand's speed around a target: ramps, a sway (0.3-0.8 Hz) and a random drift."""
+    n = round(seconds * fs)
+    t = np.arange(n) / fs
+    sway = 0.1 * np.sin(2 * np.pi * rng.uniform(0.3, 0.8) * t + rng.uniform(0, 2 * np.pi))
+    drift = ss.sosfiltfilt(ss.butter(2, 0.7, fs=fs, output="sos"), rng.standard_normal(n))
+    drift = 0.06 * drift / (np.std(drift) + 1e-12)
+    v = speed_mm_s * (1.0 + variation * (sway + drift))
+    ramp = min(0.3, seconds / 4) * (variation > 0)
+    if ramp > 0:
+        env = np.clip(np.minimum(t, seconds - t) / ramp, 0, 1)
+        v *= 0.5 - 0.5 * np.cos(np.pi * env)
+    return np.maximum(v, 0.0)
+
+
+def _resonance_sos(f_hz: float, zeta: float, fs: float) -> Array:
+    """Base-excited mode: tip acceleration in, tool acceleration out (unit DC gain)."""
+    w = 2 * np.pi * f_hz
+    b, a = ss.bilinear([2 * zeta * w, w * w], [1.0, 2 * zeta * w, w * w], fs)
+    return ss.tf2sos(b, a)
+
+
+def generate_scan(
+    texture: str | Texture, speed_mm_s: float, seconds: float = 8.0, seed: int = 0,
+    fs_hz: float = 1000.0, hand_variation: float = 1.0, noise_m_s2: float = 0.01,
+    hand_motion: bool = True,
+) -> Scan:
+    """One stroke over ``texture`` at about ``speed_mm_s``: a Scan (not written)."""
+    tex = TEXTURES[texture] if isinstance(texture, str) else texture
+    rng = np.random.default_rng([seed, zlib.crc32(tex.name.encode()), int(speed_mm_s * 100)])
+    fs = SIM_FS_HZ
+    v = hand_speed(speed_mm_s, seconds, fs, rng, hand_variation)
+    n = v.size
+    x0 = rng.uniform(0, max(1.0, SURFACE_MM - speed_mm_s * seconds * 1.5 - 1))
+    x = x0 + np.cumsum(v) / fs
+    prof = _profile(tex)
+    z_mm = np.interp(x / DX_MM, np.arange(prof.size), prof)
+    # Vertical tip acceleration: second time derivative of the followed profile.
+    az = np.gradient(np.gradient(z_mm * 1e-3, 1 / fs), 1 / fs)
+    # Contact loss: the tip cannot fall faster than the preload; the deficit comes back
+    # as an impact where contact resumes.
+    clipped = np.maximum(az, -tex.preload_m_s2)
+    lost = clipped - az
+    if np.any(lost > 0):
+        runs = np.flatnonzero(np.diff(np.concatenate([[0], (lost > 0).astype(int), [0]])))
+        for a, b in zip(runs[0::2], runs[1::2], strict=True):
+            clipped[min(b, n - 1)] -= lost[a:b].sum()
+    az = clipped
+    # Stick-slip: releases at random slip distances along the path.
+    ax = np.zeros(n)
+    if tex.slip_mm > 0:
+        dist = x - x0
+        nslip = int(dist[-1] / tex.slip_mm * 1.5) + 2
+        at = np.cumsum(tex.slip_mm * rng.gamma(4.0, 0.25, nslip))
+        at = at[at < dist[-1]]
+        k = np.searchsorted(dist, at)
+        amp = tex.slip_m_s2 * rng.uniform(0.5, 1.5, k.size) * np.sqrt(
+            np.maximum(v[k], 0.0) / 20.0) * fs / 1000.0
+        np.add.at(ax, k, amp)
+        np.add.at(ax, np.minimum(k + 3, n - 1), -amp)  # the rebound of a release
+    # Friction couples the vertical motion into the tangential axis a little.
+    ax += 0.3 * az
+    ay = 0.15 * az + 0.1 * ax
+    sos = _resonance_sos(tex.resonance_hz, tex.damping, fs)
+    sos_t = _resonance_sos(tex.resonance_hz * 0.85, tex.damping, fs)
+    acc = np.column_stack([ss.sosfilt(sos_t, ax), ss.sosfilt(sos_t, ay), ss.sosfilt(sos, az)])
+    # Decimate to the output rate (anti-aliased, zero phase).
+    q = round(fs / fs_hz)
+    acc = ss.decimate(acc, q, ftype="fir", axis=0, zero_phase=True)
+    v_out = v[::q][: acc.shape[0]]
+    x_out = x[::q][: acc.shape[0]]
+    m = acc.shape[0]
+    t = np.arange(m) / fs_hz
+    if hand_motion:  # slow hand motion and gravity through a slowly tilting hand
+        slow = ss.sosfiltfilt(ss.butter(2, 2.0, fs=fs_hz, output="sos"),
+                              rng.standard_normal((m, 3)), axis=0)
+        slow *= 0.3 / (np.std(slow, axis=0) + 1e-12)
+        tilt = 0.08 * np.sin(2 * np.pi * 0.2 * t + rng.uniform(0, 6.3))
+        roll = 0.05 * np.sin(2 * np.pi * 0.13 * t + rng.uniform(0, 6.3))
+        grav = G * np.column_stack([np.sin(tilt), np.sin(roll), np.cos(tilt) * np.cos(roll)])
+        acc = acc + slow + grav
+    acc = acc + noise_m_s2 * rng.standard_normal(acc.shape)
+    return _with_position(tex, speed_mm_s, seed, t, acc, v_out, x_out)
+
+
+def _with_position(tex: Texture, speed: float, seed: int, t: Array, acc: Array, v: Array,
+                   x: Array) -> Scan:
+    scan = Scan(path=f"{tex.name}_{speed:g}mms_s{seed}.csv", fs_hz=1.0 / (t[1] - t[0]),
+                t_s=t, acc=acc, speed_mm_s=v,
+                meta={"surface": tex.name, "tool": "synthetic-tip", "seed": str(seed)})
+    scan.x_mm = x  # type: ignore[attr-defined]
+    return scan
+
+
+def save_generated(scan: Scan, path: str | Path) -> Path:
+    """Write a generated scan (speed and position columns) as RECORDING_FORMAT CSV."""
+    x = getattr(scan, "x_mm", None)
+    return write_scan(path, scan.t_s, scan.acc, scan.speed_mm_s, x_mm=x,
+                      y_mm=None if x is None else np.zeros_like(x), meta=scan.meta)

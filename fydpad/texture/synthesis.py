@@ -1,0 +1,309 @@
+"""Texture synthesis at the output rate (paper eq. 5, Fig. 9).
+
+    a(k) = e(k) + h^T [a(k-1) ... a(k-p)],   e ~ N(0, sigma^2)
+
+with (h, sigma^2) interpolated at the current finger speed. Two paths share one state
+(the last p outputs) and one noise stream, so they give the same samples:
+
+- :meth:`TextureRenderer.tick` for the station's 1 kHz loop: one sample, no array
+  allocation, a table lookup instead of interpolation;
+- :meth:`TextureRenderer.block` for offline use: ``scipy.signal.lfilter`` over runs
+  of constant filter, its ``zi`` rebuilt from the output history at every filter
+  change, so a model change continues eq. 5 exactly (no click).
+
+Silence: no contact, or speed below ``still_mm_s``. Below the slowest model's range
+(its speed minus the fit tolerance) the slowest model fades out linearly with speed;
+above the fastest it is clamped (warned once). The output gain follows its target
+through a short one-pole ramp.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.signal as ss
+from numpy.typing import ArrayLike, NDArray
+
+from fydpad.texture.interpolation import SpeedTable, build_table
+from fydpad.texture.model_file import TextureModel
+from vision.speed import SpeedState, speed_update
+
+Array = NDArray[np.float64]
+_NOISE_CHUNK = 4096
+
+
+class TextureRenderer:
+    """Eq. 5 for one texture model; see the module docstring for the two paths."""
+
+    #: At a filter change the history may hold at most this many times the new filter's
+    #: stationary RMS. A direct-form AR filter switched between high-gain models is not
+    #: stable just because each model is: the old history excites the new filter's modes
+    #: and repeated switching pumps energy (measured: 1e60 within 10 s when the speed
+    #: jumps every 25 ms on a 60 dB-range texture). Scaling the history down at a
+    #: switch bounds the output; with a hand's smooth speed it never acts.
+    history_cap = 3.0
+    #: The cap when the speed jumps by more than one table step at once (not a hand's
+    #: smooth speed: a tracking glitch or a new contact): tighter.
+    jump_cap = 1.0
+
+    def __init__(
+        self, model: TextureModel, *, method: str = "lsf", step_mm_s: float = 0.25,
+        seed: int | None = None, still_mm_s: float = 1.0, ramp_s: float = 0.005,
+        gain: float | None = None, drive_filter: bool = False,
+        drive_band_hz: tuple[float, float] | None = None, drive_order: int = 2,
+        fade_below_mm_s: float | None = None,
+    ):
+        if model.fs_hz <= 0:
+            raise ValueError("model sample rate must be positive")
+        self.model = model
+        self.fs_hz = float(model.fs_hz)
+        self.table: SpeedTable = build_table(model, method, step_mm_s)
+        if not self.table.stable.all():
+            bad = self.table.speeds_mm_s[~self.table.stable]
+            warnings.warn(
+                f"{model.surface}: {bad.size} interpolated filters of method {method!r} are "
+                f"unstable ({bad.min():g}-{bad.max():g} mm/s); they are replaced by the "
+                "nearest fitted model", stacklevel=2)
+            self._replace_unstable()
+        self.method = method
+        self.p = model.order
+        self.v_min = float(model.speeds_mm_s[0])
+        self.v_max = float(model.speeds_mm_s[-1])
+        # The slowest model was fitted on speeds down to v_min - tolerance: it holds
+        # there; below that it fades out linearly to silence at 0 mm/s.
+        self.fade_below_mm_s = (max(self.v_min - model.tolerance_mm_s, 0.5 * self.v_min)
+                                if fade_below_mm_s is None else float(fade_below_mm_s))
+        self.still_mm_s = float(still_mm_s)
+        self.gain = float(model.gain if gain is None else gain)
+        self._alpha = 1.0 - math.exp(-1.0 / (max(ramp_s, 1e-9) * self.fs_hz))
+        self._rng = np.random.default_rng(seed)
+        self._noise = np.empty(_NOISE_CHUNK)
+        self._noise_pos = _NOISE_CHUNK
+        self._buf = np.zeros(2 * self.p)  # each output written twice: a contiguous window
+        self._pos = 0
+        self._g = 0.0
+        self.clamped = False
+        self._last_i = -1
+        # Stationary output RMS of every table filter, and the cap on the history's
+        # energy at a filter change (see _limit_history).
+        self._rms = np.array([
+            s * np.sqrt(np.mean(1.0 / np.abs(np.fft.rfft(a, 8192)) ** 2))
+            for s, a in zip(self.table.sigma, self.table.polys, strict=True)])
+        self._cap2 = (self.history_cap * self._rms) ** 2 * self.p
+        self._cap2_jump = (self.jump_cap * self._rms) ** 2 * self.p
+        band = drive_band_hz or model.drive_band_hz
+        self._sos: Array | None = None
+        if drive_filter:
+            if band is None:
+                raise ValueError("drive filter requested but no band given")
+            self._sos = ss.butter(drive_order, band, "bandpass", fs=self.fs_hz, output="sos")
+            self._zs = np.zeros((self._sos.shape[0], 2))
+
+    def _replace_unstable(self) -> None:
+        t = self.table
+        for k in np.flatnonzero(~t.stable):
+            j = int(np.argmin(np.abs(self.model.speeds_mm_s - t.speeds_mm_s[k])))
+            t.polys[k] = self.model.poly(j)
+            t.h[k] = self.model.h[j]
+            t.sigma[k] = math.sqrt(self.model.sigma2[j])
+
+    # -------------------------------------------------------------- shared pieces
+    def reset(self) -> None:
+        """Zero the filter history, the gain and the drive filter."""
+        self._buf[:] = 0.0
+        self._g = 0.0
+        self._last_i = -1
+        if self._sos is not None:
+            self._zs[:] = 0.0
+
+    def target_gain(self, speed_mm_s: float, contact: bool) -> float:
+        """Output gain for this speed: 0 when still or without contact, fade below v_min."""
+        if not contact or not speed_mm_s >= self.still_mm_s:
+            return 0.0
+        if speed_mm_s < self.fade_below_mm_s:
+            return self.gain * speed_mm_s / self.fade_below_mm_s
+        if speed_mm_s > self.v_max and not self.clamped:
+            self.clamped = True
+            warnings.warn(
+                f"{self.model.surface}: speed {speed_mm_s:.1f} mm/s above the fastest model "
+                f"({self.v_max:g} mm/s): clamped to it", stacklevel=3)
+        return self.gain
+
+    def target_gains(self, v: Array, c: Array) -> Array:
+        """Vectorised :meth:`target_gain`."""
+        on = c & (v >= self.still_mm_s)
+        g = np.where(on, self.gain * np.minimum(v / self.fade_below_mm_s, 1.0), 0.0)
+        fast = on & (v > self.v_max)
+        if fast.any() and not self.clamped:
+            self.target_gain(float(v[np.argmax(fast)]), True)
+        return g
+
+    def _history_newest_first(self) -> Array:
+        return self._buf[self._pos:self._pos + self.p]
+
+    def _take_noise(self, n: int) -> Array:
+        out = np.empty(n)
+        k = 0
+        while k < n:
+            if self._noise_pos >= _NOISE_CHUNK:
+                self._rng.standard_normal(out=self._noise)
+                self._noise_pos = 0
+            m = min(n - k, _NOISE_CHUNK - self._noise_pos)
+            out[k:k + m] = self._noise[self._noise_pos:self._noise_pos + m]
+            self._noise_pos += m
+            k += m
+        return out
+
+    # -------------------------------------------------------------- per sample
+    def tick(self, speed_mm_s: float, contact: bool = True) -> float:
+        """One output sample (m/s^2) for the current speed and contact: eq. 5."""
+        t = self.table
+        i = t.index(speed_mm_s)
+        if i != self._last_i:
+            self._limit_history(i)
+        if self._noise_pos >= _NOISE_CHUNK:
+            self._rng.standard_normal(out=self._noise)
+            self._noise_pos = 0
+        e = self._noise[self._noise_pos]
+        self._noise_pos += 1
+        p = self.p
+        pos = self._pos
+        y = t.sigma[i] * e + float(np.dot(t.h[i], self._buf[pos:pos + p]))
+        pos = pos - 1 if pos > 0 else p - 1
+        self._buf[pos] = y
+        self._buf[pos + p] = y
+        self._pos = pos
+        self._g += self._alpha * (self.target_gain(speed_mm_s, contact) - self._g)
+        out = self._g * y
+        if self._sos is not None:
+            out = self._drive_tick(out)
+        return out
+
+    def _drive_tick(self, x: float) -> float:
+        sos, z = self._sos, self._zs
+        for s in range(sos.shape[0]):  # transposed direct form II, as scipy's sosfilt
+            b0, b1, b2, _, a1, a2 = sos[s]
+            y = b0 * x + z[s, 0]
+            z[s, 0] = b1 * x - a1 * y + z[s, 1]
+            z[s, 1] = b2 * x - a2 * y
+            x = y
+        return x
+
+    # -------------------------------------------------------------- per block
+    def block(self, speed_mm_s: ArrayLike, contact: ArrayLike = True,
+              n: int | None = None) -> Array:
+        """``n`` samples for per-sample (or constant) speed and contact; same as ``tick``."""
+        v = np.asarray(speed_mm_s, float)
+        c = np.asarray(contact, bool)
+        if n is None:
+            n = max(v.size, c.size)
+        v = np.broadcast_to(v, (n,))
+        c = np.broadcast_to(c, (n,))
+        t = self.table
+        idx = np.clip(((v - t.speeds_mm_s[0]) / t.step_mm_s + 0.5).astype(np.int64)
+                      if n else np.zeros(0, np.int64), 0, t.h.shape[0] - 1)
+        idx[~np.isfinite(v)] = 0
+        e = self._take_noise(n)
+        y = np.empty(n)
+        cuts = np.flatnonzero(np.diff(idx)) + 1
+        starts = np.concatenate([[0], cuts]).astype(int)
+        stops = np.concatenate([cuts, [n]]).astype(int)
+        p = self.p
+        for a, b in zip(starts, stops, strict=True):
+            i = idx[a]
+            if i != self._last_i:
+                self._limit_history(i)
+            hist = self._history_newest_first()
+            zi = -np.correlate(t.polys[i, 1:], hist, "full")[p - 1:]
+            y[a:b], _ = ss.lfilter([t.sigma[i]], t.polys[i], e[a:b], zi=zi)
+            self._push_history(y[a:b])
+        target = self.target_gains(v, c)
+        g, _zf = ss.lfilter([self._alpha], [1.0, self._alpha - 1.0], target,
+                           zi=[(1.0 - self._alpha) * self._g])
+        if n:
+            self._g = float(g[-1])
+        out = g * y
+        if self._sos is not None:
+            out, self._zs[:] = ss.sosfilt(self._sos, out, zi=self._zs)
+        return out
+
+    def _limit_history(self, i: int) -> None:
+        """Entering filter ``i``: cap the history's energy (see ``history_cap``)."""
+        cap2 = self._cap2[i] if abs(i - self._last_i) <= 1 else self._cap2_jump[i]
+        self._last_i = i
+        p = self.p
+        h = self._buf[self._pos:self._pos + p]
+        e = float(np.dot(h, h))
+        if e > cap2:
+            self._buf *= math.sqrt(cap2 / e)
+
+    def _push_history(self, y: Array) -> None:
+        p = self.p
+        m = min(y.size, p)
+        newest = y[::-1][:m]
+        pos = self._pos
+        hist = np.concatenate([newest, self._buf[pos:pos + p - m]])
+        self._buf[:p] = hist
+        self._buf[p:] = hist
+        self._pos = 0
+
+    def warmup(self, speed_mm_s: float, seconds: float = 0.5) -> None:
+        """Run the filter (unheard) so its state is the stationary process at this speed."""
+        if seconds > 0:
+            self.block(speed_mm_s, True, round(seconds * self.fs_hz))
+
+
+def synthesize(
+    model: TextureModel, speed_mm_s: ArrayLike, *, seed: int | None = None,
+    method: str = "lsf", warmup_s: float = 0.5, n: int | None = None,
+) -> Array:
+    """Offline synthesis along a speed trace (contact throughout), after a warm-up."""
+    v = np.asarray(speed_mm_s, float)
+    if n is None:
+        n = v.size
+    r = TextureRenderer(model, method=method, seed=seed, ramp_s=1e-6)
+    r.warmup(float(np.broadcast_to(v, (max(n, 1),))[0]), warmup_s)
+    return r.block(v, True, n)
+
+
+@dataclass
+class CentroidSpeed:
+    """Finger speed for every 1 kHz tick from the camera-rate contact centroid.
+
+    ``position(t_s, x_mm, y_mm, contact)`` at each camera frame differentiates the
+    centroid (``vision.speed.speed_update``, whose own low-pass we bypass with a high
+    cutoff); ``tick(dt_s)`` at 1 kHz holds that raw velocity between frames (i.e. it
+    extrapolates the position linearly) and applies the paper's 10 Hz low-pass at the
+    tick rate, so the speed is smooth rather than a 30 Hz staircase.
+    """
+
+    cutoff_hz: float = 10.0
+    contact: bool = False
+    _state: SpeedState | None = None
+    _vx: float = 0.0
+    _vy: float = 0.0
+    _fx: float = 0.0
+    _fy: float = 0.0
+
+    def position(self, t_s: float, x_mm: float, y_mm: float, contact: bool) -> None:
+        state = self._state or SpeedState()
+        was = self.contact and math.isfinite(state.x_mm)
+        _, new = speed_update(state, t_s, x_mm, y_mm, contact, cutoff_hz=1e9)
+        self._state = new
+        self.contact = bool(contact)
+        if not contact:
+            self._vx = self._vy = self._fx = self._fy = 0.0
+        elif was:
+            self._vx, self._vy = new.vx_mm_s, new.vy_mm_s
+
+    def tick(self, dt_s: float = 1e-3) -> float:
+        """Advance the low-pass by ``dt_s``; the filtered speed in mm/s (0 without contact)."""
+        if not self.contact:
+            return 0.0
+        a = 1.0 - math.exp(-2.0 * math.pi * self.cutoff_hz * dt_s)
+        self._fx += a * (self._vx - self._fx)
+        self._fy += a * (self._vy - self._fy)
+        return math.hypot(self._fx, self._fy)

@@ -1,0 +1,90 @@
+"""``fydpad texture`` end to end on generated scans (parser registered as the CLI does)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+import pytest
+
+from fydpad.commands import texture
+from fydpad.errors import UserError
+from vision.recording import read_csv_columns
+
+
+def run(*argv: str) -> int:
+    parser = argparse.ArgumentParser(prog="fydpad")
+    sub = parser.add_subparsers(dest="command")
+    texture.register(sub)
+    args = parser.parse_args(["texture", *argv])
+    return args.func(args)
+
+
+@pytest.fixture(scope="module")
+def workdir(tmp_path_factory):
+    d = tmp_path_factory.mktemp("cli")
+    assert run("generate-scans", "--out-dir", str(d), "--textures", "R1,felt",
+               "--speeds", "10,30", "--strokes", "1", "--seconds", "4") == 0
+    for name in ("R1", "felt"):
+        assert run("fit", str(d / f"{name}_10mms_s1.csv"), str(d / f"{name}_30mms_s1.csv"),
+                   "--out", str(d / f"{name}.json"), "--speeds", "10,30", "--order", "100",
+                   "--plot", str(d / f"{name}_fit.png")) == 0
+    return d
+
+
+def test_fit_writes_documented_model_and_plot(workdir):
+    m = json.loads((workdir / "R1.json").read_text())
+    assert m["format_version"] == 1 and m["sample_rate_hz"] == 1000.0
+    assert [x["speed_mm_s"] for x in m["models"]] == [10.0, 30.0]
+    assert m["drive_band_hz"] == [165.0, 220.0] and m["provenance"]["scans"]
+    assert (workdir / "R1_fit.png").stat().st_size > 1000
+
+
+def test_synth_writes_t_a_at_1khz(workdir, tmp_path):
+    out = tmp_path / "a.csv"
+    assert run("synth", str(workdir / "R1.json"), "--speed-mm-s", "20", "--seconds", "0.5",
+               "--out", str(out)) == 0
+    cols = read_csv_columns(out, ("t_s", "a"))
+    assert cols["t_s"].size == 500 and np.allclose(np.diff(cols["t_s"]), 1e-3)
+    assert np.std(cols["a"]) > 0
+
+
+def test_evaluate_and_identify_json(workdir, tmp_path):
+    ej = tmp_path / "e.json"
+    assert run("evaluate", str(workdir / "R1.json"), str(workdir / "R1_30mms_s1.csv"),
+               "--json", str(ej), "--plot", str(tmp_path / "e.png")) == 0
+    e = json.loads(ej.read_text())
+    assert {"psd_correlation", "lsd_db", "time_correlation", "band_energy_recorded"} <= set(e)
+    ij = tmp_path / "i.json"
+    assert run("identify", str(workdir / "R1.json"), str(workdir / "felt.json"), "--scans",
+               str(workdir / "R1_10mms_s1.csv"), str(workdir / "felt_30mms_s1.csv"),
+               "--json", str(ij), "--plot", str(tmp_path / "i.png")) == 0
+    i = json.loads(ij.read_text())
+    assert i["labels"] == ["R1", "felt"] and np.array(i["confusion"]).sum() == 2
+    assert 0.0 <= i["rate"] <= 1.0
+
+
+def test_bad_input_is_a_user_error(workdir, tmp_path):
+    bad = tmp_path / "m.json"
+    m = json.loads((workdir / "R1.json").read_text())
+    m["format_version"] = 2
+    bad.write_text(json.dumps(m))
+    with pytest.raises(UserError, match="format_version"):
+        run("synth", str(bad), "--speed-mm-s", "20", "--seconds", "1", "--out",
+            str(tmp_path / "x.csv"))
+    with pytest.raises(UserError, match="unknown nope"):
+        run("generate-scans", "--out-dir", str(tmp_path), "--textures", "nope")
+    short = tmp_path / "short.csv"
+    short.write_text("t_s,ax,ay,az,speed_mm_s\n" + "".join(
+        f"{k / 1000:.3f},0.1,0.2,{k % 3},20\n" for k in range(300)))
+    with pytest.raises(UserError, match="order-200"):
+        run("fit", str(short), "--out", str(tmp_path / "s.json"), "--speeds", "20")
+
+
+def test_evaluate_refuses_a_scan_outside_the_models_speeds(workdir, tmp_path):
+    fast = tmp_path / "fast.csv"
+    fast.write_text("# surface=R1\nt_s,ax,ay,az,speed_mm_s\n" + "".join(
+        f"{k / 1000:.3f},0.1,0.2,{k % 3},80\n" for k in range(3000)))
+    with pytest.raises(UserError, match=r"fast\.csv: column 'speed_mm_s'"):
+        run("evaluate", str(workdir / "R1.json"), str(fast))

@@ -1,0 +1,85 @@
+"""Scan reading, model files and bad input: errors name the file and field."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from fydpad.errors import UserError
+from fydpad.texture.fit import fit_texture
+from fydpad.texture.lpc import is_stable
+from fydpad.texture.model_file import load_model, save_model
+from fydpad.texture.scan_generator import generate_scan, save_generated
+from fydpad.texture.scan_io import read_scan
+from vision.recording import RecordingError
+
+
+def _write(path, header, rows, comment="# surface=test"):
+    path.write_text(comment + "\n" + header + "\n" + "\n".join(rows) + "\n")
+    return path
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory):
+    d = tmp_path_factory.mktemp("fit")
+    paths = []
+    for s in (10.0, 30.0):
+        scan = generate_scan("canvas", s, 4.0, seed=1)
+        paths.append(save_generated(scan, d / f"canvas_{s:g}.csv"))
+    scans = [read_scan(p) for p in paths]
+    model, reports = fit_texture(scans, order=200, speeds_mm_s=(10.0, 30.0))
+    return d, scans, model, reports
+
+
+def test_fit_reads_metadata_and_gives_stable_models(fitted):
+    _d, scans, model, reports = fitted
+    assert scans[0].surface == "canvas" and scans[0].fs_hz == pytest.approx(1000.0)
+    assert list(model.speeds_mm_s) == [10.0, 30.0] and model.order == 200
+    assert all(is_stable(model.poly(i)) for i in range(2))
+    assert all(r.sigma2 < r.signal_var for r in reports)
+
+
+def test_model_round_trip_and_version(fitted, tmp_path):
+    _, _, model, _ = fitted
+    p = save_model(model, tmp_path / "m.json")
+    back = load_model(p)
+    np.testing.assert_allclose(back.h, model.h)
+    np.testing.assert_allclose(back.sigma2, model.sigma2)
+    data = json.loads(p.read_text())
+    data["format_version"] = 99
+    (tmp_path / "v.json").write_text(json.dumps(data))
+    with pytest.raises(UserError, match=r"v\.json.*format_version"):
+        load_model(tmp_path / "v.json")
+    data["format_version"] = 1
+    data["models"][0]["h"] = [2.5] + [0.0] * 199
+    (tmp_path / "u.json").write_text(json.dumps(data))
+    with pytest.raises(UserError, match=r"u\.json: models\[0\].*unstable"):
+        load_model(tmp_path / "u.json")
+
+
+def test_too_short_for_order(tmp_path):
+    scan = generate_scan("felt", 20.0, 0.6, seed=1)
+    with pytest.raises(UserError, match="order-200"):
+        fit_texture([scan], order=200, speeds_mm_s=(20.0,))
+
+
+def test_uneven_time_missing_speed_and_nan(tmp_path):
+    rows = [f"{k * 0.001:.3f},0,0,1,20" for k in range(50)]
+    rows[20] = "0.0205,0,0,1,20"
+    with pytest.raises(RecordingError, match=r"uneven.*line 2[23]|line 2[23].*uneven"):
+        read_scan(_write(tmp_path / "u.csv", "t_s,ax,ay,az,speed_mm_s", rows))
+    rows = [f"{k * 0.001:.3f},0,0,1" for k in range(50)]
+    with pytest.raises(RecordingError, match=r"n\.csv.*speed_mm_s"):
+        read_scan(_write(tmp_path / "n.csv", "t_s,ax,ay,az", rows))
+    rows = [f"{k * 0.001:.3f},0,0,1,20" for k in range(50)]
+    rows[10] = "0.010,nan,0,1,20"
+    with pytest.raises(RecordingError, match=r"line 13: column 'ax'"):
+        read_scan(_write(tmp_path / "nan.csv", "t_s,ax,ay,az,speed_mm_s", rows))
+
+
+def test_speed_from_position_when_no_speed_column(tmp_path):
+    rows = [f"{k * 0.001:.3f},0,0,1,{20 * k * 0.001:.4f},0" for k in range(2000)]
+    scan = read_scan(_write(tmp_path / "p.csv", "t_s,ax,ay,az,x_mm,y_mm", rows))
+    assert np.median(scan.speed_mm_s) == pytest.approx(20.0, rel=0.01)

@@ -1,0 +1,105 @@
+"""LPC estimation, stability, LSF/reflection conversions and stable interpolation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.signal as ss
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fydpad.texture.interpolation import SpeedInterpolator, build_table
+from fydpad.texture.lpc import (
+    h_from_poly,
+    is_stable,
+    levinson,
+    lpc_autocorrelation,
+    lpc_burg,
+    max_pole_radius,
+    poly_to_reflection,
+    reflection_to_poly,
+)
+from fydpad.texture.lsf import lsf_is_valid, lsf_to_poly, poly_to_lsf
+from fydpad.texture.model_file import TextureModel
+
+TRUE_A = np.array([1.0, -1.6, 1.5, -0.7, 0.2])
+
+
+@pytest.fixture(scope="module")
+def ar_signal() -> np.ndarray:
+    rng = np.random.default_rng(0)
+    return ss.lfilter([1.0], TRUE_A, rng.normal(0, 0.1, 200_000))
+
+
+def test_levinson_and_burg_recover_known_ar(ar_signal):
+    for a, s2 in (lpc_autocorrelation([ar_signal], 4), lpc_burg(ar_signal, 4)):
+        np.testing.assert_allclose(a, TRUE_A, atol=0.01)
+        assert s2 == pytest.approx(0.01, rel=0.02)
+
+
+def test_pooled_segments_equal_one_long_segment_closely(ar_signal):
+    a1, _ = lpc_autocorrelation([ar_signal], 4)
+    a2, _ = lpc_autocorrelation(np.array_split(ar_signal, 10), 4)
+    np.testing.assert_allclose(a1, a2, atol=5e-3)
+
+
+def test_order_200_fit_is_stable(ar_signal):
+    a, _ = lpc_autocorrelation([ar_signal[:10_000]], 200)
+    assert is_stable(a) and max_pole_radius(a) < 1.0
+
+
+def test_stability_check_detects_unstable():
+    assert not is_stable([1.0, -2.1, 1.1])  # a pole at 1.1
+    assert is_stable([1.0, -0.5])
+    k = poly_to_reflection(TRUE_A)
+    np.testing.assert_allclose(reflection_to_poly(k), TRUE_A, atol=1e-12)
+    _, _, k2 = levinson(np.array([1.0, 0.5, 0.2]), 2)
+    assert np.all(np.abs(k2) < 1)
+
+
+def test_lsf_round_trip_order_200(ar_signal):
+    a, _ = lpc_autocorrelation([ar_signal[:20_000]], 200)
+    lsf = poly_to_lsf(a)
+    assert lsf.size == 200 and lsf_is_valid(lsf)
+    np.testing.assert_allclose(lsf_to_poly(lsf), a, atol=1e-9)
+
+
+def _resonators(angles, r: float = 0.98) -> np.ndarray:
+    a = np.array([1.0])
+    for t in angles:
+        a = np.convolve(a, [1.0, -2.0 * r * np.cos(t), r * r])
+    return a
+
+
+def _random_stable(rng: np.random.Generator, order: int) -> np.ndarray:
+    """A fitted model of a random texture-like signal: a few sharp resonances (radius up
+    to 0.995, like a tool mode or a grating line) over a noise floor, fitted at ``order``."""
+    a = _resonators(rng.uniform(0.05, np.pi - 0.05, rng.integers(1, 6)), rng.uniform(0.9, 0.995))
+    x = ss.lfilter([1.0], a, rng.standard_normal(4000))
+    x += 1e-3 * np.std(x) * rng.standard_normal(x.size)
+    return lpc_autocorrelation([x], order)[0]
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), w=st.floats(0.0, 1.0), order=st.sampled_from([8, 40, 200]))
+def test_every_lsf_and_reflection_interpolation_is_stable(seed, w, order):
+    rng = np.random.default_rng(seed)
+    a0, a1 = _random_stable(rng, order), _random_stable(rng, order)
+    model = TextureModel("x", 1000.0, np.array([10.0, 20.0]),
+                         np.vstack([h_from_poly(a0), h_from_poly(a1)]), np.array([1e-3, 2e-3]))
+    for method in ("lsf", "reflection"):
+        a, s2 = SpeedInterpolator(model, method)(10.0 + 10.0 * w)
+        assert is_stable(a), method
+        assert 1e-3 <= s2 <= 2e-3
+
+
+def test_paper_linear_interpolation_can_be_unstable_and_lsf_not():
+    # Two stable pairs of resonators whose coefficient average is unstable.
+    a0, a1 = _resonators([1.9, 0.9]), _resonators([0.2, 0.1])
+    assert is_stable(a0) and is_stable(a1)
+    model = TextureModel("x", 1000.0, np.array([10.0, 20.0]),
+                         np.vstack([h_from_poly(a0), h_from_poly(a1)]), np.array([1.0, 1.0]))
+    lin = build_table(model, "linear", 0.5)
+    lsf = build_table(model, "lsf", 0.5)
+    assert lsf.stable.all()
+    assert not lin.stable.all()
