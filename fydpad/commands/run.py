@@ -45,8 +45,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--texture", metavar="MODEL", help="render this texture model")
     p.add_argument("--vibration-gain", type=float, default=1.0,
                    help="texture vibration gain (the paper: 1)")
-    p.add_argument("--softness", type=float, metavar="N_PER_MM",
-                   help="render this stiffness (N/mm)")
+    soft = p.add_mutually_exclusive_group()
+    soft.add_argument("--softness", type=float, metavar="N_PER_MM",
+                      help="render this stiffness (N/mm)")
+    soft.add_argument("--specimen", metavar="NAME",
+                      help="render a characterised specimen's stiffness (SS1..SS4: the paper's)")
     p.add_argument("--as-fast-as-possible", action="store_true",
                    help="with --replay: do not pace the frames at their recorded times")
     p.add_argument("--no-realtime", action="store_true",
@@ -90,6 +93,14 @@ def _status_printer():
     return show
 
 
+def _stiffness(args: argparse.Namespace) -> float:
+    if args.specimen is not None:
+        from fydpad.softness import specimen
+
+        return specimen(args.specimen).lambda_n_per_mm
+    return math.nan if args.softness is None else args.softness
+
+
 def run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     opened = open_source(config, args.replay, args.camera)
@@ -106,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
         rate_hz=config.loops.render_hz,
         texture=args.texture,
         vibration_gain=args.vibration_gain,
-        stiffness_n_per_mm=math.nan if args.softness is None else args.softness,
+        stiffness_n_per_mm=_stiffness(args),
         motors=args.motors,
         commands_csv=str(Path(args.record) / "commands.csv") if args.record else None,
         realtime=not args.no_realtime,
