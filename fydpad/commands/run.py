@@ -17,6 +17,7 @@ from fydpad.errors import UserError
 from fydpad.opening import open_source
 from fydpad.station.render import RenderSpec
 from fydpad.station.station import SensorFeed, Station, StationFault, StationOptions
+from vision.indentation import IndentationEstimator
 from vision.stream import LiveIndentation, recording_estimator
 
 
@@ -35,6 +36,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--camera", metavar="N", help="live camera (index or device path)")
     src.add_argument("--replay", metavar="RECDIR", help="replay a pad session recording")
+    src.add_argument("--synthetic", metavar="TRAJECTORY", nargs="?", const="walk",
+                     help="the simulated pad, rendered live (a trajectory of `fydpad synth`: "
+                     "circle, lissajous, tapping, walk (default), fast, hover)")
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     p.add_argument("--record", metavar="DIR",
                    help="record the session (RECORDING_FORMAT.md) as it goes")
@@ -93,6 +97,21 @@ def _status_printer():
     return show
 
 
+def _synthetic(args: argparse.Namespace, config):
+    """The synthetic pad as the station's camera, IR board and load cell."""
+    from fydpad.synth import SynthConfig, SyntheticPad
+    from fydpad.synth.sources import SynthFrameSource
+
+    try:
+        cfg = SynthConfig(trajectory=args.synthetic, seconds=args.duration or 60.0,
+                          roi_px=config.camera.roi_px, workspace_mm=config.camera.workspace_mm,
+                          image_flip=config.camera.image_flip)
+        pad = SyntheticPad(cfg)
+    except ValueError as exc:
+        raise UserError(f"--synthetic: {exc}") from None
+    return SynthFrameSource(pad), pad.meta(), SensorFeed(pad.ir(), pad.force())
+
+
 def _stiffness(args: argparse.Namespace) -> float:
     if args.specimen is not None:
         from fydpad.softness import specimen
@@ -103,14 +122,19 @@ def _stiffness(args: argparse.Namespace) -> float:
 
 def run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
-    opened = open_source(config, args.replay, args.camera)
-    source, meta, rec = opened.source, opened.meta, opened.recording
-    sensors = SensorFeed(rec.read_ir(), rec.read_force()) if rec is not None else None
+    camera = None
     indentation = None
-    if rec is not None and rec.has("ir.csv"):
-        indentation = LiveIndentation(recording_estimator(rec, config.ir))
+    if args.synthetic is not None:
+        source, meta, sensors = _synthetic(args, config)
+        indentation = LiveIndentation(IndentationEstimator.from_config(config.ir))
+    else:
+        opened = open_source(config, args.replay, args.camera)
+        source, meta, rec, camera = opened.source, opened.meta, opened.recording, opened.camera
+        sensors = SensorFeed(rec.read_ir(), rec.read_force()) if rec is not None else None
+        if rec is not None and rec.has("ir.csv"):
+            indentation = LiveIndentation(recording_estimator(rec, config.ir))
     tracker = make_tracker(config.tracker, meta.roi_px, meta.workspace_mm, meta.image_flip,
-                           opened.camera)
+                           camera)
     if args.record:
         Path(args.record).mkdir(parents=True, exist_ok=True)
     render = RenderSpec(
@@ -128,7 +152,8 @@ def run(args: argparse.Namespace) -> int:
         record_dir=args.record, record_video=not args.no_video, render=render,
         status=_status_printer(),
     )
-    station = Station(source, tracker, meta, options, sensors=sensors, indentation=indentation)
+    station = Station(source, tracker, meta, options, sensors=sensors, indentation=indentation,
+                      force_full_scale_n=config.force.full_scale_n)
     interrupts = _Interrupts()
     interrupts.station = station
     previous = signal.signal(signal.SIGINT, interrupts)

@@ -107,6 +107,7 @@ class Station:
         options: StationOptions,
         sensors: SensorFeed | None = None,
         indentation: LiveIndentation | None = None,
+        force_full_scale_n: float = math.inf,
     ):
         self.source = source
         self.tracker = tracker
@@ -129,6 +130,7 @@ class Station:
         self.contact_frames = 0
         self.last_state: FingerState | None = None
         self.stiffness = LiveStiffness()
+        self.force_full_scale_n = force_full_scale_n
         #: The latest frame, contact and state, for the web view and the status line.
         self.snapshot = Snapshot()
 
@@ -159,8 +161,10 @@ class Station:
                 ind = (self.indentation.update(s.volts, contact)
                        if self.indentation is not None else math.nan)
                 state = builder.build(frame.t_s, contact, ind, s.force_n)
-                # The stiffness the finger actually feels: F / delta over each press.
-                self.stiffness.update(state.force_n, state.indentation_mm)
+                # The stiffness the finger actually feels: F / delta over each press; a
+                # saturated load cell (at full scale) no longer measures the force.
+                if not abs(state.force_n) >= self.force_full_scale_n:
+                    self.stiffness.update(state.force_n, state.indentation_mm)
                 self.contact_frames += state.contact
                 self.shared.publish(state, arrival, frame.index)
                 self.snapshot.publish(View(frame.index, frame.image, contact, state))
@@ -259,7 +263,8 @@ class Station:
             self.source.close()
         self.stats["softness"] = {
             "requested_n_per_mm": self.options.render.stiffness_n_per_mm,
-            "measured_n_per_mm": self.stiffness.last_k_n_per_mm,
+            "measured_n_per_mm": self._measured_stiffness(),
+            "presses": self.stiffness.presses,
         }
         if self.faults:
             raise StationFault("; ".join(f.splitlines()[0] for f in self.faults))
@@ -282,6 +287,11 @@ class Station:
                 if final:
                     return
 
+    def _measured_stiffness(self) -> float:
+        """The current press's F / delta, else the last finished press's."""
+        k = self.stiffness.k_n_per_mm
+        return k if math.isfinite(k) else self.stiffness.last_k_n_per_mm
+
     def status(self) -> dict:
         s = self.last_state
         return {
@@ -292,8 +302,6 @@ class Station:
             "indentation_mm": s.indentation_mm if s else math.nan,
             "force_n": s.force_n if s else math.nan,
             "requested_n_per_mm": self.options.render.stiffness_n_per_mm,
-            "measured_n_per_mm": (self.stiffness.k_n_per_mm
-                                  if math.isfinite(self.stiffness.k_n_per_mm)
-                                  else self.stiffness.last_k_n_per_mm),
+            "measured_n_per_mm": self._measured_stiffness(),
             "render": self.live_stats.get("render"),
         }

@@ -185,3 +185,39 @@ def test_texture_vibration_only_while_the_finger_moves(circle_rec: Path, tmp_pat
     chain = stats["render"]["chain"]
     assert chain["texture_limiter_resets"] == 0
     assert chain["vibration_clip_pct"] < 5.0
+
+
+def test_run_on_the_synthetic_pad_measures_stiffness(tmp_path: Path, capsys):
+    """--synthetic: the simulated pad as camera, IR board and load cell, live; the session
+    it records has contacts and indentations, and the station measures F / delta."""
+    rc = main(["run", "--synthetic", "tapping", "--duration", "4", "--record",
+               str(tmp_path / "s"), "--stats", str(tmp_path / "st.json"), "--no-realtime"])
+    assert rc == 0
+    track = read_track(tmp_path / "s" / "track.csv")
+    pressed = track["contact"] != 0
+    assert pressed.sum() > 10
+    assert np.nanmax(track["indentation_mm"][pressed]) > 5.0
+    stats = json.loads((tmp_path / "st.json").read_text())
+    # Ground truth: the same pad's true force and indentation at the frame times, fitted
+    # the same way (through the origin, loaded and unsaturated samples only).
+    from fydpad.config import StationConfig
+    from fydpad.synth import SynthConfig, SyntheticPad
+
+    c = StationConfig()
+    pad = SyntheticPad(SynthConfig(trajectory="tapping", seconds=4.0, roi_px=c.camera.roi_px,
+                                   workspace_mm=c.camera.workspace_mm,
+                                   image_flip=c.camera.image_flip))
+    t_f, f_n = pad.force()
+    truth = [tr for _, tr in pad.frames()]
+    t_s = np.array([tr.t_s for tr in truth])
+    depth = np.array([tr.indentation_mm for tr in truth])
+    force = np.interp(t_s, t_f, f_n)
+    loaded = (depth >= 1.0) & (force < c.force.full_scale_n)
+    k_true = float((force[loaded] * depth[loaded]).sum() / (depth[loaded] ** 2).sum())
+    # Within the indentation estimate's error (plane RMSE ~3 mm at 10-40 mm deep).
+    assert stats["softness"]["measured_n_per_mm"] == pytest.approx(k_true, rel=0.1)
+
+
+def test_unknown_synthetic_trajectory(capsys):
+    assert main(["run", "--synthetic", "zigzag", "--duration", "1"]) == 2
+    assert "zigzag" in capsys.readouterr().err
