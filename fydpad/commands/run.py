@@ -47,6 +47,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--motors", choices=["none", "sim", "qb"], default="none",
                    help="motor backend (default: %(default)s)")
     p.add_argument("--texture", metavar="MODEL", help="render this texture model")
+    p.add_argument("--teleop", metavar="ENDPOINT",
+                   help="stream the finger to a slave robot (`teleop slave`) at this endpoint")
     p.add_argument("--vibration-gain", type=float, default=1.0,
                    help="texture vibration gain (the paper: 1)")
     soft = p.add_mutually_exclusive_group()
@@ -152,6 +154,13 @@ def run(args: argparse.Namespace) -> int:
         record_dir=args.record, record_video=not args.no_video, render=render,
         status=_status_printer(),
     )
+    link = None
+    if args.teleop:
+        from fydpad.station.link import StationLink
+
+        link = StationLink(args.teleop, config.teleop)
+        options.teleop_send = link.send
+        options.teleop_hold = link.hold
     station = Station(source, tracker, meta, options, sensors=sensors, indentation=indentation,
                       force_full_scale_n=config.force.full_scale_n)
     interrupts = _Interrupts()
@@ -163,6 +172,10 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"station stopped safely after a fault: {exc}") from None
     finally:
         signal.signal(signal.SIGINT, previous)
+        if link is not None:
+            station.stats["link"] = {"sent": link.sent, "send_failed": link.send_failed,
+                                     "slave_answered": link.slave is not None}
+            link.close()
         if options.status is not None:
             print(file=sys.stderr)
         if args.stats:

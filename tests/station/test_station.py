@@ -221,3 +221,21 @@ def test_run_on_the_synthetic_pad_measures_stiffness(tmp_path: Path, capsys):
 def test_unknown_synthetic_trajectory(capsys):
     assert main(["run", "--synthetic", "zigzag", "--duration", "1"]) == 2
     assert "zigzag" in capsys.readouterr().err
+
+
+def test_station_drives_the_simulated_slave_and_tells_it_to_hold(circle_rec: Path,
+                                                                tmp_path: Path):
+    """--teleop: the live station streams each finger state to a slave over a real
+    loopback socket; the arm follows, and on stop it is told to hold (contact 0)."""
+    from teleop.config import TeleopConfig
+    from teleop.slave import SlaveThread
+
+    with SlaveThread(TeleopConfig(), bind="tcp://127.0.0.1:*") as slave:
+        rc = main(["run", "--replay", str(circle_rec), "--teleop", slave.endpoint,
+                   "--stats", str(tmp_path / "st.json"), "--no-realtime"])
+        assert rc == 0
+        counts = dict(slave.loop.counts)
+    stats = json.loads((tmp_path / "st.json").read_text())
+    assert stats["link"]["slave_answered"] and stats["link"]["send_failed"] == 0
+    assert stats["link"]["sent"] == 49  # 48 frames and the final hold
+    assert counts["messages"] >= 49

@@ -1,0 +1,73 @@
+"""The live station's tele-operation link: the latest finger state to the slave at the
+vision rate, the slave's state back, and "hold" on the way out (paper III-C)."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import zmq
+
+from teleop import protocol as P
+from teleop.config import TeleopConfig
+from teleop.link import MasterSocket
+from vision.state import FingerState
+
+
+class StationLink:
+    """Sends each finger state as it is made; never waits (a full queue drops the sample:
+    the slave acts on the newest one anyway)."""
+
+    def __init__(self, endpoint: str, cfg: TeleopConfig | None = None):
+        self.cfg = cfg or TeleopConfig()
+        self.endpoint = endpoint
+        self._sock = MasterSocket(endpoint, self.cfg.link)
+        self._seq = 1
+        self.sent = 0
+        self.send_failed = 0
+        #: The slave's newest state (None until it answers).
+        self.slave: P.State | None = None
+
+    def send(self, state: FingerState) -> None:
+        now = time.monotonic()
+        if state.contact:
+            z = state.indentation_mm if math.isfinite(state.indentation_mm) else 0.0
+            x, y = state.x_mm, state.y_mm
+        else:
+            x = y = math.nan
+            z = 0.0
+        force = state.force_n if math.isfinite(state.force_n) else math.nan
+        sample = P.Sample(self._seq, now, now, x, y, z, force, bool(state.contact))
+        self._seq += 1
+        if self._sock.send(P.encode_sample(sample)):
+            self.sent += 1
+        else:
+            self.send_failed += 1
+        self._drain()
+
+    def _drain(self) -> None:
+        while True:
+            try:
+                buf = self._sock.sock.recv(zmq.NOBLOCK)
+            except zmq.Again:
+                return
+            try:
+                self.slave = P.decode_state(buf)
+            except P.ProtocolError:
+                pass
+
+    def tracking_error_mm(self, state: FingerState) -> float:
+        """Distance in the workspace between the finger and where the slave is now."""
+        if self.slave is None or not state.contact:
+            return math.nan
+        ax, ay, _ = self.slave.actual_mm
+        return math.hypot(ax - state.x_mm, ay - state.y_mm)
+
+    def hold(self) -> None:
+        """Tell the robot to hold: the finger lifted (the slave's clutch holds x and y)."""
+        self.send(FingerState.no_contact(time.monotonic()))
+        time.sleep(0.05)
+        self._drain()
+
+    def close(self) -> None:
+        self._sock.close()
