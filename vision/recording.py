@@ -120,6 +120,12 @@ def parse_meta(data: Any, path: str | Path = "meta.json") -> PadMeta:
         sensors = tuple(
             tuple(_number_list(s, 2, f"{p}: key 'ir.sensors_mm[{i}]'")) for i, s in enumerate(raw)
         )  # type: ignore[assignment]
+        (ax, ay), (bx, by), (cx, cy) = sensors
+        if abs((bx - ax) * (cy - ay) - (by - ay) * (cx - ax)) < 1e-6:
+            raise RecordingError(
+                f"{p}: key 'ir.sensors_mm': the three sensors are collinear, so no plane "
+                "passes through their points (paper II-C)"
+            )
     base = ir.get("base_to_fabric_mm", DEFAULT_BASE_TO_FABRIC_MM)
     if isinstance(base, bool) or not isinstance(base, int | float) or not base > 0:
         raise RecordingError(f"{p}: key 'ir.base_to_fabric_mm': expected a positive number")

@@ -48,6 +48,8 @@ def test_meta_defaults_and_round_trip(tmp_path: Path):
          "key 'ir.sensors_mm'"),
         ({"roi_px": [600, 0, 100, 10], "workspace_mm": [100, 70], "frame_size": [640, 480]},
          "outside frame_size"),
+        ({"roi_px": [0, 0, 10, 10], "workspace_mm": [100, 70],
+          "ir": {"sensors_mm": [[0, 0], [10, 10], [20, 20]]}}, "collinear"),
     ],
 )
 def test_meta_errors_name_the_key(data, message):
