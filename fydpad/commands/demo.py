@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 from pathlib import Path
 
 from fydpad.bundled import bundled_recording
@@ -32,6 +33,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", metavar="DIR", help="write each report (JSON) and plot (PNG) here")
     p.add_argument("--no-baseline", action="store_true",
                    help="skip the second pass under the paper's condition (faster)")
+    p.add_argument("-v", "--verbose", action="store_true",
+                   help="show the simulated slave's log (watchdog holds between passes, ...)")
     add_config_argument(p)
     p.set_defaults(func=run)
 
@@ -39,6 +42,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from teleop.master import run_local_sim
 
+    if not args.verbose:
+        # The in-process slave holds between passes by design: not news in a demo.
+        logging.getLogger("teleop").setLevel(logging.ERROR)
     config = load_config(args.config)
     out = Path(args.out) if args.out else None
     if out is not None:
