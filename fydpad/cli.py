@@ -13,7 +13,10 @@ from fydpad.errors import UserError
 from vision.recording import RecordingError
 
 #: Subcommand modules, in the order ``--help`` lists them.
-COMMANDS = ("demo", "track", "run", "replay", "synth", "calibrate", "softness", "texture", "config")
+COMMANDS = (
+    "demo", "track", "run", "replay", "synth", "calibrate", "softness", "texture", "experiment",
+    "config",
+)
 
 
 def add_config_argument(parser: argparse.ArgumentParser) -> None:

@@ -61,6 +61,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-realtime", action="store_true",
                    help="do not ask for SCHED_FIFO and a core for the render process")
     add_config_argument(p)
+    # -- web view (issue 10) --
+    p.add_argument("--web", metavar="[HOST:]PORT",
+                   help="serve the web view (live image, plots, setup, experiment runner); "
+                   "loopback unless HOST is given, then with a token printed at start")
+    p.add_argument("--web-results", metavar="DIR", default="experiment-results",
+                   help="with --web: the experiment results directory (default: %(default)s)")
+    # -- end web view --
     p.set_defaults(func=run)
 
 
@@ -163,15 +170,33 @@ def run(args: argparse.Namespace) -> int:
         options.teleop_hold = link.hold
     station = Station(source, tracker, meta, options, sensors=sensors, indentation=indentation,
                       force_full_scale_n=config.force.full_scale_n)
+    # -- web view (issue 10) --
+    web = None
+    if getattr(args, "web", None):
+        from fydpad.web import parse_web_address, start_web
+
+        try:
+            web_host, web_port = parse_web_address(args.web)
+            web = start_web(station, config, args.config, web_host, web_port,
+                            results_dir=args.web_results)
+        except (ValueError, OSError) as exc:
+            raise UserError(str(exc)) from None
+        print(f"web view: {web.url}", file=sys.stderr, flush=True)
+    # -- end web view --
     interrupts = _Interrupts()
     interrupts.station = station
     previous = signal.signal(signal.SIGINT, interrupts)
+    # A service manager's SIGTERM stops the station the same safe way as Ctrl-C.
+    previous_term = signal.signal(signal.SIGTERM, interrupts)
     try:
         stats = station.run()
     except StationFault as exc:
         raise UserError(f"station stopped safely after a fault: {exc}") from None
     finally:
         signal.signal(signal.SIGINT, previous)
+        signal.signal(signal.SIGTERM, previous_term)
+        if web is not None:  # web view (issue 10)
+            web.stop()
         if link is not None:
             station.stats["link"] = {"sent": link.sent, "send_failed": link.send_failed,
                                      "slave_answered": link.slave is not None}

@@ -123,6 +123,7 @@ def render_main(
         if spec.commands_csv:
             log = CsvRowWriter(Path(spec.commands_csv), ("t_s", "frame", *chain.outputs))
         last_seq = 0
+        parent = os.getppid()
         timer.start()
         if ready_event is not None:
             ready_event.set()  # the chain is built: the station may start its sources
@@ -142,6 +143,9 @@ def render_main(
                 if log is not None:
                     log.write(tick_time - t0, int(v[8]), *out)
             if timer.stats_due():
+                if os.getppid() != parent:
+                    # The station died without stopping us (SIGKILL): stop safely, now.
+                    raise RuntimeError("the station process is gone")
                 # Once a second: the live figures for the status line and the web view.
                 results.put(("live", {"render": timer.stats().as_dict(),
                                       "frame_to_command_ms": latency.percentiles_ms()}))
