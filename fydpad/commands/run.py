@@ -166,10 +166,20 @@ def run(args: argparse.Namespace) -> int:
         from fydpad.station.link import StationLink
 
         link = StationLink(args.teleop, config.teleop)
-        options.teleop_send = link.send
         options.teleop_hold = link.hold
     station = Station(source, tracker, meta, options, sensors=sensors, indentation=indentation,
                       force_full_scale_n=config.force.full_scale_n)
+    if link is not None:
+        def send(state, link=link, station=station) -> None:
+            link.send(state)
+            # For the web view and the status: the robot's tracking error, as it is now.
+            station.live_stats["link"] = {
+                "endpoint": link.endpoint, "sent": link.sent, "send_failed": link.send_failed,
+                "slave_answered": link.slave is not None,
+                "tracking_error_mm": (round(err, 2) if math.isfinite(
+                    err := link.tracking_error_mm(state)) else None),
+            }
+        options.teleop_send = send
     # -- web view (issue 10) --
     web = None
     if getattr(args, "web", None):
