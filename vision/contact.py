@@ -115,6 +115,21 @@ class ContactTracker:
             if method == "robust" else None
         )
 
+    def with_settings(self, **changes) -> ContactTracker:
+        """A new tracker like this one with some arguments changed (roi_px, threshold,
+        image_flip, ...); a live station swaps it in between two frames."""
+        args = {
+            "roi_px": self.roi_px, "workspace_mm": self.workspace_mm,
+            "image_flip": self.image_flip, "method": self.method, "threshold": self.threshold,
+            "beta": self.beta, "processing_size": self.processing_size,
+            "robust": self._robust.params if self._robust is not None else None,
+            "calibration": self.calibration,
+        }
+        unknown = set(changes) - set(args)
+        if unknown:
+            raise TypeError(f"unknown tracker setting(s): {', '.join(sorted(unknown))}")
+        return ContactTracker(**{**args, **changes})
+
     def reset(self) -> None:
         """Forget what was learned from earlier frames (the robust method's background)."""
         if self._robust is not None:

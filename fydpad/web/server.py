@@ -31,7 +31,6 @@ from fydpad.web.experiment import (
     plot_png,
     report,
 )
-from vision.contact import ContactTracker
 
 STATIC = Path(__file__).parent / "static"
 #: Samples kept for the plots (10 s at up to 60 fps, plus slack).
@@ -221,11 +220,7 @@ class WebView:
         if not 0 < threshold <= 256:
             raise ValueError(f"threshold must be in 1..256, got {threshold}")
         if (roi, threshold, flip) != (old.roi_px, old.threshold, old.image_flip):
-            robust = old._robust.params if getattr(old, "_robust", None) is not None else None
-            new = ContactTracker(roi_px=roi, workspace_mm=old.workspace_mm, image_flip=flip,
-                                 method=old.method, threshold=threshold, beta=old.beta,
-                                 processing_size=old.processing_size, robust=robust,
-                                 calibration=old.calibration)
+            new = old.with_settings(roi_px=roi, image_flip=flip, threshold=threshold)
             self.station.tracker = new  # a reference swap: the vision loop takes it next frame
             self.config.camera.roi_px = roi
             self.config.camera.image_flip = flip

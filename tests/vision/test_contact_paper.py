@@ -119,3 +119,12 @@ def test_roi_outside_frame_is_an_error():
     with pytest.raises(ValueError, match="outside"):
         tracker = ContactTracker(roi_px=(600, 0, 100, 100), method="paper")
         tracker.process(np.zeros((480, 640), np.uint8))
+
+
+def test_with_settings_keeps_the_rest():
+    t = ContactTracker(roi_px=(0, 0, 640, 480), method="paper", beta=3.0)
+    t2 = t.with_settings(threshold=120, image_flip="vertical")
+    assert (t2.threshold, t2.image_flip, t2.beta, t2.method) == (120, "vertical", 3.0, "paper")
+    assert t2.roi_px == t.roi_px
+    with pytest.raises(TypeError, match="colour"):
+        t.with_settings(colour="red")
