@@ -1,5 +1,5 @@
-"""An analytic, non-planar fabric for the indentation tests (until the synthetic pad's
-fabric model is used): a membrane pinned at the two rollers, sagging towards the finger.
+"""IR readings of presses on the project's non-planar fabric, for the indentation tests:
+a membrane pinned at the two rollers, sagging towards the finger.
 
 Along x (the stretch direction, rollers at x = +-L) the fabric is a string pinned at the
 rollers: straight from each roller to the edge of the finger's contact. Across y it is
@@ -10,40 +10,16 @@ it wraps grows with depth. The fabric is flat (w = d) over the contact.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fydpad.fabric import Fabric
 from vision.config import PAPER_SENSORS_MM
 from vision.ir import distance_to_voltage_v
 
-
-@dataclass(frozen=True)
-class MembraneFabric:
-    roller_x_mm: float = 75.0
-    finger_radius_mm: float = 8.0
-    decay_mm: float = 30.0
-    decay_per_mm_depth: float = 0.3
-
-    def deflection_mm(
-        self, x_mm: ArrayLike, y_mm: ArrayLike, xf_mm: ArrayLike, yf_mm: ArrayLike,
-        depth_mm: ArrayLike,
-    ) -> NDArray[np.float64]:
-        """Downward deflection at (x, y) with the finger at (xf, yf) pressed depth_mm."""
-        x, y, xf, yf, d = np.broadcast_arrays(*(np.asarray(a, np.float64)
-                                                for a in (x_mm, y_mm, xf_mm, yf_mm, depth_mm)))
-        big_l = self.roller_x_mm
-        r = self.finger_radius_mm
-        a = np.minimum(r, np.sqrt(np.maximum(2 * r * d, 0.0)))
-        left = (x + big_l) / np.maximum(xf - a + big_l, 1e-9)
-        right = (big_l - x) / np.maximum(big_l - xf - a, 1e-9)
-        along = np.where(x < xf - a, left, np.where(x > xf + a, right, 1.0))
-        along = np.clip(along, 0.0, 1.0)
-        gap = np.maximum(np.abs(y - yf) - a, 0.0)
-        ell = self.decay_mm + self.decay_per_mm_depth * d
-        across = 1.0 / (1.0 + (gap / ell) ** 2)
-        return d * along * across
+#: The project's one fabric model (fydpad/fabric.py): pinned at the rollers, sagging
+#: towards the finger, not a plane. The sensing tests build their presses on it.
+MembraneFabric = Fabric
 
 
 def synth_ir(
