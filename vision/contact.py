@@ -111,7 +111,7 @@ class ContactTracker:
         #: homography instead of the linear ROI mapping.
         self.calibration = calibration
         self._robust = (
-            RobustTracker(self.roi_px, None, image_flip, self.workspace_mm, robust)
+            RobustTracker(self.roi_px, image_flip, self.workspace_mm, robust)
             if method == "robust" else None
         )
 

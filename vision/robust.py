@@ -94,7 +94,6 @@ class RobustTracker:
     def __init__(
         self,
         roi_px: tuple[int, int, int, int],
-        frame_size: tuple[int, int] | None,
         image_flip: str,
         workspace_mm: tuple[float, float],
         params: RobustParams | None = None,
@@ -103,7 +102,6 @@ class RobustTracker:
         self.roi_px = roi_px
         self.image_flip = image_flip
         self.workspace_mm = workspace_mm
-        self._frame_size = frame_size
         self._shape: tuple[int, int] | None = None
         self.reset()
 
@@ -122,7 +120,7 @@ class RobustTracker:
             y = frame_h - y - h
         return x, y, w, h
 
-    def _setup(self, frame_w: int, frame_h: int, small_shape: tuple[int, int]) -> None:
+    def _setup(self, small_shape: tuple[int, int]) -> None:
         p = self.params
         x, y, w, h = self.roi_px
         sh, sw = small_shape
@@ -177,7 +175,7 @@ class RobustTracker:
     def process(self, frame: NDArray[np.uint8]) -> RobustResult | None:
         small = self.grey_pyramid(frame)
         if self._shape != small.shape:
-            self._setup(frame.shape[1], frame.shape[0], small.shape)
+            self._setup(small.shape)
             self._bg = None
         img = small.astype(np.float32)
         np.maximum(img, 1.0, out=img)
