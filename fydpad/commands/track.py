@@ -22,7 +22,7 @@ from vision.calibration import CalibratedMapping
 from vision.contact import METHODS, ContactTracker, TrackerConfig
 from vision.evaluation import score_tracking
 from vision.mapping import workspace_to_roi
-from vision.recording import TrackWriter
+from vision.recording import TrackWriter, read_track
 from vision.sources import CameraConfig, FrameSource, SourceError
 from vision.stream import TrackedFrame, finger_states, live_states
 
@@ -86,9 +86,10 @@ def run(args: argparse.Namespace) -> int:
         stream, source, tracker, Path(args.out), total=total, video=args.video, truth=truth,
         max_frames=args.max_frames,
     )
-    summary = summarise(Path(args.out), truth, n_written, tracker)
+    cols = read_track(Path(args.out))  # what was written, read once for summary and plot
+    summary = summarise(cols, str(args.out), truth, n_written, tracker)
     if args.plot:
-        _plot(Path(args.plot), Path(args.out), m.workspace_mm, truth, str(source))
+        _plot(Path(args.plot), cols, m.workspace_mm, truth, str(source))
     print(format_summary(summary))
     if args.json:
         Path(args.json).write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
@@ -168,10 +169,7 @@ def _truth_uv(truth, k: int, tracker: ContactTracker) -> tuple[float, float] | N
     return float(u), float(v)
 
 
-def summarise(out: Path, truth, n_written: int, tracker: ContactTracker) -> dict:
-    from vision.recording import read_track
-
-    cols = read_track(out)
+def summarise(cols: dict, out: str, truth, n_written: int, tracker: ContactTracker) -> dict:
     summary: dict = {
         "output": str(out),
         "method": tracker.method,
@@ -203,10 +201,7 @@ def format_summary(s: dict) -> str:
     return "\n".join(lines)
 
 
-def _plot(path: Path, out: Path, workspace_mm, truth, title: str) -> None:
-    from vision.recording import read_track
-
-    cols = read_track(out)
+def _plot(path: Path, cols: dict, workspace_mm, truth, title: str) -> None:
     truth_dict = None
     if truth is not None:
         truth_dict = {"t_s": truth.t_s, "x_mm": truth.x_mm, "y_mm": truth.y_mm,
