@@ -49,6 +49,8 @@ class TrackerConfig:
             raise ValueError(f"threshold must be in 1..256, got {self.threshold}")
         if self.beta <= 0:
             raise ValueError(f"beta must be positive, got {self.beta}")
+        if len(self.processing_size) != 2 or min(self.processing_size) <= 0:
+            raise ValueError(f"processing_size must be positive, got {self.processing_size}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -82,18 +84,12 @@ class ContactTracker:
         robust: RobustParams | None = None,
         calibration: CalibratedMapping | None = None,
     ):
-        if method not in METHODS:
-            raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+        # One place checks the tracker's settings: its configuration dataclass.
+        TrackerConfig(method, threshold, beta, processing_size)
         x, y, w, h = (int(v) for v in roi_px)
         if w <= 0 or h <= 0 or x < 0 or y < 0:
             raise ValueError(f"roi_px must be [x, y, w, h] with w, h > 0, got {list(roi_px)}")
-        if not 0 < threshold <= 256:
-            raise ValueError(f"threshold must be in 1..256, got {threshold}")
-        if beta <= 0:
-            raise ValueError(f"beta must be positive, got {beta}")
         pw, ph = (int(v) for v in processing_size)
-        if pw <= 0 or ph <= 0:
-            raise ValueError(f"processing_size must be positive, got {processing_size}")
         self.roi_px = (x, y, w, h)
         self.workspace_mm = (float(workspace_mm[0]), float(workspace_mm[1]))
         self.image_flip = image_flip
