@@ -1,0 +1,1 @@
+"""The fabric accelerometer: a device like the others (serial, CSV replay, simulated)."""
