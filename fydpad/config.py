@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from fydpad.accel.config import AccelConfig
 from fydpad.errors import UserError
 from fydpad.motors.base import MotorConfig
 from fydpad.motors.pwm import PwmConfig
@@ -34,6 +35,8 @@ class LoopRates:
     ran its tracker every 100 ms), IR and force at the sensor rate, rendering at 1 kHz,
     tele-operation at the vision rate."""
 
+    #: At most this rate (`fydpad run --vision-hz`; 10 like the paper), frames in between
+    #: dropped; a camera slower than this sets the rate.
     vision_hz: float = 30.0
     ir_hz: float = 100.0
     force_hz: float = 100.0
@@ -45,6 +48,9 @@ class Endpoints:
     """Network endpoints (ZeroMQ) of the station."""
 
     teleop: str = "tcp://127.0.0.1:5555"
+    #: The IR + load-cell board, ``serial:PORT[@BAUD]`` (`fydpad run --sensors`); empty:
+    #: the source's own (a replay's ir.csv/force.csv, the synthetic pad's).
+    sensors: str = ""
 
 
 @dataclass
@@ -62,6 +68,7 @@ class StationConfig:
     teleop: TeleopConfig = field(default_factory=TeleopConfig)
     loops: LoopRates = field(default_factory=LoopRates)
     endpoints: Endpoints = field(default_factory=Endpoints)
+    accel: AccelConfig = field(default_factory=AccelConfig)
 
 
 class ConfigError(UserError):

@@ -408,6 +408,17 @@ class SerialBoard:
             force = f.popleft() if f and f[0].t_s == ir.t_s else None
             return ir, force  # type: ignore[return-value]
 
+    def flush_input(self) -> None:
+        """Drop what has arrived and not been read (lines from before a loop started)."""
+        with self._lock:
+            try:
+                self._ser.reset_input_buffer()
+            except self._serial_errors as exc:
+                raise SensorError(f"{self.port}: sensor board disconnected ({exc})") from None
+            self._buf.clear()
+            self._queues.ir.clear()
+            self._queues.force.clear()
+
     def close(self) -> None:
         try:
             self._ser.close()
@@ -442,3 +453,17 @@ def volts_array(samples: Sequence[IRSample]) -> tuple[NDArray[np.float64], NDArr
     v = np.array([[x if ok else np.nan for x, ok in zip(s.volts, s.valid, strict=True)]
                   for s in samples], np.float64).reshape(-1, 3)
     return t, v
+
+
+def parse_serial_spec(spec: str, default_baud: int = 115200) -> tuple[str, int]:
+    """``serial:PORT[@BAUD]`` -> (port, baud); ValueError saying what is wrong."""
+    kind, sep, rest = spec.partition(":")
+    if kind != "serial" or not sep or not rest:
+        raise ValueError(f"sensor board {spec!r}: expected serial:PORT[@BAUD], "
+                         "e.g. serial:/dev/ttyACM0@115200")
+    port, at, baud = rest.rpartition("@") if "@" in rest else (rest, "", "")
+    if at:
+        if not baud.isdigit() or int(baud) <= 0:
+            raise ValueError(f"sensor board {spec!r}: baud {baud!r} is not a positive integer")
+        return port, int(baud)
+    return port, default_baud

@@ -40,13 +40,26 @@ def register(sub: argparse._SubParsersAction) -> None:
                      help="the simulated pad, rendered live (a trajectory of `fydpad synth`: "
                      "circle, lissajous, tapping, walk (default), fast, hover)")
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    p.add_argument("--sensors", metavar="serial:PORT[@BAUD]",
+                   help="read IR and force from the serial sensor board "
+                   "(docs/sensor_board_protocol.md) instead of the source's own; default: "
+                   "[endpoints] sensors of the config, else the replay's ir.csv/force.csv or "
+                   "the synthetic pad's. A board that stops sending stops the station safely")
+    p.add_argument("--vision-hz", type=float, metavar="HZ",
+                   help="track at this rate (the paper: 10), dropping the frames in between; "
+                   "tele-operation follows at the same rate (default: [loops] vision_hz of "
+                   "the config, 30, or the camera's rate when lower)")
     p.add_argument("--record", metavar="DIR",
                    help="record the session (RECORDING_FORMAT.md) as it goes")
     p.add_argument("--no-video", action="store_true", help="with --record: no video file")
     p.add_argument("--stats", metavar="FILE", help="write loop statistics as JSON on exit")
     p.add_argument("--motors", choices=["none", "sim", "qb"], default="none",
                    help="motor backend (default: %(default)s)")
-    p.add_argument("--texture", metavar="MODEL", help="render this texture model")
+    p.add_argument("--texture", metavar="[KIND:]MODEL",
+                   help="render this texture model (kind lpc, friction, grating or mlp, read "
+                   "from the file; KIND: checks it). lpc and mlp drive the vibration term; "
+                   "friction and grating drive it by position and scale the softness "
+                   "stiffness through the tension channel (docs/texture_families.md)")
     p.add_argument("--teleop", metavar="ENDPOINT",
                    help="stream the finger to a slave robot (`teleop slave`) at this endpoint")
     p.add_argument("--vibration-gain", type=float, default=1.0,
@@ -87,21 +100,48 @@ class _Interrupts:
             os._exit(130)
 
 
+#: A slave that has not answered for this long is reported silent in the status line.
+LINK_SILENT_S = 1.0
+
+
+def format_status(s: dict) -> str:
+    """The live status line: rates and jitter, contact, indentation, force, requested and
+    measured stiffness, the link and the sensor board."""
+    contact = (f"contact x {s['x_mm']:+6.1f} y {s['y_mm']:+6.1f} mm"
+               if s["contact"] else "no contact" + " " * 20)
+    r = s.get("render") or {}
+    v = s.get("vision") or {}
+    line = (f"frames {s['frames']:6d}  {contact}  z {s['indentation_mm']:5.1f} mm  "
+            f"F {s['force_n']:5.2f} N  "
+            f"k {s['measured_n_per_mm']:.2f}/{s['requested_n_per_mm']:.2f} N/mm  "
+            f"vision {v.get('rate_hz', math.nan):4.1f} Hz  "
+            f"render {r.get('rate_hz', math.nan):6.1f} Hz "
+            f"{r.get('on_time_pct', math.nan):5.1f} % on time "
+            f"p99 {r.get('jitter_ms', {}).get('p99', math.nan):.2f} ms")
+    link = s.get("link")
+    if link is not None:
+        age_s = link.get("answer_age_s", 0.0)
+        if link["send_failed"]:
+            state = f"{link['send_failed']} failed"
+        elif not link["slave_answered"]:
+            state = "no answer"
+        elif age_s > LINK_SILENT_S:
+            state = f"silent {age_s:.0f} s"
+        else:
+            state = "ok"
+        line += f"  link {state}"
+    board = s.get("sensors")
+    if board is not None:
+        line += f"  board {board['samples']} ok {board['bad_lines']} bad"
+    return line
+
+
 def _status_printer():
     if not sys.stderr.isatty():
         return None
 
     def show(s: dict) -> None:
-        contact = (f"contact x {s['x_mm']:+6.1f} y {s['y_mm']:+6.1f} mm"
-                   if s["contact"] else "no contact" + " " * 20)
-        ind = s["indentation_mm"]
-        force = s["force_n"]
-        r = s.get("render") or {}
-        print(f"\rframes {s['frames']:6d}  {contact}  z {ind:5.1f} mm  F {force:5.2f} N  "
-              f"k {s['measured_n_per_mm']:.2f}/{s['requested_n_per_mm']:.2f} N/mm  "
-              f"render {r.get('rate_hz', math.nan):6.1f} Hz "
-              f"{r.get('on_time_pct', math.nan):5.1f} % on time ",
-              end="", file=sys.stderr, flush=True)
+        print("\r" + format_status(s) + " ", end="", file=sys.stderr, flush=True)
 
     return show
 
@@ -119,6 +159,20 @@ def _synthetic(args: argparse.Namespace, config):
     except ValueError as exc:
         raise UserError(f"--synthetic: {exc}") from None
     return SynthFrameSource(pad), pad.meta(), SensorFeed(pad.ir(), pad.force())
+
+
+def _serial_sensors(spec: str, config):
+    """The serial IR + load-cell board as the station's sensor feed."""
+    from fydpad.station.station import SerialSensorFeed
+    from vision.sensors import SensorError, SerialBoard, parse_serial_spec
+
+    try:
+        port, baud = parse_serial_spec(spec)
+        board = SerialBoard(port, baud, ir_config=config.ir, force_config=config.force,
+                            timeout_s=config.ir.serial_timeout_s)
+    except (ValueError, SensorError) as exc:
+        raise UserError(f"--sensors: {exc}") from None
+    return SerialSensorFeed(board)
 
 
 def _stiffness(args: argparse.Namespace) -> float:
@@ -144,8 +198,19 @@ def run(args: argparse.Namespace) -> int:
             indentation = LiveIndentation(recording_estimator(rec, config.ir))
     tracker = make_tracker(config.tracker, meta.roi_px, meta.workspace_mm, meta.image_flip,
                            camera)
+    vision_hz = config.loops.vision_hz if args.vision_hz is None else args.vision_hz
+    if not (math.isfinite(vision_hz) and vision_hz > 0):
+        raise UserError(f"--vision-hz {vision_hz:g}: must be a positive rate in Hz")
+    sensor_spec = args.sensors or config.endpoints.sensors
+    if sensor_spec:  # the live board replaces the source's own IR and force
+        sensors = _serial_sensors(sensor_spec, config)
+        indentation = LiveIndentation(IndentationEstimator.from_config(config.ir))
     if args.record:
         Path(args.record).mkdir(parents=True, exist_ok=True)
+    if args.texture:  # a bad model file fails here, in one line, not in the render process
+        from fydpad.texture.families import load_family
+
+        load_family(args.texture)
     render = RenderSpec(
         rate_hz=config.loops.render_hz,
         texture=args.texture,
@@ -157,7 +222,7 @@ def run(args: argparse.Namespace) -> int:
         config=config,
     )
     options = StationOptions(
-        duration_s=args.duration, real_time=not args.as_fast_as_possible,
+        duration_s=args.duration, real_time=not args.as_fast_as_possible, vision_hz=vision_hz,
         record_dir=args.record, record_video=not args.no_video, render=render,
         status=_status_printer(),
     )
@@ -176,6 +241,7 @@ def run(args: argparse.Namespace) -> int:
             station.live_stats["link"] = {
                 "endpoint": link.endpoint, "sent": link.sent, "send_failed": link.send_failed,
                 "slave_answered": link.slave is not None,
+                "answer_age_s": round(min(link.answer_age_s(), 1e9), 3),
                 "tracking_error_mm": (round(err, 2) if math.isfinite(
                     err := link.tracking_error_mm(state)) else None),
             }
@@ -216,7 +282,10 @@ def run(args: argparse.Namespace) -> int:
         if args.stats:
             Path(args.stats).write_text(json.dumps(station.stats, indent=2) + "\n")
     r = stats.get("render", {})
-    print(f"station ran {station.frames} frames ({station.contact_frames} with contact); "
+    dropped = (f", {station.frames_dropped} dropped for --vision-hz"
+               if station.frames_dropped else "")
+    print(f"station ran {station.frames} frames ({station.contact_frames} with contact"
+          f"{dropped}); "
           f"render {r.get('rate_hz', 0):.1f} Hz, {r.get('on_time_pct', 0):.2f} % on time, "
           f"jitter p99 {r.get('jitter_ms', {}).get('p99', math.nan):.2f} ms, "
           f"frame-to-command p99 "

@@ -25,17 +25,32 @@ class DriveChain:
             from fydpad.station.texture_source import open_texture
 
             self.texture = open_texture(spec.texture, spec.rate_hz)
+            ch = self.texture.tick_channels
+            # Where the family's tick puts each 1 kHz channel (-1: not rendered).
+            self._vib_i = ch.index("vibration") if "vibration" in ch else -1
+            self._ten_i = ch.index("tension") if "tension" in ch else -1
+            table = self.drive.table
+            self._k_lo, self._k_hi = (table.k_range_n_per_mm if table is not None
+                                      else (0.0, math.inf))
         self._strict = cfg.softness.strict
         self.drive.start()
 
     def tick(self, t_s, contact, x_mm, y_mm, speed_mm_s, force_n, vibration_gain,
              stiffness_n_per_mm):
         drive = self.drive
-        drive.set_stiffness(stiffness_n_per_mm, self._strict)
         drive.composer.gain = vibration_gain
         vib = 0.0
         if self.texture is not None:
-            vib = self.texture.tick(t_s, contact, x_mm, y_mm)
+            out = self.texture.tick(t_s, contact, x_mm, y_mm, speed_mm_s, force_n)
+            if self._vib_i >= 0:
+                vib = out[self._vib_i]
+            k = stiffness_n_per_mm
+            if self._ten_i >= 0 and self._k_lo <= k <= self._k_hi:
+                # The tension channel scales the softness request, kept within the table
+                # (no clamping warning per tick) and rounded (unchanged values are free).
+                k = min(max(k * out[self._ten_i], self._k_lo), self._k_hi)
+                stiffness_n_per_mm = round(k, 4)
+        drive.set_stiffness(stiffness_n_per_mm, self._strict)
         # The per-texture gain is applied by the composer (drive.composer.gain).
         d = drive.tick(vib)
         return (vib, d[0], d[1], drive.theta_ref_rad)
@@ -47,7 +62,7 @@ class DriveChain:
         """Clipping counts of eq. (3), the softness request and texture limiter resets."""
         out = self.drive.stats()
         if self.texture is not None:
-            out["texture_limiter_resets"] = self.texture.resets
+            out["texture_limiter_resets"] = getattr(self.texture, "resets", 0)
         return out
 
 

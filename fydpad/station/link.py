@@ -27,6 +27,13 @@ class StationLink:
         self.send_failed = 0
         #: The slave's newest state (None until it answers).
         self.slave: P.State | None = None
+        self._answered_at = math.nan  # monotonic time of the slave's newest state
+
+    def answer_age_s(self) -> float:
+        """Seconds since the slave last answered (inf before it ever has): a slave that
+        answered once and then went silent is not a live link."""
+        return math.inf if math.isnan(self._answered_at) else (
+            time.monotonic() - self._answered_at)
 
     def send(self, state: FingerState) -> None:
         now = time.monotonic()
@@ -53,6 +60,7 @@ class StationLink:
                 return
             try:
                 self.slave = P.decode_state(buf)
+                self._answered_at = time.monotonic()
             except P.ProtocolError:
                 pass
 

@@ -15,6 +15,7 @@ or any exception: vibration off, motors to rest (``RenderChain.safe_stop``).
 from __future__ import annotations
 
 import math
+import multiprocessing as mp
 import os
 import time
 import traceback
@@ -123,7 +124,10 @@ def render_main(
         if spec.commands_csv:
             log = CsvRowWriter(Path(spec.commands_csv), ("t_s", "frame", *chain.outputs))
         last_seq = 0
-        parent = os.getppid()
+        # The station that started us, as multiprocessing knows it: getppid() here would
+        # already be init's pid if the station was killed while this process started.
+        started_by = mp.parent_process()
+        parent = started_by.pid if started_by is not None else os.getppid()
         timer.start()
         if ready_event is not None:
             ready_event.set()  # the chain is built: the station may start its sources

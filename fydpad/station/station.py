@@ -1,8 +1,10 @@
 """The master station: each loop at its own rate, handing the others the latest value.
 
-- vision (a thread, at the camera rate): frame -> contact -> :class:`FingerState`,
-  published to the render process, the tele-operation link and the recorder;
-- sensors (a thread, at the sensor rate): IR voltages and load-cell force, latest value;
+- vision (a thread, at the camera rate or the slower ``vision_hz``, dropping the frames
+  in between): frame -> contact -> :class:`FingerState`, published to the render
+  process, the tele-operation link and the recorder;
+- sensors (a thread, at the sensor rate): IR voltages and load-cell force, latest value,
+  replayed (:class:`SensorFeed`) or from the serial board (:class:`SerialSensorFeed`);
 - render (a process, 1 kHz): see :mod:`fydpad.station.render`;
 - tele-operation (a thread, at the vision rate): the latest state to the slave.
 
@@ -21,8 +23,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-
-import numpy as np
+from typing import Any
 
 from fydpad.pacing import LoopTimer
 from fydpad.softness import LiveStiffness
@@ -30,7 +31,7 @@ from fydpad.station.render import CONTROL_FIELDS, RenderSpec, render_main
 from fydpad.station.shared import SharedFingerState, SharedRecord
 from fydpad.station.snapshot import Snapshot, View
 from vision.contact import ContactTracker
-from vision.recording import PadMeta, PadRecordingWriter, TrackWriter
+from vision.recording import CsvRowWriter, PadMeta, PadRecordingWriter, TrackWriter, write_meta
 from vision.sources import FrameSource
 from vision.state import FingerState
 from vision.stream import FingerStateBuilder, LiveIndentation
@@ -42,11 +43,29 @@ class StationFault(RuntimeError):
 
 @dataclass
 class LatestSensors:
-    """The newest IR voltages and force, written by the sensor loop."""
+    """The newest IR voltages and force, written by the sensor loop; while the station
+    records, every sample also goes to ``sink`` (``write_ir``/``write_force``), so the
+    recording keeps the sensor rate, not the vision rate."""
 
     t_s: float = math.nan
     volts: tuple[float, float, float] = (math.nan, math.nan, math.nan)
     force_n: float = math.nan
+    sink: Any = None
+
+    def set_ir(self, t_s: float, volts: tuple[float, float, float],
+               recorded: tuple[float, float, float] | None = None) -> None:
+        """``volts`` for the station (NaN where invalid); ``recorded``: as read, if other."""
+        self.volts = volts
+        self.t_s = t_s
+        sink = self.sink
+        if sink is not None and t_s >= 0:
+            sink.write_ir(t_s, *(volts if recorded is None else recorded))
+
+    def set_force(self, t_s: float, force_n: float) -> None:
+        self.force_n = force_n
+        sink = self.sink
+        if sink is not None and t_s >= 0:
+            sink.write_force(t_s, force_n)
 
 
 class SensorFeed:
@@ -74,10 +93,82 @@ class SensorFeed:
                 stop.wait(delay)
             if kind == 0:
                 v = self.ir[1][i]
-                latest.volts = (float(v[0]), float(v[1]), float(v[2]))
-                latest.t_s = t_s
+                latest.set_ir(t_s, (float(v[0]), float(v[1]), float(v[2])))
             else:
-                latest.force_n = float(self.force[1][i])
+                latest.set_force(t_s, float(self.force[1][i]))
+
+
+class SerialSensorFeed:
+    """The serial IR + load-cell board (docs/sensor_board_protocol.md), live.
+
+    Reads every line at the board's rate and keeps the newest values; garbage, partial
+    lines and bad checksums are dropped and counted by the reader. A board that sends
+    nothing valid for ``board.timeout_s`` raises :class:`vision.sensors.SensorError`
+    naming the port, which stops the station safely.
+    """
+
+    def __init__(self, board):
+        self.board = board
+        self.samples = 0
+        self.invalid_ir = 0
+        self.saturated_force = 0
+
+    def run(self, latest: LatestSensors, clock_t0: float, stop: threading.Event) -> None:
+        # Lines queued before the station started are stale: start from the newest.
+        self.board.flush_input()
+        # The board's clock to the station's: the smallest (arrival - board time) seen,
+        # i.e. the least delayed line's, since USB delivers lines late and in bursts.
+        offset_s = math.inf
+        try:
+            while not stop.is_set():
+                ir, force = self.board.read()
+                offset_s = min(offset_s, time.perf_counter() - clock_t0 - ir.t_s)
+                t_s = ir.t_s + offset_s
+                # An out-of-range voltage is no distance: NaN, so no indentation is made up.
+                latest.set_ir(t_s, tuple(v if ok else math.nan
+                                         for v, ok in zip(ir.volts, ir.valid, strict=True)),
+                              recorded=ir.volts)
+                self.invalid_ir += not all(ir.valid)
+                if force is not None:
+                    latest.set_force(t_s, force.force_n)
+                    self.saturated_force += force.saturated
+                self.samples += 1
+        finally:
+            self.board.close()
+
+    def close(self) -> None:
+        self.board.close()
+
+    def status(self) -> dict:
+        st = self.board.stats
+        return {"port": self.board.port, "samples": self.samples,
+                "bad_lines": st.bad_checksum + st.malformed + st.overlong,
+                "invalid_ir": self.invalid_ir, "saturated_force": self.saturated_force,
+                "board_resets": st.board_resets}
+
+
+class _NoVideoWriter:
+    """A recording without its video (``--no-video``): meta.json, ir.csv and force.csv
+    as :class:`PadRecordingWriter` writes them, frames not kept."""
+
+    def __init__(self, recdir: Path, meta: PadMeta):
+        recdir.mkdir(parents=True, exist_ok=True)
+        write_meta(recdir, meta)
+        self._ir = CsvRowWriter(recdir / "ir.csv", ("t_s", "v0", "v1", "v2"))
+        self._force = CsvRowWriter(recdir / "force.csv", ("t_s", "force_n"))
+
+    def write_frame(self, frame_bgr) -> None:
+        pass
+
+    def write_ir(self, t_s: float, v0: float, v1: float, v2: float) -> None:
+        self._ir.write(t_s, v0, v1, v2)
+
+    def write_force(self, t_s: float, force_n: float) -> None:
+        self._force.write(t_s, force_n)
+
+    def close(self) -> None:
+        self._ir.close()
+        self._force.close()
 
 
 @dataclass
@@ -85,6 +176,9 @@ class StationOptions:
     duration_s: float | None = None
     #: Pace a recorded source at its own frame times (False: as fast as it decodes).
     real_time: bool = True
+    #: Track at this rate (the paper: 10 Hz), dropping the frames in between; None: every
+    #: frame (the camera rate). Tele-operation follows at the same rate.
+    vision_hz: float | None = None
     record_dir: str | None = None
     record_video: bool = True
     render: RenderSpec = field(default_factory=RenderSpec)
@@ -133,25 +227,41 @@ class Station:
         self.force_full_scale_n = force_full_scale_n
         #: The latest frame, contact and state, for the web view and the status line.
         self.snapshot = Snapshot()
+        self._writer: PadRecordingWriter | _NoVideoWriter | None = None
+        self._track: TrackWriter | None = None
+        #: The station clock's zero (perf_counter seconds), set when the loops start.
+        self.t0: float | None = None
+        self.frames_dropped = 0
 
     # -- loops ------------------------------------------------------------------
 
+    def _vision_rate_hz(self) -> float:
+        hz = self.options.vision_hz
+        return self.source.fps if hz is None else min(float(hz), self.source.fps)
+
     def _vision_loop(self, t0: float) -> None:
-        timer = LoopTimer(self.source.fps, "vision", on_time_s=0.5 / self.source.fps)
-        writer = track = None
+        rate_hz = self._vision_rate_hz()
+        timer = LoopTimer(rate_hz, "vision", on_time_s=0.5 / rate_hz)
+        writer, track = self._writer, self._track
         opts = self.options
+        # Frames are due every 1/rate_hz of their own time stamps; those in between are
+        # read and dropped (never queued), so tracking always sees the newest frame.
+        period_s = 1.0 / rate_hz
+        slack_s = 0.5 / self.source.fps
+        due_s = -math.inf
         try:
-            if opts.record_dir:
-                rec = Path(opts.record_dir)
-                meta = PadMeta(**{**self.meta.__dict__, "fps": self.source.fps,
-                                  "frame_size": self.source.frame_size})
-                writer = PadRecordingWriter(rec, meta) if opts.record_video else None
-                track = TrackWriter(rec / "track.csv")
             builder = FingerStateBuilder()
             timer.start(at=t0)
             for frame in self.source.frames():
                 if self.stop_event.is_set():
                     break
+                if frame.t_s < due_s - slack_s:
+                    self.frames_dropped += 1
+                    if writer is not None:  # the video keeps every frame: it replays as shot
+                        writer.write_frame(frame.image)
+                    continue
+                # After a gap (a stalled camera) pace from this frame, without a burst.
+                due_s = max(due_s + period_s, frame.t_s + period_s)
                 if opts.real_time:
                     arrival = timer.wait_until(t0 + frame.t_s)
                 else:
@@ -176,10 +286,6 @@ class Station:
                     opts.teleop_send(state)
                 if writer is not None:
                     writer.write_frame(frame.image)
-                    if np.isfinite(s.t_s):
-                        writer.write_ir(frame.t_s, *s.volts)
-                    if np.isfinite(s.force_n):
-                        writer.write_force(frame.t_s, s.force_n)
                 if track is not None:
                     track.write_row(frame.t_s, frame.index, state.contact, state.x_mm,
                                     state.y_mm, state.indentation_mm)
@@ -188,11 +294,8 @@ class Station:
         except Exception as exc:
             self.faults.append(f"vision loop: {exc}")
         finally:
-            self.stats["vision"] = timer.stats().as_dict()
-            if writer is not None:
-                writer.close()
-            if track is not None:
-                track.close()
+            self.stats["vision"] = {**timer.stats().as_dict(),
+                                    "frames_dropped": self.frames_dropped}
             self.stop_event.set()
 
     def _sensor_loop(self, t0: float) -> None:
@@ -201,6 +304,27 @@ class Station:
         except Exception as exc:
             self.faults.append(f"sensor loop: {exc}")
             self.stop_event.set()
+
+    # -- recording --------------------------------------------------------------
+
+    def _open_recording(self) -> None:
+        """The session's files, opened before the vision and sensor loops start and
+        closed after every loop has stopped (both loops write to them)."""
+        if not self.options.record_dir:
+            return
+        rec = Path(self.options.record_dir)
+        meta = PadMeta(**{**self.meta.__dict__, "fps": self.source.fps,
+                          "frame_size": self.source.frame_size})
+        self._writer = (PadRecordingWriter(rec, meta) if self.options.record_video
+                        else _NoVideoWriter(rec, meta))
+        self._track = TrackWriter(rec / "track.csv")
+        self.latest.sink = self._writer
+
+    def _close_recording(self) -> None:
+        self.latest.sink = None
+        for w in (self._writer, self._track):
+            if w is not None:
+                w.close()
 
     # -- run --------------------------------------------------------------------
 
@@ -226,9 +350,12 @@ class Station:
                 render.join(timeout=5)
                 self._drain(results, final=True)
                 self.source.close()
+                if hasattr(self.sensors, "close"):
+                    self.sensors.close()
                 raise StationFault("; ".join(f.splitlines()[0] for f in self.faults)
                                    or "render process did not start")
         t0 = time.perf_counter() + 0.05
+        self.t0 = t0
         self._control[3] = t0
         self.control.write(self._control)
         threads = [threading.Thread(target=self._vision_loop, args=(t0,), name="vision")]
@@ -236,6 +363,7 @@ class Station:
             threads.append(threading.Thread(target=self._sensor_loop, args=(t0,),
                                             name="sensors", daemon=True))
         try:
+            self._open_recording()
             for th in threads:
                 th.start()
             while not self.stop_event.wait(0.05):
@@ -253,7 +381,8 @@ class Station:
                 except Exception as exc:
                     self.faults.append(f"teleop hold: {exc}")
             for th in threads:
-                th.join(timeout=5)
+                if th.ident is not None:  # not started if the recording could not open
+                    th.join(timeout=5)
             render_stop.set()
             render.join(timeout=5)
             if render.is_alive():
@@ -261,6 +390,11 @@ class Station:
                 self.faults.append("render process did not stop in 5 s: killed")
             self._drain(results, final=True)
             self.source.close()
+            if hasattr(self.sensors, "close"):
+                self.sensors.close()
+            self._close_recording()
+        if isinstance(self.sensors, SerialSensorFeed):
+            self.stats["sensors"] = self.sensors.status()
         self.stats["softness"] = {
             "requested_n_per_mm": self.options.render.stiffness_n_per_mm,
             "measured_n_per_mm": self._measured_stiffness(),
@@ -304,4 +438,8 @@ class Station:
             "requested_n_per_mm": self.options.render.stiffness_n_per_mm,
             "measured_n_per_mm": self._measured_stiffness(),
             "render": self.live_stats.get("render"),
+            "vision": self.live_stats.get("vision"),
+            "link": self.live_stats.get("link"),
+            "sensors": (self.sensors.status() if isinstance(self.sensors, SerialSensorFeed)
+                        else None),
         }

@@ -17,11 +17,13 @@ class TextureSource:
     speeds clears the filter (counted in ``resets``) and is clipped.
     """
 
-    def __init__(self, model_path: str, rate_hz: float = 1000.0, limit_factor: float = 10.0):
-        from fydpad.texture.model_file import load_model
+    def __init__(self, model_path, rate_hz: float = 1000.0, limit_factor: float = 10.0):
+        from fydpad.texture.model_file import TextureModel, load_model
         from fydpad.texture.synthesis import CentroidSpeed, TextureRenderer
 
-        self.model = load_model(model_path)
+        # A path, or an already loaded model (the LPC family of fydpad.texture.families).
+        self.model = (model_path if isinstance(model_path, TextureModel)
+                      else load_model(model_path))
         self.renderer = TextureRenderer(self.model, method="lsf")
         self.speed = CentroidSpeed(cutoff_hz=10.0)
         self.dt_s = 1.0 / rate_hz
@@ -53,5 +55,16 @@ class TextureSource:
         return v
 
 
-def open_texture(path: str, rate_hz: float) -> TextureSource:
-    return TextureSource(path, rate_hz)
+def open_texture(spec: str, rate_hz: float):
+    """The texture family of ``MODEL.json`` or ``KIND:MODEL.json`` (issue 9), for ``tick``.
+
+    Its ``tick`` returns the values of its ``tick_channels`` ("vibration", "tension").
+    """
+    from fydpad.texture.families import load_family
+
+    family = load_family(spec)
+    if hasattr(family, "rate_hz"):
+        family.rate_hz = rate_hz
+    if hasattr(family, "prepare"):  # build everything now, not on the first tick
+        family.prepare()
+    return family

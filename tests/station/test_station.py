@@ -239,3 +239,96 @@ def test_station_drives_the_simulated_slave_and_tells_it_to_hold(circle_rec: Pat
     assert stats["link"]["slave_answered"] and stats["link"]["send_failed"] == 0
     assert stats["link"]["sent"] == 49  # 48 frames and the final hold
     assert counts["messages"] >= 49
+
+
+def test_live_status_has_rates_contact_stiffness_and_link(circle_rec: Path, tmp_path: Path):
+    """The status the terminal shows, taken from a real run: vision and render rates,
+    render jitter, contact, indentation, requested and measured stiffness, link state."""
+    from fydpad.commands.run import format_status
+
+    seen: list[dict] = []
+    station = make_station(circle_rec, tmp_path)
+    station.options.status = seen.append
+    station.run()
+    last = seen[-1]
+    assert last["vision"] is not None and last["vision"]["rate_hz"] > 0
+    assert last["render"] is not None and last["render"]["rate_hz"] > 0
+    assert any(s["contact"] for s in seen)
+    line = format_status(last)
+    for part in ("vision", "render", "% on time", "p99", "N/mm", "z "):
+        assert part in line
+    assert "link" not in line  # no link: nothing claimed about one
+    link = {"slave_answered": True, "send_failed": 0}
+    assert "link ok" in format_status({**last, "link": link})
+    assert "link 3 failed" in format_status({**last, "link": {**link, "send_failed": 3}})
+    assert "link no answer" in format_status({**last, "link": {**link, "slave_answered": False}})
+    assert "link silent 3 s" in format_status({**last, "link": {**link, "answer_age_s": 3.2}})
+
+
+def test_link_reports_a_slave_that_went_silent():
+    """The link's answer age over real loopback sockets: small while the slave answers,
+    growing once it is gone (so the status does not say "ok" for a dead slave)."""
+    import time
+
+    from fydpad.station.link import StationLink
+    from teleop.config import TeleopConfig
+    from teleop.slave import SlaveThread
+    from vision.state import FingerState
+
+    state = FingerState.no_contact(0.0)
+    with SlaveThread(TeleopConfig(), bind="tcp://127.0.0.1:*") as slave:
+        link = StationLink(slave.endpoint, TeleopConfig())
+        assert link.answer_age_s() == float("inf")
+        deadline = time.monotonic() + 10
+        while link.slave is None and time.monotonic() < deadline:
+            link.send(state)
+            time.sleep(0.05)
+        assert link.answer_age_s() < 0.5
+    time.sleep(1.2)
+    link.send(state)
+    assert link.answer_age_s() > 1.0
+    link.close()
+
+
+def test_record_is_flushed_while_running_and_second_ctrl_c_forces_exit(tmp_path: Path):
+    """A real `fydpad run` process: its recording is on disk within a second of the
+    first frames, while it runs; two Ctrl-C at once exit at once (status 130)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    rec = tmp_path / "live"
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "fydpad.cli", "run", "--synthetic", "walk", "--duration", "60",
+         "--no-realtime", "--record", str(rec)], env=env, stderr=subprocess.PIPE)
+    try:
+        track = rec / "track.csv"
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not (track.exists() and len(
+                track.read_text().splitlines()) > 1):
+            time.sleep(0.1)
+        first_rows = time.monotonic()
+        assert len(track.read_text().splitlines()) > 1, "no track row flushed while running"
+        # commands.csv (the render process's) flushed too, within a second.
+        cmds = rec / "commands.csv"
+        while time.monotonic() < first_rows + 1.5 and not (
+                cmds.exists() and len(cmds.read_text().splitlines()) > 1):
+            time.sleep(0.1)
+        assert len(cmds.read_text().splitlines()) > 1
+        assert proc.poll() is None  # still running: these rows were flushed as it went
+        proc.send_signal(signal.SIGINT)
+        # Python runs a handler once for signals that arrive together: send the second
+        # once the first is being handled (the station is stopping safely).
+        for line in proc.stderr:
+            if b"stopping" in line:
+                break
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=10) == 130
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        proc.stderr.close()
