@@ -4,6 +4,7 @@ Each figure is printed beside a baseline measured in the same run:
 - block synthesis of 1 s at order 200 (target <= 1 ms, i.e. >= 1000x real time) against
   a naive Python loop of eq. 5;
 - the per-sample path ``TextureRenderer.tick`` (target <= 20 us) against the same loop;
+  both for the default (``"stretch"``, FIR structure) and the previous ``"lsf"`` (eq. 5);
 - fitting one speed from 10 s of 1 kHz data (target <= 100 ms) against Burg's method.
 """
 
@@ -51,12 +52,6 @@ def main() -> None:
           f"Burg baseline {t_burg * 1e3:.1f} ms ({t_burg / t_fit:.1f}x); "
           f"+ high-pass and DFT321 of the 3 axes {t_pre * 1e3:.1f} ms")
 
-    # Block synthesis.
-    r = TextureRenderer(model, seed=0)
-    r.warmup(25.0)
-    t_block = best(lambda: r.block(25.0, True, 1000), 50)
-    v = np.linspace(10.0, 40.0, 1000)
-    t_vary = best(lambda: r.block(v, True), 20)
     h = model.h[1]
     sigma = 0.03
 
@@ -69,25 +64,34 @@ def main() -> None:
             hist.pop()
 
     t_naive = best(lambda: naive(200), 3) * 5
-    print(f"  block synthesis, 1 s at constant speed: {t_block * 1e3:.3f} ms = "
-          f"{1 / t_block:.0f}x real time (target >= 1000x); speed sweeping 10-40 mm/s "
-          f"through {r.table.h.shape[0]} table filters: "
-          f"{t_vary * 1e3:.2f} ms = {1 / t_vary:.0f}x; naive Python loop {t_naive * 1e3:.0f} ms "
-          f"({t_naive / t_block:.0f}x slower)")
-
-    # Per-sample path.
     n = 20_000
     speeds = 10.0 + 30.0 * np.random.default_rng(1).random(n)
-    tick = r.tick
+    # The default (stretch interpolation, FIR structure) and the previous default (LSF,
+    # eq. 5 direct form), each with the naive loop as baseline.
+    for method in ("stretch", "lsf"):
+        t_build = best(lambda m=method: TextureRenderer(model, method=m, seed=0), 3)
+        r = TextureRenderer(model, method=method, seed=0)
+        r.warmup(25.0)
+        t_block = best(lambda r=r: r.block(25.0, True, 1000), 50)
+        v = np.linspace(10.0, 40.0, 1000)
+        t_vary = best(lambda r=r, v=v: r.block(v, True), 20)
+        what = f"{method}/{r.structure}"
+        print(f"  [{what}] renderer start-up (speed table): {t_build * 1e3:.0f} ms")
+        print(f"  [{what}] block synthesis, 1 s at constant speed: {t_block * 1e3:.3f} ms = "
+              f"{1 / t_block:.0f}x real time (target >= 1000x); speed sweeping 10-40 mm/s "
+              f"through {r.table.h.shape[0]} table filters: "
+              f"{t_vary * 1e3:.2f} ms = {1 / t_vary:.0f}x; naive Python loop "
+              f"{t_naive * 1e3:.0f} ms ({t_naive / t_block:.0f}x slower)")
+        tick = r.tick
 
-    def ticks() -> None:
-        for s in speeds:
-            tick(s, True)
+        def ticks(tick=tick) -> None:
+            for s in speeds:
+                tick(s, True)
 
-    t_tick = best(ticks, 3) / n
-    print(f"  per-sample tick (speed changing every tick): {t_tick * 1e6:.2f} us/sample "
-          f"(target <= 20 us); naive loop {t_naive / 1000 * 1e6:.0f} us/sample "
-          f"({t_naive / 1000 / t_tick:.0f}x slower)")
+        t_tick = best(ticks, 3) / n
+        print(f"  [{what}] per-sample tick (speed changing every tick): "
+              f"{t_tick * 1e6:.2f} us/sample (target <= 20 us); naive loop "
+              f"{t_naive / 1000 * 1e6:.0f} us/sample ({t_naive / 1000 / t_tick:.0f}x slower)")
 
 
 def quality(textures: list[str] | None = None) -> None:
@@ -99,7 +103,7 @@ def quality(textures: list[str] | None = None) -> None:
 
     warnings.simplefilter("ignore")
     names = textures or list(TEXTURES)
-    methods = ("lsf", "linear")
+    methods = ("stretch", "lsf", "linear")
     rows: dict[tuple[str, float], list] = {}
     models = []
     for name in names:

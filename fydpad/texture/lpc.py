@@ -158,3 +158,24 @@ def ar_psd(a: ArrayLike, sigma2: float, freqs_hz: ArrayLike, fs_hz: float) -> Ar
     w = 2 * np.pi * np.asarray(freqs_hz, float) / fs_hz
     resp = np.exp(-1j * np.outer(w, np.arange(a.size))) @ a
     return 2.0 * sigma2 / fs_hz / np.abs(resp) ** 2
+
+
+def impulse_responses(polys: ArrayLike, gains: ArrayLike, n: int, nfft: int | None = None
+                      ) -> Array:
+    """First ``n`` samples of each row's impulse response gain / A(z) (by inverse FFT).
+
+    The FFT grid aliases the response past ``nfft`` samples (default: 4n, at least
+    8192) onto its start; a texture model's response has lost all but 1e-4 of its
+    energy within ~2000 samples, so what wraps round is below double precision.
+    """
+    nfft = nfft or max(8192, 1 << int(np.ceil(np.log2(4 * n))))
+    a = np.atleast_2d(np.asarray(polys, float))
+    g = np.asarray(gains, float).reshape(-1, 1)
+    return np.fft.irfft(g / np.fft.rfft(a, nfft, axis=1), nfft, axis=1)[:, :n]
+
+
+def energy_length(responses: ArrayLike, share: float = 1e-4) -> int:
+    """Samples after which every row's remaining energy is below ``share`` of its total."""
+    g2 = np.atleast_2d(np.asarray(responses, float)) ** 2
+    tail = np.cumsum(g2[:, ::-1], axis=1)[:, ::-1] / np.maximum(g2.sum(1, keepdims=True), 1e-300)
+    return int((tail > share).sum(1).max())

@@ -15,6 +15,12 @@ A hand drags a tool (tip + accelerometer) over a surface. Per stroke:
   stiffness of the surface), and the accelerometer adds white noise;
 - the hand's slow motion and gravity (with a slowly tilting hand) appear on all axes.
 
+With ``friction=True`` (issue 9) the scan also carries ``force_n`` and ``friction_n``
+from a separate physical model (:func:`friction_forces`, its own random stream, so the
+acceleration columns stay bit-identical): a varying normal load, Coulomb friction on the
+local slope of the same profile h(x) with a material coefficient that varies along x,
+and stick-slip of the contact through the tool's tangential stiffness.
+
 Simulated at 10 kHz, decimated (anti-aliased) to the output rate. Deterministic per
 seed: the surface itself depends only on the texture's name, the stroke on ``seed``.
 The paper's specimens R1 and R2 are rectangular gratings of period 3.90 mm and
@@ -179,9 +185,13 @@ def _resonance_sos(f_hz: float, zeta: float, fs: float) -> Array:
 def generate_scan(
     texture: str | Texture, speed_mm_s: float, seconds: float = 8.0, seed: int = 0,
     fs_hz: float = 1000.0, hand_variation: float = 1.0, noise_m_s2: float = 0.01,
-    hand_motion: bool = True,
+    hand_motion: bool = True, friction: bool = False, force_noise_n: float = 0.003,
 ) -> Scan:
-    """One stroke over ``texture`` at about ``speed_mm_s``: a Scan (not written)."""
+    """One stroke over ``texture`` at about ``speed_mm_s``: a Scan (not written).
+
+    ``friction``: also ``force_n`` and ``friction_n`` (:func:`friction_forces`), from a
+    random stream of their own so that the other columns do not change.
+    """
     tex = TEXTURES[texture] if isinstance(texture, str) else texture
     rng = np.random.default_rng([seed, zlib.crc32(tex.name.encode()), int(speed_mm_s * 100)])
     fs = SIM_FS_HZ
@@ -236,7 +246,16 @@ def generate_scan(
         grav = G * np.column_stack([np.sin(tilt), np.sin(roll), np.cos(tilt) * np.cos(roll)])
         acc = acc + slow + grav
     acc = acc + noise_m_s2 * rng.standard_normal(acc.shape)
-    return _with_position(tex, speed_mm_s, seed, t, acc, v_out, x_out)
+    scan = _with_position(tex, speed_mm_s, seed, t, acc, v_out, x_out)
+    if friction:
+        frng = np.random.default_rng([seed, zlib.crc32(tex.name.encode()),
+                                      int(speed_mm_s * 100), 1])
+        forces = np.column_stack(friction_forces(tex, x, fs, frng))
+        forces = ss.decimate(forces, q, ftype="fir", axis=0, zero_phase=True)[:m]
+        forces += force_noise_n * frng.standard_normal(forces.shape)
+        scan.force_n = forces[:, 0]
+        scan.friction_n = forces[:, 1]  # type: ignore[attr-defined]
+    return scan
 
 
 def _with_position(tex: Texture, speed: float, seed: int, t: Array, acc: Array, v: Array,
@@ -251,5 +270,123 @@ def _with_position(tex: Texture, speed: float, seed: int, t: Array, acc: Array, 
 def save_generated(scan: Scan, path: str | Path) -> Path:
     """Write a generated scan (speed and position columns) as RECORDING_FORMAT CSV."""
     x = getattr(scan, "x_mm", None)
-    return write_scan(path, scan.t_s, scan.acc, scan.speed_mm_s, x_mm=x,
-                      y_mm=None if x is None else np.zeros_like(x), meta=scan.meta)
+    friction = getattr(scan, "friction_n", None)
+    if friction is None:
+        return write_scan(path, scan.t_s, scan.acc, scan.speed_mm_s, x_mm=x,
+                          y_mm=None if x is None else np.zeros_like(x), meta=scan.meta)
+    # With the friction model: all the contract's columns, in its order.
+    from vision.recording import CsvRowWriter
+
+    names = ("t_s", "ax", "ay", "az", "speed_mm_s", "x_mm", "y_mm", "force_n", "friction_n")
+    data = np.column_stack([scan.t_s, scan.acc, scan.speed_mm_s, x, np.zeros_like(x),
+                            scan.force_n, friction])
+    comment = " ".join(f"{k}={v}" for k, v in scan.meta.items()) or None
+    with CsvRowWriter(path, names, comment=comment, flush_every_s=float("inf")) as w:
+        for row in data:
+            w.write(*(float(v) for v in row))
+    return Path(path)
+
+
+# --------------------------------------------------------------------------- friction
+@dataclass(frozen=True)
+class FrictionParams:
+    """Friction of a surface against the tool (issue 9's friction scans)."""
+
+    mu_kinetic: float = 0.45
+    static_ratio: float = 1.15  # mu_s / mu_k: the stick-slip sawtooth's height
+    material_variation: float = 0.08  # relative RMS of the material's mu along x
+    variation_band_mm: tuple[float, float] = (0.5, 20.0)  # its wavelengths
+    #: The tool's tangential stiffness (a stiff printed tip on a force sensor).
+    stiffness_n_per_mm: float = 50.0
+    load_n: float = 1.0  # mean normal load of the hand
+
+
+FRICTION: dict[str, FrictionParams] = {
+    "R1": FrictionParams(mu_kinetic=0.8), "R2": FrictionParams(mu_kinetic=0.8),
+    "rubber": FrictionParams(mu_kinetic=1.0, static_ratio=1.3),
+    "glass": FrictionParams(mu_kinetic=0.25, static_ratio=1.4),
+    "felt": FrictionParams(mu_kinetic=0.6, material_variation=0.15),
+}
+
+
+def friction_params(texture: Texture) -> FrictionParams:
+    return FRICTION.get(texture.name, FrictionParams())
+
+
+_MU_CACHE: dict[str, tuple[Array, Array]] = {}
+
+
+def friction_truth(texture: str | Texture) -> tuple[Array, Array]:
+    """Kinetic and static mu(x) of the tip on the DX_MM grid (the ground truth).
+
+    Coulomb on an incline of slope s = dh/dx: sliding up (or down) a slope needs the
+    tangential force F_n (mu + s) / (1 - mu s) for a vertical load F_n; the material's
+    mu varies along x (band-limited, own random stream seeded by the name).
+    """
+    tex = TEXTURES[texture] if isinstance(texture, str) else texture
+    if tex.name not in _MU_CACHE:
+        fp = friction_params(tex)
+        rng = np.random.default_rng(zlib.crc32(f"{tex.name}/friction".encode()))
+        n = int(SURFACE_MM / DX_MM)
+        spec = np.fft.rfft(rng.standard_normal(n))
+        k = np.fft.rfftfreq(n, DX_MM)
+        lo, hi = 1.0 / fp.variation_band_mm[1], 1.0 / fp.variation_band_mm[0]
+        r = np.fft.irfft(spec * ((k >= lo) & (k <= hi)), n)
+        mat = fp.mu_kinetic * (1.0 + fp.material_variation * r / (np.std(r) + 1e-30))
+        slope = np.gradient(_profile(tex), DX_MM)
+        mu_k = (mat + slope) / (1.0 - mat * slope)
+        mu_s = (fp.static_ratio * mat + slope) / (1.0 - fp.static_ratio * mat * slope)
+        _MU_CACHE[tex.name] = (mu_k, mu_s)
+    return _MU_CACHE[tex.name]
+
+
+def friction_mu_true(texture: str | Texture) -> Array:
+    """The coefficient a slow, steady slide measures: the stick-slip sawtooth's mean
+    (mu_k + mu_s) / 2 at each tip position, on the DX_MM grid from x = 0."""
+    mu_k, mu_s = friction_truth(texture)
+    return 0.5 * (mu_k + mu_s)
+
+
+def friction_forces(tex: Texture, x_mm: Array, fs_hz: float, rng: np.random.Generator
+                    ) -> tuple[Array, Array]:
+    """(normal force, friction force) in N at each sample of the hand's path ``x_mm``.
+
+    The hand pulls the contact through a spring of stiffness k; the contact sticks
+    until the spring force reaches mu_s F_n, then slips to mu_k F_n (instantaneous).
+    Each sample reports the force averaged over its interval (a force sensor's
+    averaging), computed exactly for any number of slips within the sample.
+    """
+    fp = friction_params(tex)
+    mu_k, mu_s = friction_truth(tex)
+    n = x_mm.size
+    t = np.arange(n) / fs_hz
+    drift = ss.sosfiltfilt(ss.butter(2, 1.5, fs=fs_hz, output="sos"), rng.standard_normal(n))
+    load = fp.load_n * (1.0 + 0.15 * np.sin(2 * np.pi * rng.uniform(0.5, 1.5) * t
+                                             + rng.uniform(0, 2 * np.pi))
+                        + 0.1 * drift / (np.std(drift) + 1e-12))
+    k = fp.stiffness_n_per_mm
+    xs = x_mm.tolist()
+    fn = load.tolist()
+    muk, mus = mu_k.tolist(), mu_s.tolist()
+    last = len(muk) - 1
+    out = [0.0] * n
+    f = muk[min(int(xs[0] / DX_MM), last)] * fn[0]  # sliding at start
+    for i in range(1, n):
+        d = xs[i] - xs[i - 1]
+        if d <= 0.0:  # the hand holds: the contact sticks, the force stays
+            out[i] = f
+            continue
+        j = min(int((xs[i - 1] - f / k) / DX_MM), last)  # the tip's grid cell
+        fs_, fk = mus[j] * fn[i], muk[j] * fn[i]
+        if f + k * d <= fs_:  # sticks throughout
+            out[i] = f + 0.5 * k * d
+            f += k * d
+            continue
+        a = max((fs_ - f) / k, 0.0)  # travel to the first slip
+        cyc = max((fs_ - fk) / k, 1e-12)  # travel per stick-slip cycle
+        m, r = divmod(d - a, cyc)
+        area = a * (f + fs_) / 2 + m * cyc * (fs_ + fk) / 2 + r * (fk + k * r / 2)
+        out[i] = area / d
+        f = fk + k * r
+    out[0] = out[1]
+    return load, np.asarray(out)

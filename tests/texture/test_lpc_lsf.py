@@ -21,6 +21,7 @@ from fydpad.texture.lpc import (
 )
 from fydpad.texture.lsf import lsf_is_valid, lsf_to_poly, poly_to_lsf
 from fydpad.texture.model_file import TextureModel
+from fydpad.texture.speed_warp import NFFT, ar_from_log_psd, log_psd
 
 TRUE_A = np.array([1.0, -1.6, 1.5, -0.7, 0.2])
 
@@ -103,3 +104,69 @@ def test_paper_linear_interpolation_can_be_unstable_and_lsf_not():
     lsf = build_table(model, "lsf", 0.5)
     assert lsf.stable.all()
     assert not lin.stable.all()
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), v=st.floats(10.0, 30.0), order=st.sampled_from([8, 40, 200]))
+def test_every_stretch_interpolation_is_stable(seed, v, order):
+    """The default: warped spectra mixed and refitted by Levinson; stable at any speed."""
+    rng = np.random.default_rng(seed)
+    polys = [_random_stable(rng, order) for _ in range(3)]
+    model = TextureModel("x", 1000.0, np.array([10.0, 20.0, 30.0]),
+                         np.vstack([h_from_poly(a) for a in polys]),
+                         10.0 ** rng.uniform(-4, 0, 3))
+    a, s2 = SpeedInterpolator(model, "stretch")(v)
+    assert a.size == order + 1 and is_stable(a)
+    assert np.isfinite(s2) and s2 > 0
+
+
+# A surface whose vibration is purely spatial: power spectrum v^3 S(f / v) (eq. of
+# speed_warp with beta = 1) over a sensor floor, S a band of wavenumbers 1-6 /mm with
+# steep edges, optionally a comb of period 0.5 mm. Models are order-100 fits to the
+# exact spectrum at 10, 20, 30, 40 mm/s; the truth between them is the same fit at v.
+_F_HZ = np.arange(NFFT // 2 + 1) * 1000.0 / NFFT
+
+
+def _spatial_log_psd(v: float, comb_mm: float = 0.0) -> np.ndarray:
+    k = _F_HZ / v
+    s = k**4 / (1 + k**4) / (1 + (k / 6.0) ** 8)
+    if comb_mm:
+        s = s * (0.05 + np.cos(np.pi * k * comb_mm) ** 40)
+    return np.log(v**3 * s + 1e-6)
+
+
+@pytest.mark.parametrize("comb_mm", [0.0, 0.5])
+def test_stretch_follows_a_spatial_spectrum_between_models(comb_mm):
+    fits = [ar_from_log_psd(_spatial_log_psd(v, comb_mm), 100) for v in (10.0, 20.0, 30.0, 40.0)]
+    model = TextureModel("spatial", 1000.0, np.array([10.0, 20.0, 30.0, 40.0]),
+                         np.vstack([h_from_poly(a) for a, _ in fits]),
+                         np.array([e for _, e in fits]))
+    band = (_F_HZ >= 20) & (_F_HZ <= 480)
+
+    def worst_lsd(interp) -> float:
+        out = []
+        for v in (12.5, 15.0, 25.0, 35.0):
+            a, s2 = interp(v)
+            ta, ts = ar_from_log_psd(_spatial_log_psd(v, comb_mm), 100)
+            d = 10 / np.log(10) * (log_psd(a, s2)[0] - log_psd(ta, ts)[0])[band]
+            out.append(np.sqrt(np.mean(d * d)))
+        return max(out)
+
+    # No hold: the fits are of exact spectra at exactly their speed, nothing to hold.
+    stretch = SpeedInterpolator(model, "stretch", hold_mm_s=0.0)
+    assert stretch._warp.beta >= 0.7  # recognised as (mostly) spatial
+    mine, lsf = worst_lsd(stretch), worst_lsd(SpeedInterpolator(model, "lsf"))
+    assert mine < 2.0, mine  # measured 0.8 (band), 1.7 (comb)
+    assert mine < 0.5 * lsf, (mine, lsf)  # LSF: 3.0 and 6.2 dB
+
+
+def test_stretch_keeps_a_temporal_spectrum_in_place():
+    """A resonance that does not move with speed (a tool mode): beta ~ 0, level follows."""
+    a0 = _resonators([0.9 * np.pi / 2.5], 0.97)
+    model = TextureModel("tool", 1000.0, np.array([10.0, 20.0, 30.0]),
+                         np.vstack([h_from_poly(a0)] * 3), np.array([1e-3, 4e-3, 9e-3]))
+    it = SpeedInterpolator(model, "stretch", hold_mm_s=0.0)
+    assert it._warp.beta == pytest.approx(0.0)
+    assert it._warp.gamma == pytest.approx(2.0, abs=0.05)
+    a, s2 = it(15.0)
+    np.testing.assert_allclose(log_psd(a, s2)[0], log_psd(a0, 1e-3 * 1.5**2)[0], atol=0.05)
