@@ -1,4 +1,5 @@
-"""``fydpad texture``: fit, synthesize, evaluate and identify LPC texture models."""
+"""``fydpad texture``: fit, synthesize, evaluate and identify texture models of every
+family (lpc, friction, grating, mlp: fydpad.texture.families), and the staircase."""
 
 from __future__ import annotations
 
@@ -24,6 +25,12 @@ def _floats(text: str) -> list[float]:
                                          ) from None
 
 
+def _kinds() -> tuple[str, ...]:
+    from fydpad.texture.families import KIND_NAMES
+
+    return KIND_NAMES
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "texture", help="texture models: fit from scans, synthesize, evaluate, identify",
@@ -31,7 +38,10 @@ def register(sub: argparse._SubParsersAction) -> None:
             "Speed-indexed LPC texture models (paper section III-B): fit them from texture "
             "scan recordings (RECORDING_FORMAT.md), synthesize eq. 5 at 1 kHz, compare "
             "synthesized with recorded spectra, and identify surfaces from their models. "
-            "See docs/texture.md."),
+            "The other families (--kind): position-indexed friction playback (paper 001), "
+            "vibrotactile/friction gratings at a ratio (paper 002) and neural networks "
+            "(thesis 003), behind one interface; 'compare' runs them on the same scans. "
+            "See docs/texture.md and docs/texture_families.md."),
     )
     tsub = p.add_subparsers(dest="texture_command", metavar="SUBCOMMAND", required=True)
 
@@ -46,8 +56,30 @@ def register(sub: argparse._SubParsersAction) -> None:
             "stability is checked. The 165-220 Hz band of the paper is stored as the "
             "output drive filter, not used for fitting."),
     )
-    f.add_argument("scans", nargs="+", metavar="SCAN.csv", help="texture scan recordings")
+    f.add_argument("scans", nargs="*", metavar="SCAN.csv", help="texture scan recordings")
     f.add_argument("--out", required=True, metavar="MODEL.json", help="model file to write")
+    f.add_argument("--kind", choices=_kinds(), default="lpc",
+                   help="texture family (default lpc). friction: mu(x) = F_f/F_n from scans "
+                   "with force_n, friction_n, x_mm (paper 001 IV-B; docs/texture_friction.md)."
+                   " grating: a parametric grating at a vibrotactile:friction ratio (paper "
+                   "002 4.2; --wavelength-mm, else estimated from the scans; "
+                   "docs/texture_grating.md). mlp: the 3-10-1 network of thesis 003; mlp_lsf: a "
+                   "network predicting the LPC model's LSFs from speed and force")
+    f.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="a fit option of the family, repeatable (e.g. for mlp: "
+                   "--set learning_rate=0.1 --set epochs=500; an unknown key is named)")
+    f.add_argument("--dx-mm", type=float, default=0.01,
+                   help="friction: position grid step (default 0.01 mm)")
+    f.add_argument("--lowpass-hz", type=float, default=100.0,
+                   help="friction: the paper's 100 Hz low-pass, applied in position at "
+                   "100 Hz / the scans' median speed (cycles/mm)")
+    f.add_argument("--wavelength-mm", type=float,
+                   help="grating: spatial period (default: estimated from the scans)")
+    f.add_argument("--profile", choices=("rect", "sine"), default="rect",
+                   help="grating: rectangular (ridge 90 %%, the FYD-pad's R1/R2) or sine")
+    f.add_argument("--ratio", metavar="V:F",
+                   help="grating: vibrotactile:friction levels, V+F=10 (default 8:2 for "
+                   "lambda >= 1 mm, else 6:4)")
     f.add_argument("--order", type=int, default=200, help="LPC order per speed (default 200)")
     f.add_argument("--speeds", type=_floats, default=[10.0, 20.0, 30.0, 40.0],
                    metavar="S1,S2,..", help="target speeds in mm/s (default 10,20,30,40)")
@@ -76,10 +108,22 @@ def register(sub: argparse._SubParsersAction) -> None:
             "constant finger speed and write t_s,a (m/s^2). Below the slowest model the "
             "output fades out with speed; above the fastest it is clamped (with a warning)."),
     )
-    s.add_argument("model", metavar="MODEL.json", help="model file from 'fydpad texture fit'")
+    s.add_argument("model", metavar="MODEL.json",
+                   help="model file from 'fydpad texture fit' (any kind; read from the file)")
     s.add_argument("--speed-mm-s", type=float, required=True, help="finger speed in mm/s")
     s.add_argument("--seconds", type=float, required=True, help="duration in seconds")
-    s.add_argument("--out", required=True, metavar="OUT.csv", help="CSV t_s,a to write")
+    s.add_argument("--out", required=True, metavar="OUT.csv|OUT.wav",
+                   help="CSV t_s,a (LPC) or t_s,<channel>; .wav writes a WAV file")
+    s.add_argument("--channel", choices=("vibration", "tension", "audio"),
+                   help="output channel (default vibration). vibration/tension: the FYD-pad's "
+                   "1 kHz terms; audio: an external display at --audio-hz (friction: "
+                   "V = b mu(x) Y(t), 240 Hz carrier; grating: V_e)")
+    s.add_argument("--kind", choices=_kinds(),
+                   help="check the model file is of this kind (it is read from the file)")
+    s.add_argument("--audio-hz", type=float, default=48000.0,
+                   help="rate of the audio channel (default 48000)")
+    s.add_argument("--x0-mm", type=float,
+                   help="position-indexed kinds: start of the stroke (default: the model's)")
     s.add_argument("--method", choices=("lsf", "reflection", "linear"), default="lsf",
                    help="interpolation between speeds (lsf default; linear is the paper's)")
     s.add_argument("--drive-filter", action="store_true",
@@ -125,6 +169,50 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="interpolation between speeds (lsf default; linear is the paper's)")
     i.set_defaults(func=run_identify)
 
+    c = tsub.add_parser(
+        "compare", help="identify the same scans with every family (confusion matrices)",
+        description=(
+            "Fit one model per surface of each family (--kinds) from the --train scans, "
+            "identify every --scans scan with each family (nearest spectral shape of what "
+            "the family renders along the scan's own stroke: vibration against the "
+            "acceleration; friction: mu against F_f/F_n) and write one confusion matrix "
+            "per family. --specimens adds paper 004's 2 x 2 (SS1..SS4: softness S1/S2 x "
+            "roughness R1/R2, Table I): roughness rendered by the family, softness by the "
+            "simulated motors and fabric, measured by a simulated indenter press; "
+            "identified by spectra alone and by spectra plus stiffness. Needs R1 and R2 "
+            "among the scans for --specimens. Writes compare.json and PNG plots to "
+            "--out-dir. See docs/texture_families.md."),
+    )
+    c.add_argument("--train", nargs="+", required=True, metavar="SCAN.csv",
+                   help="scans to fit the models on (labels from '# surface=')")
+    c.add_argument("--scans", nargs="+", required=True, metavar="SCAN.csv",
+                   help="scans to identify (other strokes of the same surfaces)")
+    c.add_argument("--kinds", default="lpc,friction,grating,mlp",
+                   help="families to compare (default lpc,friction,grating,mlp; one that "
+                   "cannot be fitted on the scans is reported, not fatal)")
+    c.add_argument("--specimens", action="store_true", help="also the 2 x 2 of Table I")
+    c.add_argument("--trials", type=int, default=3, help="--specimens: trials per specimen")
+    c.add_argument("--out-dir", required=True, metavar="DIR")
+    c.set_defaults(func=run_compare)
+
+    st = tsub.add_parser(
+        "staircase", help="set the electrostatic factor b with a user (1-up/1-down)",
+        description=(
+            "The 1-up/1-down staircase of paper 001 (IV-C): start at b = --start (400), "
+            "each trial asks which felt rougher, the real sample (r: b up by --step) or the "
+            "virtual one (v: b down); the result is the mean b at the four reversals after "
+            "the first two. Answers are read from stdin one per line (pipe them to script "
+            "it; q stops), appended to --log as they come (trial,b,answer,reversal), and "
+            "an existing log is replayed first, so a stopped session resumes. With --model "
+            "(a friction model) the result is written into it as electrostatic.b_v."),
+    )
+    st.add_argument("--log", required=True, metavar="LOG.csv", help="answers log (resumable)")
+    st.add_argument("--start", type=float, default=400.0, help="first b (default 400)")
+    st.add_argument("--step", type=float, default=10.0, help="step of b (default 10)")
+    st.add_argument("--model", metavar="FRICTION.json",
+                    help="write the result into this friction model's electrostatic.b_v")
+    st.set_defaults(func=run_staircase)
+
     g = tsub.add_parser(
         "generate-scans", help="write synthetic scans (a physical generator, not AR)",
         description=(
@@ -141,6 +229,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--seconds", type=float, default=8.0, help="stroke length (default 8 s)")
     g.add_argument("--seed", type=int, default=1, help="first stroke seed (default 1)")
     g.add_argument("--list", action="store_true", help="list the textures and exit")
+    g.add_argument("--friction", action="store_true",
+                   help="also force_n and friction_n columns (a Coulomb/stick-slip contact "
+                   "over the same profile with a varying normal load)")
     g.set_defaults(func=run_generate)
 
 
@@ -159,7 +250,80 @@ def _load_model(path: str):
     return load_model(path)
 
 
+def _ratio(text: str | None) -> tuple[int, int] | None:
+    if text is None:
+        return None
+    try:
+        v, f = (int(a) for a in text.split(":"))
+    except ValueError:
+        raise UserError(f"--ratio: expected V:F such as 8:2, got {text!r}") from None
+    if not (0 <= v <= 10 and v + f == 10):
+        raise UserError(f"--ratio: V and F must be 0..10 and add up to 10, got {text!r}")
+    return v, f
+
+
 def run_fit(args: argparse.Namespace) -> int:
+    if args.kind != "lpc":
+        return _run_fit_family(args)
+    if not args.scans:
+        raise UserError("fit: give at least one SCAN.csv")
+    return _run_fit_lpc(args)
+
+
+def _options(pairs: list[str]) -> dict:
+    """``KEY=VALUE`` strings -> options (int, float, true/false or text)."""
+    out: dict = {}
+    for pair in pairs:
+        key, sep, text = pair.partition("=")
+        if not sep or not key.strip():
+            raise UserError(f"--set: expected KEY=VALUE, got {pair!r}")
+        value: object = text
+        for conv in (int, float):
+            try:
+                value = conv(text)
+                break
+            except ValueError:
+                pass
+        if text.lower() in ("true", "false"):
+            value = text.lower() == "true"
+        out[key.strip()] = value
+    return out
+
+
+def _run_fit_family(args: argparse.Namespace) -> int:
+    from fydpad.texture.families import fit_family, read_scans, save_model_json
+
+    scans = read_scans(args.scans)
+    if args.kind == "friction":
+        if not scans:
+            raise UserError("fit --kind friction: give the scans (force_n, friction_n, x_mm)")
+        if not args.dx_mm > 0:
+            raise UserError("--dx-mm must be positive")
+        data = fit_family("friction", scans, dx_mm=args.dx_mm, lowpass_hz=args.lowpass_hz,
+                          surface=args.surface)
+        lp = data["lowpass"]
+        print(f"{args.out}: friction mu(x) of {data['surface']}, {len(data['mu'])} points "
+              f"every {args.dx_mm:g} mm from x = {data['x0_mm']:.2f} mm, mean mu "
+              f"{np.mean(data['mu']):.3f}; low-pass {lp['cutoff_cycles_per_mm']:.3g} "
+              f"cycles/mm (100 Hz at {lp['reference_speed_mm_s']:.1f} mm/s)")
+    elif args.kind == "grating":
+        if args.wavelength_mm is not None and not args.wavelength_mm > 0:
+            raise UserError("--wavelength-mm must be positive")
+        data = fit_family("grating", scans, wavelength_mm=args.wavelength_mm,
+                          profile=args.profile, ratio=_ratio(args.ratio), surface=args.surface)
+        print(f"{args.out}: grating {data['profile']} lambda {data['wavelength_mm']:.3f} mm "
+              f"({data['provenance']['wavelength']}), ratio "
+              f"{data['ratio'][0]}:{data['ratio'][1]}")
+    else:
+        if not scans:
+            raise UserError(f"fit --kind {args.kind}: give the scans")
+        data = fit_family(args.kind, scans, surface=args.surface, **_options(args.set))
+        print(f"{args.out}: {args.kind} model")
+    save_model_json(data, args.out)
+    return 0
+
+
+def _run_fit_lpc(args: argparse.Namespace) -> int:
     from fydpad.texture.dft321 import preprocess
     from fydpad.texture.evaluate import welch_psd
     from fydpad.texture.fit import fit_texture
@@ -208,6 +372,13 @@ def run_fit(args: argparse.Namespace) -> int:
 
 
 def run_synth(args: argparse.Namespace) -> int:
+    from fydpad.texture.families import model_kind, read_model_json
+
+    kind = model_kind(read_model_json(args.model))
+    if args.kind is not None and args.kind != kind:
+        raise UserError(f"{args.model}: key 'kind' is {kind!r}, not --kind {args.kind}")
+    if kind != "lpc" or args.channel not in (None, "vibration") or args.out.endswith(".wav"):
+        return _run_synth_family(args)
     from fydpad.texture.synthesis import TextureRenderer
 
     model = _load_model(args.model)
@@ -233,7 +404,120 @@ def run_synth(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_synth_family(args: argparse.Namespace) -> int:
+    from fydpad.texture.families import constant_stroke, load_family
+
+    fam = load_family(args.model)
+    channel = args.channel or "vibration"
+    if channel not in fam.channels:
+        raise UserError(f"{args.model}: a {fam.kind} model renders "
+                        f"{', '.join(fam.channels)}, not --channel {channel}")
+    if not args.seconds > 0 or not math.isfinite(args.seconds):
+        raise UserError("--seconds must be positive")
+    if not args.speed_mm_s >= 0:
+        raise UserError("--speed-mm-s must be >= 0")
+    rate = args.audio_hz if channel == "audio" else fam.channels[channel]
+    if channel == "audio":
+        fam.channels["audio"] = rate
+    x0 = args.x0_mm if args.x0_mm is not None else float(getattr(fam, "x0_mm", 0.0))
+    finger = constant_stroke(args.speed_mm_s, args.seconds, rate, x0_mm=x0)
+    if fam.kind == "lpc":
+        fam.seed = args.seed
+    try:
+        y = fam.render(finger, channel)
+    except ValueError as exc:
+        raise UserError(f"{args.model}: {exc}") from None
+    if args.out.lower().endswith(".wav"):
+        _write_wav(args.out, y, rate)
+    else:
+        with CsvRowWriter(args.out, ("t_s", channel), comment=f"kind={fam.kind} "
+                          f"channel={channel} speed_mm_s={args.speed_mm_s:g}",
+                          flush_every_s=math.inf) as wr:
+            for t, v in zip(finger.t_s, y, strict=True):
+                wr.write(float(t), float(v))
+    print(f"{args.out}: {fam.kind} {channel}, {y.size} samples at {rate:g} Hz, "
+          f"rms {float(np.sqrt(np.mean(y * y))):.4g}")
+    return 0
+
+
+def _write_wav(path: str, y: np.ndarray, rate: float) -> None:
+    """Through the output-channel helpers when present (fydpad.channels), else scipy."""
+    try:
+        from fydpad.channels import open_channel  # type: ignore[attr-defined]
+    except ImportError:
+        open_channel = None
+    if open_channel is not None:
+        with open_channel(f"wav:{path}", rate) as ch:
+            ch.write(np.asarray(y, float))
+        return
+    from scipy.io import wavfile
+
+    peak = float(np.max(np.abs(y))) or 1.0
+    try:
+        wavfile.write(path, round(rate), (y / peak).astype(np.float32))
+    except OSError as exc:
+        raise UserError(f"{path}: cannot be written ({exc.strerror})") from None
+
+
+def run_staircase(args: argparse.Namespace) -> int:
+    import csv
+
+    from fydpad.texture.staircase import LOG_COLUMNS, Staircase, replay_log
+
+    if not args.step > 0:
+        raise UserError("--step must be positive")
+    stairs = Staircase(start=args.start, step=args.step)
+    done = replay_log(args.log, stairs)
+    if done:
+        print(f"{args.log}: resumed after {done} trials, {len(stairs.reversals)} reversals")
+    new = not Path(args.log).exists() or Path(args.log).stat().st_size == 0
+    try:
+        fh = Path(args.log).open("a", newline="", encoding="utf-8")
+    except OSError as exc:
+        raise UserError(f"{args.log}: cannot be written ({exc.strerror})") from None
+    with fh:
+        w = csv.writer(fh)
+        if new:
+            w.writerow(LOG_COLUMNS)
+            fh.flush()
+        while not stairs.done:
+            print(f"trial {stairs.trials + 1}: b = {stairs.b:g}. Which felt rougher, the real "
+                  "or the virtual sample? [r/v, q to stop] ", end="", flush=True)
+            line = sys.stdin.readline()
+            if not sys.stdin.isatty():  # piped answers: echo them, so the log reads well
+                print(line.strip())
+            if not line or line.strip().lower() in ("q", "quit"):
+                print(f"\nstopped after {stairs.trials} trials; run again to resume")
+                return 0
+            b = stairs.b
+            try:
+                rev = stairs.answer(line)
+            except ValueError:
+                print("please answer r (real rougher) or v (virtual rougher)")
+                continue
+            w.writerow((stairs.trials, f"{b:g}", "real" if stairs.b > b else "virtual",
+                        int(rev)))
+            fh.flush()  # logged as it comes: a crash loses nothing
+    used = stairs.reversals[2:6]
+    print(f"b = {stairs.result:g} (mean of reversals {', '.join(f'{v:g}' for v in used)}; "
+          f"{stairs.trials} trials)")
+    if args.model:
+        from fydpad.texture.families import read_model_json, save_model_json
+        from fydpad.texture.friction import parse_friction
+
+        data = read_model_json(args.model)
+        parse_friction(data, args.model)
+        data.setdefault("electrostatic", {})["b_v"] = stairs.result
+        save_model_json(data, args.model)
+        print(f"{args.model}: electrostatic.b_v = {stairs.result:g}")
+    return 0
+
+
 def run_evaluate(args: argparse.Namespace) -> int:
+    from fydpad.texture.families import model_kind, read_model_json
+
+    if model_kind(read_model_json(args.model)) != "lpc":
+        return _run_evaluate_family(args)
     from fydpad.texture.evaluate import evaluate_scan, evaluation_mask
 
     model = _load_model(args.model)
@@ -264,7 +548,47 @@ def run_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_evaluate_family(args: argparse.Namespace) -> int:
+    from fydpad.texture.dft321 import preprocess
+    from fydpad.texture.evaluate import compare
+    from fydpad.texture.families import finger_from_scan, load_family, read_scans
+
+    fam = load_family(args.model)
+    scan = read_scans([args.scan])[0]
+    finger = finger_from_scan(scan)
+    syn = fam.render(finger, "vibration")
+    rec = preprocess(scan.acc, scan.fs_hz, 10.0)
+    c, f, pr, ps = compare(rec, syn, scan.fs_hz, scan.speed_mm_s > 1.0)
+    out = {"model": args.model, "kind": fam.kind, "scan": args.scan, **c.to_json()}
+    msg = (f"{fam.kind}: power-spectrum correlation (20-500 Hz) {c.psd_correlation:.3f} "
+           f"(dB spectra {c.psd_correlation_db:.3f}); log-spectral distance {c.lsd_db:.2f} dB")
+    ff = getattr(scan, "friction_n", None)
+    if fam.kind == "friction" and ff is not None and scan.force_n is not None:
+        from fydpad.texture.friction import friction_coefficient
+
+        mu_rec = friction_coefficient(ff, scan.force_n)
+        mu_syn = fam.mu_at(finger.x_mm)
+        ok = np.isfinite(mu_rec) & (scan.speed_mm_s > 0.5 * np.median(scan.speed_mm_s))
+        err = float(np.sqrt(np.mean((mu_rec[ok] - mu_syn[ok]) ** 2)) / np.mean(mu_syn[ok]))
+        out["mu_rms_error_rel"] = err
+        msg += f"; mu(x) RMS error {100 * err:.2f} % of the mean (unfiltered recording)"
+    print(msg)
+    if args.json:
+        Path(args.json).write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
+    if args.plot:
+        from fydpad.texture.plots import plot_spectra
+
+        plot_spectra(args.plot, [(f"{scan.surface} vs {fam.kind}", f, pr, ps)],
+                     f"corr {c.psd_correlation:.3f}, LSD {c.lsd_db:.2f} dB")
+    return 0
+
+
 def run_identify(args: argparse.Namespace) -> int:
+    from fydpad.texture.families import model_kind, read_model_json
+
+    kinds = {model_kind(read_model_json(p)) for p in args.models}
+    if kinds != {"lpc"}:
+        return _run_identify_family(args, kinds)
     from fydpad.texture.identify import identify, plot_confusion
 
     models = [_load_model(p) for p in args.models]
@@ -279,6 +603,87 @@ def run_identify(args: argparse.Namespace) -> int:
                                    encoding="utf-8")
     if args.plot:
         plot_confusion(args.plot, ident)
+    return 0
+
+
+def _run_identify_family(args: argparse.Namespace, kinds: set[str]) -> int:
+    from fydpad.texture.families import load_family, read_scans
+    from fydpad.texture.families_compare import identify_families
+    from fydpad.texture.identify import plot_confusion
+
+    if len(kinds) > 1:
+        raise UserError(f"identify: the models mix kinds {', '.join(sorted(kinds))}; give "
+                        "one family's models per run (one confusion matrix per family)")
+    fams = [load_family(p) for p in args.models]
+    labels = [getattr(f, "surface", "") or Path(p).stem for f, p in
+              zip(fams, args.models, strict=True)]
+    scans = read_scans(args.scans)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ident = identify_families(fams, labels, scans,
+                                  wrap=lambda it: progress(it, total=len(scans),
+                                                           desc="identify"))
+    print(f"{next(iter(kinds))}: identification rate {ident.rate:.1%} ({len(scans)} scans, "
+          f"{len(fams)} models)")
+    if args.json:
+        Path(args.json).write_text(json.dumps({"kind": next(iter(kinds)), **ident.to_json()},
+                                              indent=1) + "\n", encoding="utf-8")
+    if args.plot:
+        plot_confusion(args.plot, ident, f"{next(iter(kinds))}: rate {ident.rate:.0%}")
+    return 0
+
+
+def run_compare(args: argparse.Namespace) -> int:
+    from fydpad.texture.families import read_scans
+    from fydpad.texture.families_compare import (
+        by_surface,
+        compare_families,
+        specimen_experiment,
+    )
+    from fydpad.texture.identify import Identification, plot_confusion
+
+    kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
+    unknown = [k for k in kinds if k not in _kinds()]
+    if unknown:
+        raise UserError(f"--kinds: unknown {', '.join(unknown)}")
+    train, test = read_scans(args.train), read_scans(args.scans)
+    out_dir = Path(args.out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    result: dict = {"train": args.train, "scans": args.scans, "families": {}}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = compare_families(train, test, kinds)
+        for kind, ident in res.items():
+            if isinstance(ident, str):
+                print(f"{kind:9s} {ident}")
+                result["families"][kind] = {"error": ident}
+                continue
+            print(f"{kind:9s} identification rate {ident.rate:.1%} ({len(test)} scans)")
+            result["families"][kind] = ident.to_json()
+            plot_confusion(str(out_dir / f"confusion_{kind}.png"), ident,
+                           f"{kind}: rate {ident.rate:.0%}")
+        if args.specimens:
+            tr, te = by_surface(train), by_surface(test)
+            if not all(r in tr and r in te for r in ("R1", "R2")):
+                raise UserError("--specimens: the --train and --scans need R1 and R2 scans "
+                                "(fydpad texture generate-scans --textures R1,R2)")
+            result["specimens"] = {}
+            for kind in kinds:
+                if isinstance(res.get(kind), str):
+                    continue
+                r = specimen_experiment(kind, tr, te, te, trials=args.trials)
+                result["specimens"][kind] = r
+                print(f"{kind:9s} SS1..SS4: spectra alone {r['rate']['spectra']:.0%}, "
+                      f"with the stiffness of a press {r['rate']['spectra+stiffness']:.0%}")
+                for key, conf in r["confusion"].items():
+                    rate = r["rate"][key]
+                    plot_confusion(str(out_dir / f"specimens_{kind}_{key.replace('+', '_')}"
+                                        ".png"),
+                                   Identification(r["specimens"], conf, rate, []),
+                                   f"{kind}, {key}: {rate:.0%}")
+    (out_dir / "compare.json").write_text(json.dumps(result, indent=1) + "\n",
+                                          encoding="utf-8")
+    print(f"{out_dir}: compare.json and confusion plots")
     return 0
 
 
@@ -298,7 +703,7 @@ def run_generate(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     jobs = [(n, s, args.seed + k) for n in names for s in args.speeds for k in range(args.strokes)]
     for n, s, seed in progress(jobs, total=len(jobs), desc="generate"):
-        scan = generate_scan(n, s, args.seconds, seed=seed)
+        scan = generate_scan(n, s, args.seconds, seed=seed, friction=args.friction)
         save_generated(scan, out / f"{n}_{s:g}mms_s{seed}.csv")
     print(f"{out}: {len(jobs)} scans")
     return 0

@@ -62,3 +62,45 @@ class TextureFamily(Protocol):
 
     def reset(self) -> None:
         """Forget the signal history (a new stroke)."""
+
+
+class TickPosition:
+    """The finger's x between camera frames, for position-indexed families at 1 kHz.
+
+    The station hands every tick the newest camera centroid (held between frames, ~30
+    Hz), so indexing mu(x) or a grating by it would step every 33 ms. A new centroid is
+    recognised by a change of value and stamped with the tick time (up to one tick
+    late); between frames the position is extrapolated along the velocity over the last
+    ``frames`` frames (a longer base than one frame: the 1-tick stamping jitter, 3 % of a
+    33 ms frame, shrinks ``frames`` times), for at most ``hold_s``. No allocation.
+    """
+
+    def __init__(self, hold_s: float = 0.1, frames: int = 3) -> None:
+        self.hold_s = hold_s
+        self.frames = frames
+        self._ts = [0.0] * (frames + 1)
+        self._xs = [0.0] * (frames + 1)
+        self.reset()
+
+    def reset(self) -> None:
+        self._x = self._t = self._v = float("nan")
+        self._n = 0
+
+    def update(self, t_s: float, contact: bool, x_mm: float) -> float:
+        """The estimated x (mm) now; NaN without contact."""
+        if not contact or x_mm != x_mm:
+            self.reset()
+            return float("nan")
+        if x_mm != self._x:
+            m = self.frames + 1
+            k = self._n % m
+            self._ts[k], self._xs[k] = t_s, x_mm
+            self._n += 1
+            if self._n >= 2:
+                back = min(self._n - 1, self.frames)
+                j = (self._n - 1 - back) % m
+                if t_s > self._ts[j]:
+                    self._v = (x_mm - self._xs[j]) / (t_s - self._ts[j])
+            self._x, self._t = x_mm, t_s
+        dt = min(t_s - self._t, self.hold_s)
+        return x_mm + (self._v * dt if self._v == self._v else 0.0)

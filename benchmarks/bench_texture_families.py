@@ -1,0 +1,65 @@
+"""Texture-family benchmarks (issue 9), run on demand:
+``python benchmarks/bench_texture_families.py``.
+
+The per-tick cost of each family's ``tick`` (the station's 1 kHz render process calls it
+once a tick; the budget is the 1 ms tick shared with eq. 3 and the motors) against the
+LPC family's tick (order 200, issue 4's path) measured in the same run as the baseline;
+and the offline ``render`` throughput (x real time) of 10 s at 1 kHz and the audio
+channel at 48 kHz.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+
+import numpy as np
+
+from fydpad.texture.families import LpcFamily, constant_stroke
+from fydpad.texture.fit import fit_texture
+from fydpad.texture.friction import fit_friction, parse_friction
+from fydpad.texture.grating import GratingFamily
+from fydpad.texture.scan_generator import generate_scan
+
+
+def per_tick_us(fam, n: int = 20_000) -> float:
+    ts = np.arange(n) / 1000.0
+    xs = (10.0 + 20.0 * np.floor(ts * 30) / 30).tolist()  # 30 fps centroids, held
+    ts = ts.tolist()
+    t0 = time.perf_counter()
+    for t, x in zip(ts, xs, strict=True):
+        fam.tick(t, True, x, 5.0, 20.0, 1.0)
+    return (time.perf_counter() - t0) / n * 1e6
+
+
+def main() -> None:
+    warnings.simplefilter("ignore")
+    scans = [generate_scan("canvas", v, 6.0, seed=1, friction=True) for v in (10.0, 30.0)]
+    model, _ = fit_texture(scans, order=200, speeds_mm_s=[10.0, 30.0])
+    lpc = LpcFamily(model)
+    lpc.prepare()
+    fric = parse_friction(fit_friction(scans[:1]), "bench")
+    fams = {"lpc (baseline)": lpc, "friction": fric,
+            "grating sine": GratingFamily(2.15, profile="sine"),
+            "grating rect": GratingFamily(2.15, profile="rect")}
+    base = per_tick_us(lpc)
+    print("per tick (us)        figure   / lpc")
+    for name, fam in fams.items():
+        us = base if fam is lpc else per_tick_us(fam)
+        print(f"  {name:18s} {us:7.2f}  {us / base:6.2f}x")
+    fb = constant_stroke(20.0, 10.0, 1000.0, x0_mm=fric.x0_mm)
+    fa = constant_stroke(20.0, 10.0, 48_000.0, x0_mm=fric.x0_mm)
+    print("offline render, 10 s (x real time)")
+    for name, fam, finger, ch in (
+            ("lpc vibration", lpc, fb, "vibration"),
+            ("friction tension", fric, fb, "tension"),
+            ("friction audio 48k", fric, fa, "audio"),
+            ("grating rect vibration", fams["grating rect"], fb, "vibration"),
+            ("grating rect audio 48k", fams["grating rect"], fa, "audio")):
+        t0 = time.perf_counter()
+        fam.render(finger, ch)
+        print(f"  {name:24s} {10.0 / (time.perf_counter() - t0):9.0f}x")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,219 @@
+"""Cross-family identification (issue 9): one confusion matrix per family, same scans.
+
+Each family is identified on the signal it renders, against the same signal observed
+in the scan:
+
+- lpc, mlp, grating: the ``vibration`` channel along each scan's own finger stream
+  (position and speed) against the scan's DFT321 acceleration, 20-500 Hz;
+- friction: the ``tension`` channel (affine in mu(x)) against the scan's measured
+  F_f / F_n, 2-100 Hz (the model is low-passed at 100 Hz at its scan speed).
+
+The scan goes to the model whose spectrum has the nearest *shape*: the RMS of the dB
+difference after removing its mean and its linear trend in log frequency, since the
+families' levels and spectral tilts are set by gains and by what they model (a grating
+renders a force, the scan holds an acceleration: f^2 apart), while their lines and
+bands are what identifies a surface.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Sequence
+
+import numpy as np
+
+from fydpad.texture.dft321 import preprocess
+from fydpad.texture.evaluate import BAND_HZ, welch_psd
+from fydpad.texture.families import finger_from_scan
+from fydpad.texture.identify import Identification
+
+#: Per family: (the channel rendered, the band compared in Hz, the scan's observable).
+OBSERVABLES = {"friction": ("tension", (2.0, 100.0), "friction")}
+DEFAULT_OBSERVABLE = ("vibration", BAND_HZ, "acceleration")
+
+
+def shape_distance_db(p1: np.ndarray, p2: np.ndarray, f: np.ndarray | None = None) -> float:
+    """RMS of the dB difference of two spectra after removing its mean and, given the
+    frequencies ``f``, its linear trend in log f (shape only)."""
+    d = 10 * np.log10(np.maximum(p1, 1e-30) / np.maximum(p2, 1e-30))
+    if f is None:
+        d = d - d.mean()
+    else:
+        lf = np.log(f)
+        d = d - np.polyval(np.polyfit(lf, d, 1), lf)
+    return float(np.sqrt(np.mean(d * d)))
+
+
+def observe(scan, what: str, highpass_hz: float = 10.0) -> np.ndarray:
+    """The scan's signal a family is compared with (see the module docstring)."""
+    if what == "friction":
+        from fydpad.texture.friction import friction_coefficient
+
+        ff = getattr(scan, "friction_n", None)
+        if ff is None or scan.force_n is None:
+            raise ValueError(f"{scan.path}: no friction_n/force_n columns")
+        mu = friction_coefficient(ff, scan.force_n)
+        return np.nan_to_num(mu - np.nanmean(mu))
+    return preprocess(scan.acc, scan.fs_hz, highpass_hz)
+
+
+def identify_families(models: Sequence, labels: Sequence[str], scans: Sequence, *,
+                      highpass_hz: float = 10.0,
+                      wrap: Callable[[Iterable], Iterable] = lambda it: it
+                      ) -> Identification:
+    """Assign each scan to the nearest model (all of one family, one per surface)."""
+    names = list(dict.fromkeys(list(labels) + [s.surface for s in scans]))
+    conf = np.zeros((len(names), len(names)), int)
+    assignments = []
+    channel, band, what = OBSERVABLES.get(models[0].kind, DEFAULT_OBSERVABLE)
+    for scan in wrap(scans):
+        finger = finger_from_scan(scan)
+        mask = scan.speed_mm_s > 1.0
+        f, pr = welch_psd(observe(scan, what, highpass_hz), scan.fs_hz, mask)
+        sel = (f >= band[0]) & (f <= min(band[1], scan.fs_hz / 2))
+        dists = []
+        for m in models:
+            m.reset()
+            syn = m.render(finger, channel)
+            _, ps = welch_psd(syn - np.mean(syn), scan.fs_hz, mask)
+            dists.append(shape_distance_db(pr[sel], ps[sel], f[sel]))
+        j = int(np.argmin(dists))
+        conf[names.index(scan.surface), names.index(labels[j])] += 1
+        assignments.append({"scan": scan.path, "label": scan.surface, "predicted": labels[j],
+                            "shape_distance_db": {lab: round(d, 3) for lab, d in
+                                                  zip(labels, dists, strict=True)}})
+    rate = float(np.trace(conf) / max(1, conf.sum()))
+    return Identification(names, conf.tolist(), rate, assignments)
+
+
+# --------------------------------------------------------------- the cross-family run
+def by_surface(scans: Sequence) -> dict[str, list]:
+    out: dict[str, list] = {}
+    for s in scans:
+        out.setdefault(s.surface, []).append(s)
+    return out
+
+
+def fit_per_surface(kind: str, train: dict[str, list], **options) -> tuple[list, list[str]]:
+    """One model of ``kind`` per surface (fitted in memory, as ``fit --kind`` would)."""
+    from fydpad.texture.families import get_kind
+
+    k = get_kind(kind)
+    models, labels = [], []
+    for label, scans in train.items():
+        opts = dict(options.get(kind, {}))
+        if kind == "lpc":
+            opts.setdefault("order", 60)
+            opts.setdefault("speeds_mm_s", sorted({round(float(np.median(s.speed_mm_s)) / 5)
+                                                   * 5.0 for s in scans}))
+        data = k.fit(scans, surface=label, **opts)
+        models.append(k.from_json(data, f"{kind}:{label}"))
+        labels.append(label)
+    return models, labels
+
+
+def compare_families(train: Sequence, test: Sequence, kinds: Sequence[str],
+                     wrap: Callable[[Iterable], Iterable] = lambda it: it
+                     ) -> dict[str, Identification | str]:
+    """Per family: fit one model per training surface, identify every test scan."""
+    out: dict[str, Identification | str] = {}
+    groups = by_surface(train)
+    for kind in kinds:
+        try:
+            models, labels = fit_per_surface(kind, groups)
+        except Exception as exc:  # a family that cannot fit these scans is reported
+            out[kind] = f"not fitted: {exc}"
+            continue
+        out[kind] = identify_families(models, labels, test, wrap=wrap)
+    return out
+
+
+# --------------------------------------------------------------- paper 004 Table I
+def press_stiffness(drive, k_n_per_mm: float, rng: np.random.Generator) -> float:
+    """Render ``k_n_per_mm`` on the simulated fabric and measure it as the paper's
+    indenter does: press 0.5-10 mm (noisy force and depth), fit F = k delta."""
+    from fydpad.motors.sim import indenter_press
+    from fydpad.softness import fit_through_origin
+
+    drive.set_stiffness(k_n_per_mm)
+
+    def hold(ticks: int = 5) -> None:
+        for _ in range(ticks):
+            drive.tick(0.0)
+
+    hold(600)
+    d, f = indenter_press(drive.motors.plant, np.linspace(0.5, 10.0, 12), rng, hold=hold)
+    return fit_through_origin(d, f).k_n_per_mm
+
+
+def specimen_experiment(kind: str, train: dict[str, list], test: dict[str, list],
+                        reference: dict[str, list], trials: int = 3, seed: int = 0) -> dict:
+    """Paper 004's 2 x 2 (S1/S2 x R1/R2, specimens SS1..SS4) with the pad simulated.
+
+    Each trial renders a specimen: its roughness by the family's model of R1 or R2 along
+    a test stroke (vibration channel), its softness by the simulated motors holding the
+    specimen's stiffness, measured by a simulated indenter press. The identifier knows
+    the real specimens: their roughness scans (``reference``, spectra) and stiffness
+    (Table I). Spectra alone cannot separate SS1 from SS3 (both R1): they get the same
+    reference spectrum. With the stiffness feature the nearest specimen uses both,
+    each distance scaled by its spread over the specimens.
+    """
+    from fydpad.motors.drive import build_drive
+    from fydpad.softness import SPECIMENS
+    from fydpad.texture.families import finger_from_scan
+
+    names = sorted(SPECIMENS)
+    rough = {n: "R1" if abs(SPECIMENS[n].period_mm - 3.90) < 0.01 else "R2" for n in names}
+    models, labels = fit_per_surface(kind, {r: train[r] for r in ("R1", "R2")})
+    fam = dict(zip(labels, models, strict=True))
+    channel, band, what = OBSERVABLES.get(kind, DEFAULT_OBSERVABLE)
+    ref_psd = {}
+    for r in ("R1", "R2"):
+        ps = []
+        for sc in reference[r]:
+            f, p = welch_psd(observe(sc, what), sc.fs_hz, sc.speed_mm_s > 1)
+            ps.append(p)
+        ref_psd[r] = np.mean(ps, axis=0)
+    sel = (f >= band[0]) & (f <= band[1])
+    drive = build_drive(_sim_motors())  # its softness table measured on the plant
+    drive.start()
+    rng = np.random.default_rng(seed)
+    conf = {"spectra": np.zeros((4, 4), int), "spectra+stiffness": np.zeros((4, 4), int)}
+    rows = []
+    try:
+        for n in names:
+            for k in range(trials):
+                r = rough[n]
+                stroke = test[r][k % len(test[r])]
+                m = fam[r]
+                m.reset()
+                syn = m.render(finger_from_scan(stroke), channel)
+                _, ps = welch_psd(syn - syn.mean(), stroke.fs_hz, stroke.speed_mm_s > 1)
+                d_spec = np.array([shape_distance_db(ref_psd[rough[j]][sel], ps[sel], f[sel])
+                                   for j in names])
+                k_hat = press_stiffness(drive, SPECIMENS[n].lambda_n_per_mm, rng)
+                d_k = np.array([abs(np.log(k_hat / SPECIMENS[j].lambda_n_per_mm))
+                                for j in names])
+                i = names.index(n)
+                conf["spectra"][i, int(np.argmin(d_spec))] += 1
+                spread_s = np.ptp(d_spec) or 1.0
+                spread_k = np.ptp([np.log(SPECIMENS[j].lambda_n_per_mm) for j in names])
+                both = d_spec / spread_s + d_k / spread_k
+                conf["spectra+stiffness"][i, int(np.argmin(both))] += 1
+                rows.append({"specimen": n, "trial": k, "k_measured_n_per_mm": round(k_hat, 4),
+                             "spectral_distance_db": dict(zip(names, np.round(d_spec, 3)
+                                                              .tolist(), strict=True))})
+    finally:
+        drive.safe_stop()
+    return {
+        "kind": kind, "specimens": names, "trials": trials,
+        "rate": {key: float(np.trace(c) / c.sum()) for key, c in conf.items()},
+        "confusion": {key: c.tolist() for key, c in conf.items()}, "rows": rows,
+    }
+
+
+def _sim_motors():
+    from dataclasses import replace
+
+    from fydpad.motors.base import MotorConfig
+
+    return replace(MotorConfig(), backend="sim")

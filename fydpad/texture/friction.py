@@ -1,0 +1,244 @@
+"""Position-indexed friction playback (paper 001, section IV-B).
+
+Fit: mu(x) = F_f(x) / F_n(x) (eq. 1) from scans with ``force_n``, ``friction_n`` and a
+position, resampled onto a uniform position grid and low-passed. The paper low-passes
+the recorded signal at 100 Hz in time; a position-indexed model is sampled in x, so the
+cutoff is applied in x at k_c = 100 Hz / v_ref cycles/mm, with v_ref the median sliding
+speed of the scans: the paper's filter at the speed the texture was scanned, but not
+moving with the hand's speed wander within a stroke (docs/texture_friction.md).
+
+Playback by position whatever the speed: u = (x - x0) mod L on the recorded strip.
+
+- External electrostatic display (``audio`` channel, 44.1/48 kHz): eq. 2,
+  V = b mu(x) Y(t), Y the 0/1 square carrier at 240 Hz, b = 400 V by default.
+- FYD-pad (no electrode; ``vibration`` and ``tension`` at 1 kHz):
+  tension: s = clip(1 + g_t (mu(x) - mu_mean) / mu_mean, 0.5, 1.5), a scale on the
+  softness stiffness request (more friction, a tauter, stiffer fabric);
+  vibration: a = g_v (mu(x) - mu_mean) / mu_mean in m/s^2 while the finger slides,
+  faded in over 0-``still_mm_s`` of speed (a resting finger feels no friction change).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import scipy.signal as ss
+
+from fydpad.errors import UserError
+from fydpad.texture.families import (
+    Kind,
+    _check_channel,
+    register_kind,
+    require,
+    require_version,
+)
+from fydpad.texture.family import Array, FingerBlock, TickPosition
+
+KIND = "friction"
+FORMAT_VERSION = 1
+CARRIER_HZ = 240.0  # the most sensitive frequency (001 IV-B)
+B_DEFAULT = 400.0  # V per unit mu, before the staircase (001 IV-B)
+LOWPASS_HZ = 100.0
+
+
+def friction_coefficient(friction_n: Array, force_n: Array, min_force_n: float = 0.05
+                         ) -> Array:
+    """mu = F_f / F_n (001 eq. 1); NaN where the normal force is below ``min_force_n``."""
+    fn = np.asarray(force_n, float)
+    ff = np.asarray(friction_n, float)
+    return np.where(fn >= min_force_n, np.abs(ff) / np.where(fn > 0, fn, 1.0), np.nan)
+
+
+def lowpass_position(mu: Array, dx_mm: float, cutoff_per_mm: float, order: int = 4) -> Array:
+    """Zero-phase Butterworth low-pass of a position-sampled signal (cycles/mm)."""
+    nyq = 0.5 / dx_mm
+    if cutoff_per_mm >= nyq:
+        return np.asarray(mu, float).copy()
+    sos = ss.butter(order, cutoff_per_mm, fs=1.0 / dx_mm, output="sos")
+    return ss.sosfiltfilt(sos, mu)
+
+
+def mu_on_grid(x_mm: Array, mu: Array, x0_mm: float, dx_mm: float, n: int) -> Array:
+    """mu samples at increasing positions -> the grid x0 + k dx (NaN outside)."""
+    grid = x0_mm + dx_mm * np.arange(n)
+    out = np.interp(grid, x_mm, mu, left=np.nan, right=np.nan)
+    return out
+
+
+def fit_friction(scans: list, *, dx_mm: float = 0.01, lowpass_hz: float = LOWPASS_HZ,
+                 min_speed_fraction: float = 0.5, surface: str | None = None,
+                 b: float = B_DEFAULT, min_force_n: float = 0.05) -> dict[str, Any]:
+    """A friction model file (JSON dict) from scans with force_n, friction_n and x_mm.
+
+    Only steady sliding is used (speed >= ``min_speed_fraction`` x the scan's median):
+    at rest the contact sticks and F_f / F_n is any value below mu_s. Scans cover their
+    own strips of the surface; where they overlap their mu are averaged.
+    """
+    if not scans:
+        raise UserError("fit --kind friction: no scans")
+    pieces = []
+    for sc in scans:
+        ff = getattr(sc, "friction_n", None)
+        x = getattr(sc, "x_mm", None)
+        if ff is None or sc.force_n is None:
+            raise UserError(f"{sc.path}: column 'friction_n' and 'force_n' are needed for a "
+                            "friction model (RECORDING_FORMAT.md, texture scan)")
+        if x is None:
+            raise UserError(f"{sc.path}: column 'x_mm' is needed: friction is played back "
+                            "by position")
+        v = np.abs(sc.speed_mm_s)
+        vmed = float(np.median(v[v > 0])) if np.any(v > 0) else 0.0
+        keep = (v >= min_speed_fraction * vmed) & np.isfinite(x)
+        mu = friction_coefficient(ff, sc.force_n, min_force_n)
+        keep &= np.isfinite(mu)
+        if keep.sum() < 16 or vmed <= 0:
+            raise UserError(f"{sc.path}: too little steady sliding to fit mu(x)")
+        pieces.append((sc, np.asarray(x)[keep], mu[keep], v[keep]))
+    v_ref = float(np.median(np.concatenate([p[3] for p in pieces])))
+    cutoff = lowpass_hz / v_ref
+    x0 = min(float(p[1].min()) for p in pieces)
+    x1 = max(float(p[1].max()) for p in pieces)
+    n = int((x1 - x0) / dx_mm) + 1
+    acc = np.zeros(n)
+    w = np.zeros(n)
+    for _sc, x, mu, _ in pieces:
+        order = np.argsort(x, kind="stable")
+        xs, ms = x[order], mu[order]
+        # Equal positions (a hand that paused): average them.
+        uniq, inv = np.unique(xs, return_inverse=True)
+        ms = np.bincount(inv, ms) / np.bincount(inv)
+        g = mu_on_grid(uniq, ms, x0, dx_mm, n)
+        ok = np.isfinite(g)
+        filt = np.full(n, np.nan)
+        # Low-pass each scan's strip on its own (no jump at a strip's edge).
+        for a, bnd in _runs(ok):
+            seg = g[a:bnd]
+            pad = min(seg.size - 1, int(3 / cutoff / dx_mm))
+            ext = np.pad(seg, pad, mode="reflect") if pad > 0 else seg
+            y = lowpass_position(ext, dx_mm, cutoff)
+            filt[a:bnd] = y[pad:pad + seg.size]
+        ok = np.isfinite(filt)
+        acc[ok] += filt[ok]
+        w[ok] += 1.0
+    covered = w > 0
+    mu_grid = np.full(n, np.nan)
+    mu_grid[covered] = acc[covered] / w[covered]
+    if not covered.all():  # gaps between strips: linear across
+        k = np.arange(n)
+        mu_grid = np.interp(k, k[covered], mu_grid[covered])
+    return {
+        "format": "fydpad-texture-model", "kind": KIND, "format_version": FORMAT_VERSION,
+        "surface": surface or scans[0].surface,
+        "x0_mm": x0, "dx_mm": dx_mm, "mu": [round(float(m), 6) for m in mu_grid],
+        "lowpass": {"domain": "position", "hz_at_reference_speed": lowpass_hz,
+                    "reference_speed_mm_s": v_ref, "cutoff_cycles_per_mm": cutoff},
+        "electrostatic": {"b_v": b, "carrier_hz": CARRIER_HZ, "carrier": "square 0/1"},
+        "fydpad": {"vibration_gain_m_s2": 2.0, "tension_gain": 1.0, "still_mm_s": 2.0},
+        "provenance": {"scans": [str(s.path) for s in scans], "method": "001 IV-B eq. 1"},
+    }
+
+
+def _runs(mask: Array) -> list[tuple[int, int]]:
+    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    starts, stops = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    return list(zip(starts.tolist(), stops.tolist(), strict=True))
+
+
+class FrictionFamily:
+    """Plays mu(x) back by position on the audio, vibration and tension channels."""
+
+    kind = KIND
+    tick_channels = ("vibration", "tension")
+
+    def __init__(self, mu: Array, x0_mm: float, dx_mm: float, *, b: float = B_DEFAULT,
+                 carrier_hz: float = CARRIER_HZ, vibration_gain_m_s2: float = 2.0,
+                 tension_gain: float = 1.0, still_mm_s: float = 2.0,
+                 audio_hz: float = 48_000.0, surface: str = ""):
+        self.mu = np.asarray(mu, float)
+        self._mu = [*self.mu.tolist(), float(self.mu[0])]  # floats for the tick (wraps)
+        self.x0_mm, self.dx_mm = float(x0_mm), float(dx_mm)
+        self.length_mm = self.mu.size * self.dx_mm
+        self.mu_mean = float(np.mean(self.mu))
+        self.b, self.carrier_hz = float(b), float(carrier_hz)
+        self.vibration_gain_m_s2 = float(vibration_gain_m_s2)
+        self.tension_gain = float(tension_gain)
+        self.still_mm_s = float(still_mm_s)
+        self.surface = surface
+        self.channels = {"vibration": 1000.0, "tension": 1000.0, "audio": float(audio_hz)}
+        self._pos = TickPosition()
+
+    # ------------------------------------------------------------------ pure parts
+    def mu_at(self, x_mm: Array | float) -> Array:
+        """mu at finger positions (the strip tiled along x: (x - x0) mod L)."""
+        u = np.mod(np.asarray(x_mm, float) - self.x0_mm, self.length_mm) / self.dx_mm
+        return np.interp(u, np.arange(self.mu.size + 1),
+                         np.concatenate([self.mu, self.mu[:1]]))
+
+    def tension_of(self, mu: Array) -> Array:
+        return np.clip(1.0 + self.tension_gain * (mu - self.mu_mean) / self.mu_mean, 0.5, 1.5)
+
+    def vibration_of(self, mu: Array, speed_mm_s: Array, contact: Array) -> Array:
+        fade = np.clip(np.asarray(speed_mm_s) / self.still_mm_s, 0.0, 1.0) * contact
+        return self.vibration_gain_m_s2 * (mu - self.mu_mean) / self.mu_mean * fade
+
+    def carrier(self, t_s: Array) -> Array:
+        """Y(t) of 001 eq. 2: 1 in the first half of each 1/f0 period, else 0."""
+        return (np.mod(np.asarray(t_s) * self.carrier_hz, 1.0) < 0.5).astype(float)
+
+    # ------------------------------------------------------------------ interface
+    def render(self, finger: FingerBlock, channel: str) -> Array:
+        _check_channel(self, channel)
+        c = finger.contact.astype(float)
+        mu = self.mu_at(np.where(finger.contact, finger.x_mm, self.x0_mm))
+        if channel == "audio":
+            return self.b * mu * self.carrier(finger.t_s) * c
+        if channel == "tension":
+            return np.where(finger.contact, self.tension_of(mu), 1.0)
+        return self.vibration_of(mu, finger.speed_mm_s, c)
+
+    def tick(self, t_s: float, contact: bool, x_mm: float, y_mm: float,
+             speed_mm_s: float, force_n: float) -> tuple[float, ...]:
+        x = self._pos.update(t_s, contact, x_mm)
+        if not contact or x != x:
+            return (0.0, 1.0)
+        u = ((x - self.x0_mm) % self.length_mm) / self.dx_mm
+        i = min(int(u), len(self._mu) - 2)
+        f = u - i
+        mu = self._mu[i] * (1.0 - f) + self._mu[i + 1] * f
+        rel = (mu - self.mu_mean) / self.mu_mean
+        fade = min(max(speed_mm_s / self.still_mm_s, 0.0), 1.0)
+        return (self.vibration_gain_m_s2 * rel * fade,
+                min(max(1.0 + self.tension_gain * rel, 0.5), 1.5))
+
+    def reset(self) -> None:
+        self._pos.reset()
+
+
+def parse_friction(data: dict[str, Any], where: str) -> FrictionFamily:
+    """Check a friction model file; errors name the file and the key."""
+    require_version(data, where, KIND, FORMAT_VERSION)
+    mu = require(data, "mu", where, list)
+    try:
+        arr = np.asarray(mu, float)
+    except (TypeError, ValueError):
+        raise UserError(f"{where}: key 'mu' must be a list of numbers") from None
+    if arr.ndim != 1 or arr.size < 2 or not np.isfinite(arr).all() or (arr <= 0).any():
+        raise UserError(f"{where}: key 'mu' must hold at least 2 finite positive numbers")
+    dx = float(require(data, "dx_mm", where))
+    if not dx > 0 or not math.isfinite(dx):
+        raise UserError(f"{where}: key 'dx_mm' must be positive")
+    x0 = float(require(data, "x0_mm", where))
+    es = data.get("electrostatic", {})
+    pad = data.get("fydpad", {})
+    return FrictionFamily(
+        arr, x0, dx, b=float(es.get("b_v", B_DEFAULT)),
+        carrier_hz=float(es.get("carrier_hz", CARRIER_HZ)),
+        vibration_gain_m_s2=float(pad.get("vibration_gain_m_s2", 2.0)),
+        tension_gain=float(pad.get("tension_gain", 1.0)),
+        still_mm_s=float(pad.get("still_mm_s", 2.0)), surface=str(data.get("surface", "")))
+
+
+register_kind(Kind(KIND, parse_friction, fit_friction,
+                   "position-indexed friction coefficient mu(x), paper 001 IV-B"))

@@ -1,0 +1,317 @@
+"""Vibrotactile/friction gratings at a composition ratio (paper 002, section 4.2).
+
+    F_v = A sin(2 pi x / lambda)                       (eq. 1, voice coil, normal)
+    V_e = B cos(2 pi x / (2 lambda))                   (eq. 2, electrostatic voltage)
+    F_e = mu (W + k V_e^2) = mu (W + k B^2/2 (1 + cos(2 pi x / lambda)))   (eq. 3-4)
+
+A ratio v:f (0:10 ... 10:0) picks level v of the vibrotactile stimulus and level f of
+the friction one. Levels are linear in force between level 1 (just perceivable) and
+level 10 (realistic alone); level 0 is off (002 4.2.3): A_L = A_1 + (L-1)(A_10-A_1)/9,
+and the friction modulation mu k B_L^2 / 2 likewise, so B_L = sqrt(2 F_L / (mu k)).
+8:2 is the default for lambda >= 1 mm (002 Fig. 5: most chosen at 1.0-3.0 mm); below,
+6:4 (the most chosen at 0.5 mm, not significantly).
+
+Rectangular profile (the FYD-pad specimens R1 3.90 mm and R2 2.15 mm, ridge 90 %):
+the sine is replaced by p(x) = 2 (r(x) - d), r the 0/1 ridge indicator (raised-cosine
+edges ``edge_mm`` wide), d the ridge fraction: the same peak-to-peak 2 as the sine, zero
+mean. The friction follows the sine's quarter-period lead (002 4.2.2: friction goes with
+the gradient): V_e^2 = B^2 (1 + p(x + lambda/4)) / 2.
+
+Channels: ``vibration`` (FYD-pad, 1 kHz) = g_v F_v / A_10 in m/s^2; ``tension`` (FYD-pad)
+= clip(1 + g_t (F_e - mean F_e) / (mu W), 0.5, 1.5); ``audio`` = V_e in volts for an
+external electrostatic display, and ``force`` = F_v in N for an external voice coil.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from fydpad.errors import UserError
+from fydpad.texture.families import (
+    Kind,
+    _check_channel,
+    register_kind,
+    require,
+    require_version,
+)
+from fydpad.texture.family import Array, FingerBlock, TickPosition
+
+KIND = "grating"
+FORMAT_VERSION = 1
+PROFILES = ("sine", "rect")
+RATIOS = tuple((v, 10 - v) for v in range(11))  # 0:10 ... 10:0
+
+
+def default_ratio(wavelength_mm: float) -> tuple[int, int]:
+    return (8, 2) if wavelength_mm >= 1.0 else (6, 4)
+
+
+def level_value(level: int, at_1: float, at_10: float) -> float:
+    """Linear in force between level 1 and level 10; level 0 is off (002 4.2.3)."""
+    if not 0 <= level <= 10:
+        raise ValueError(f"level must be 0..10, got {level}")
+    return 0.0 if level == 0 else at_1 + (level - 1) * (at_10 - at_1) / 9.0
+
+
+def profile_wave(x_mm: Array, wavelength_mm: float, profile: str = "sine",
+                 ridge_fraction: float = 0.9, edge_mm: float = 0.1) -> Array:
+    """p(x): sin(2 pi x / lambda), or the zero-mean rectangular 2 (r(x) - d)."""
+    x = np.asarray(x_mm, float)
+    if profile == "sine":
+        return np.sin(2 * np.pi * x / wavelength_mm)
+    d = ridge_fraction * wavelength_mm
+    w = max(min(edge_mm, 0.5 * d, 0.5 * (wavelength_mm - d)), 1e-9)
+    # Position in the period, in [-w/2, lambda - w/2): the rise edge centred at 0, the
+    # fall edge at d, each a raised cosine w wide.
+    ph = np.mod(x + w / 2, wavelength_mm) - w / 2
+
+    def step(u: Array) -> Array:
+        return 0.5 - 0.5 * np.cos(np.pi * np.clip(u / w + 0.5, 0.0, 1.0))
+
+    r = step(ph) - step(ph - d)
+    return 2.0 * (r - ridge_fraction)
+
+
+def profile_scalar(x_mm: float, wavelength_mm: float, ridge_fraction: float,
+                   edge_mm: float) -> float:
+    """:func:`profile_wave` of the rectangle for one position, in floats (the 1 kHz tick)."""
+    d = ridge_fraction * wavelength_mm
+    w = max(min(edge_mm, 0.5 * d, 0.5 * (wavelength_mm - d)), 1e-9)
+    ph = (x_mm + w / 2) % wavelength_mm - w / 2
+
+    def step(u: float) -> float:
+        return 0.5 - 0.5 * math.cos(math.pi * min(max(u / w + 0.5, 0.0), 1.0))
+
+    return 2.0 * (step(ph) - step(ph - d) - ridge_fraction)
+
+
+class GratingFamily:
+    """A grating rendered by position at a vibrotactile:friction ratio."""
+
+    kind = KIND
+    tick_channels = ("vibration", "tension")
+
+    def __init__(self, wavelength_mm: float, *, profile: str = "sine",
+                 ridge_fraction: float = 0.9, ratio: tuple[int, int] | None = None,
+                 vib_levels_n: tuple[float, float] = (0.05, 0.5),
+                 friction_levels_n: tuple[float, float] = (0.02, 0.2),
+                 mu: float = 0.5, load_n: float = 0.5, k_n_per_v2: float = 2e-6,
+                 vibration_gain_m_s2: float = 2.0, tension_gain: float = 1.0,
+                 edge_mm: float = 0.1, audio_hz: float = 48_000.0, surface: str = ""):
+        if not wavelength_mm > 0:
+            raise ValueError("wavelength must be positive")
+        if profile not in PROFILES:
+            raise ValueError(f"profile must be one of {PROFILES}")
+        self.wavelength_mm = float(wavelength_mm)
+        self.profile, self.ridge_fraction, self.edge_mm = profile, ridge_fraction, edge_mm
+        self.ratio = tuple(ratio) if ratio is not None else default_ratio(wavelength_mm)
+        if self.ratio not in RATIOS:
+            raise ValueError(f"ratio must be v:f with v + f = 10, got {self.ratio}")
+        self.vib_levels_n, self.friction_levels_n = vib_levels_n, friction_levels_n
+        self.A_n = level_value(self.ratio[0], *vib_levels_n)
+        #: The friction modulation's amplitude mu k B^2 / 2, and B from it.
+        self.Fe_mod_n = level_value(self.ratio[1], *friction_levels_n)
+        self.mu, self.load_n, self.k_n_per_v2 = mu, load_n, k_n_per_v2
+        self.B_v = math.sqrt(2 * self.Fe_mod_n / (mu * k_n_per_v2))
+        self.vibration_gain_m_s2, self.tension_gain = vibration_gain_m_s2, tension_gain
+        self.surface = surface
+        self.channels = {"vibration": 1000.0, "tension": 1000.0, "audio": float(audio_hz),
+                         "force": float(audio_hz)}
+        self._pos = TickPosition()
+
+    # ------------------------------------------------------------------ eq. 1-4
+    def p(self, x_mm: Array) -> Array:
+        return profile_wave(x_mm, self.wavelength_mm, self.profile, self.ridge_fraction,
+                            self.edge_mm)
+
+    def force_v(self, x_mm: Array) -> Array:
+        """F_v(x) = A p(x) (eq. 1), N."""
+        return self.A_n * self.p(x_mm)
+
+    def voltage_sq(self, x_mm: Array) -> Array:
+        """V_e^2 (eq. 2): B^2 cos^2(pi x / lambda) = B^2 (1 + p(x + lambda/4)) / 2."""
+        x = np.asarray(x_mm, float)
+        if self.profile == "sine":
+            return (self.B_v * np.cos(2 * np.pi * x / (2 * self.wavelength_mm))) ** 2
+        return self.B_v ** 2 * 0.5 * (1.0 + self.p(x + self.wavelength_mm / 4))
+
+    def voltage(self, x_mm: Array) -> Array:
+        """V_e (eq. 2), V; for the rectangle the non-negative root of V_e^2."""
+        x = np.asarray(x_mm, float)
+        if self.profile == "sine":
+            return self.B_v * np.cos(2 * np.pi * x / (2 * self.wavelength_mm))
+        return np.sqrt(np.maximum(self.voltage_sq(x), 0.0))
+
+    def force_e(self, x_mm: Array) -> Array:
+        """F_e = mu (W + k V_e^2) (eq. 3), N."""
+        return self.mu * (self.load_n + self.k_n_per_v2 * self.voltage_sq(x_mm))
+
+    def tension_of(self, fe: Array) -> Array:
+        mean = self.mu * self.load_n + self.Fe_mod_n
+        return np.clip(1.0 + self.tension_gain * (fe - mean) / (self.mu * self.load_n),
+                       0.5, 1.5)
+
+    # ------------------------------------------------------------------ interface
+    def render(self, finger: FingerBlock, channel: str) -> Array:
+        _check_channel(self, channel)
+        c = finger.contact
+        x = np.where(c, finger.x_mm, 0.0)
+        if channel == "vibration":
+            a10 = self.vib_levels_n[1]
+            return self.vibration_gain_m_s2 * self.force_v(x) / a10 * c
+        if channel == "force":
+            return self.force_v(x) * c
+        if channel == "audio":
+            return self.voltage(x) * c
+        return np.where(c, self.tension_of(self.force_e(x)), 1.0)
+
+    def tick(self, t_s: float, contact: bool, x_mm: float, y_mm: float,
+             speed_mm_s: float, force_n: float) -> tuple[float, ...]:
+        x = self._pos.update(t_s, contact, x_mm)
+        if not contact or x != x:
+            return (0.0, 1.0)
+        lam = self.wavelength_mm
+        if self.profile == "sine":  # scalar math: no array per tick
+            fv = self.A_n * math.sin(2 * math.pi * x / lam)
+            v2 = (self.B_v * math.cos(math.pi * x / lam)) ** 2
+        else:
+            rf, e = self.ridge_fraction, self.edge_mm
+            fv = self.A_n * profile_scalar(x, lam, rf, e)
+            v2 = self.B_v ** 2 * 0.5 * (1.0 + profile_scalar(x + lam / 4, lam, rf, e))
+        fe = self.mu * (self.load_n + self.k_n_per_v2 * v2)
+        mean = self.mu * self.load_n + self.Fe_mod_n
+        ten = 1.0 + self.tension_gain * (fe - mean) / (self.mu * self.load_n)
+        return (self.vibration_gain_m_s2 * fv / self.vib_levels_n[1], min(max(ten, 0.5), 1.5))
+
+    def reset(self) -> None:
+        self._pos.reset()
+
+
+# ------------------------------------------------------------------ fit and file
+def estimate_wavelength(scans: list, band_mm: tuple[float, float] = (0.3, 10.0),
+                        dx_mm: float = 0.02, fmax_per_mm: float = 5.0) -> float:
+    """The spatial period of a grating from scans: the DFT321 signal resampled on the
+    position, its spatial power spectrum (averaged over scans), and the period whose
+    lines k / lambda below ``fmax_per_mm`` stand highest above the median on average
+    (a harmonic sum: the rectangle's lines, weighted by the tip's d^2/dt^2, need not
+    have the fundamental strongest); then the longest multiple of it whose in-between
+    lines also stand 10 dB out."""
+    from fydpad.texture.dft321 import preprocess
+
+    logs = []
+    for sc in scans:
+        x = getattr(sc, "x_mm", None)
+        if x is None:
+            x = np.cumsum(sc.speed_mm_s) / sc.fs_hz
+        a = preprocess(sc.acc, sc.fs_hz, 10.0)
+        keep = sc.speed_mm_s > 0.5 * np.median(sc.speed_mm_s)
+        xs, order = x[keep], np.argsort(x[keep], kind="stable")
+        xs, ys = xs[order], a[keep][order]
+        xs, idx = np.unique(xs, return_index=True)
+        grid = np.arange(xs[0], xs[-1], dx_mm)
+        g = np.interp(grid, xs, ys[idx])
+        f = np.fft.rfftfreq(g.size, dx_mm)
+        p = np.abs(np.fft.rfft((g - g.mean()) * np.hanning(g.size))) ** 2
+        logs.append((f, p))
+    f, p = logs[0][0], np.mean([np.interp(logs[0][0], fi, pi) for fi, pi in logs], axis=0)
+    lp = np.log(p + 1e-30 * p.max())
+    # Each bin's largest neighbour (a line spreads over a bin or two), over its median.
+    lp = np.maximum(np.maximum(lp, np.roll(lp, 1)), np.roll(lp, -1))
+    lp -= np.median(lp[(f > 1 / band_mm[1]) & (f < fmax_per_mm)])
+    df = f[1] - f[0]
+
+    def lines(lam: float, skip: int = 0, mean: bool = False) -> float:
+        """Log-power over the median summed (or averaged) at the lines k / lam < fmax;
+        ``skip``: only the lines with k not a multiple of it."""
+        k = np.arange(1, int(fmax_per_mm * lam) + 1)
+        if skip:
+            k = k[k % skip != 0]
+        if k.size == 0:
+            return -np.inf
+        v = lp[np.clip(np.round(k / lam / df).astype(int), 1, f.size - 2)]
+        return float(np.mean(v) if mean else np.sum(v))
+
+    cand = np.geomspace(band_mm[0], band_mm[1], 3000)
+    best = float(cand[int(np.argmax([lines(lam) for lam in cand]))])
+    # A multiple of the period scores as well as the period (its extra lines add ~0):
+    # go down to best / m while the lines best / m lacks do not stand 10 dB out.
+    changed = True
+    while changed:
+        changed = False
+        for m in (2, 3, 4, 5):
+            if best / m >= band_mm[0] and lines(best, skip=m, mean=True) < math.log(10.0):
+                best, changed = best / m, True
+                break
+    return best
+
+
+def fit_grating(scans: list | None = None, *, wavelength_mm: float | None = None,
+                profile: str = "rect", ridge_fraction: float = 0.9,
+                ratio: tuple[int, int] | None = None,
+                vib_levels_n: tuple[float, float] = (0.05, 0.5),
+                friction_levels_n: tuple[float, float] = (0.02, 0.2),
+                surface: str | None = None, **extra: Any) -> dict[str, Any]:
+    """A grating model file (JSON dict): parametric, lambda given or estimated from scans."""
+    how = "given"
+    if wavelength_mm is None:
+        if not scans:
+            raise UserError("fit --kind grating: give --wavelength-mm or scans to estimate it")
+        wavelength_mm = estimate_wavelength(scans)
+        how = "estimated from the scans' spatial spectrum"
+    fam = GratingFamily(wavelength_mm, profile=profile, ridge_fraction=ridge_fraction,
+                        ratio=ratio, vib_levels_n=vib_levels_n,
+                        friction_levels_n=friction_levels_n)
+    return {
+        "format": "fydpad-texture-model", "kind": KIND, "format_version": FORMAT_VERSION,
+        "surface": surface or (scans[0].surface if scans else f"grating_{wavelength_mm:g}mm"),
+        "wavelength_mm": float(wavelength_mm), "profile": profile,
+        "ridge_fraction": ridge_fraction, "ratio": list(fam.ratio),
+        "levels": {"vibrotactile_n": list(vib_levels_n), "friction_n": list(friction_levels_n)},
+        "electrostatic": {"mu": fam.mu, "load_n": fam.load_n, "k_n_per_v2": fam.k_n_per_v2},
+        "fydpad": {"vibration_gain_m_s2": fam.vibration_gain_m_s2,
+                   "tension_gain": fam.tension_gain},
+        "provenance": {"wavelength": how,
+                       "scans": [str(s.path) for s in scans] if scans else []},
+    }
+
+
+def _pair(d: dict, key: str, where: str) -> tuple[float, float]:
+    v = require(d, key, where, list)
+    if len(v) != 2 or not all(isinstance(a, int | float) and a >= 0 for a in v):
+        raise UserError(f"{where}: key '{key}' must be [level_1, level_10], non-negative")
+    return float(v[0]), float(v[1])
+
+
+def parse_grating(data: dict[str, Any], where: str) -> GratingFamily:
+    """Check a grating model file; errors name the file and the key."""
+    require_version(data, where, KIND, FORMAT_VERSION)
+    lam = float(require(data, "wavelength_mm", where))
+    if not lam > 0 or not math.isfinite(lam):
+        raise UserError(f"{where}: key 'wavelength_mm' must be positive")
+    profile = require(data, "profile", where, str)
+    if profile not in PROFILES:
+        raise UserError(f"{where}: key 'profile' must be one of {', '.join(PROFILES)}")
+    ratio = require(data, "ratio", where, list)
+    if tuple(ratio) not in RATIOS:
+        raise UserError(f"{where}: key 'ratio' must be [v, f] with v + f = 10, got {ratio}")
+    levels = require(data, "levels", where, dict)
+    es = data.get("electrostatic", {})
+    pad = data.get("fydpad", {})
+    rf = float(data.get("ridge_fraction", 0.9))
+    if not 0 < rf < 1:
+        raise UserError(f"{where}: key 'ridge_fraction' must be in (0, 1)")
+    return GratingFamily(
+        lam, profile=profile, ridge_fraction=rf, ratio=tuple(ratio),
+        vib_levels_n=_pair(levels, "vibrotactile_n", f"{where}: levels"),
+        friction_levels_n=_pair(levels, "friction_n", f"{where}: levels"),
+        mu=float(es.get("mu", 0.5)), load_n=float(es.get("load_n", 0.5)),
+        k_n_per_v2=float(es.get("k_n_per_v2", 2e-6)),
+        vibration_gain_m_s2=float(pad.get("vibration_gain_m_s2", 2.0)),
+        tension_gain=float(pad.get("tension_gain", 1.0)), surface=str(data.get("surface", "")))
+
+
+register_kind(Kind(KIND, parse_grating, fit_grating,
+                   "vibrotactile/friction grating at a ratio, paper 002 4.2"))

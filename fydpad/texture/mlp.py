@@ -1,0 +1,337 @@
+"""The neural-network texture model of thesis 003 (section 3.2, Tables 3.1-3.4).
+
+A 3-10-1 network maps the finger's velocity and force change to the normal
+acceleration of the texture:
+
+    net_j = logsig(sum_i w_in[j, i] u_i + b_in[j])        (eq. 4, 6; 10 hidden units)
+    a_z   = sum_j w_out[j] net_j + b_out                    (eq. 5, 7; purelin)
+
+with inputs u = scale((v_x, v_y, Δf)) and output a_z unscaled (see ``Scaling``).
+
+Δf, which the thesis never defines (it only says the recorder outputs "delta force"),
+is here the normal force minus its causal exponential moving mean with time constant
+``DF_TAU_S`` = 50 ms: the force's fluctuation around the hand's slowly varying push
+(a first-order high-pass at 1 / (2 pi tau) = 3.2 Hz). A first difference at 1 kHz
+would be mostly the force sensor's quantisation noise.
+
+v_x, v_y: the finger speed along the direction of its last position change (positions
+arrive at camera rate and are held between frames, so differencing them at 1 kHz
+would give spikes; the speed is already low-passed).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import scipy.signal as ss
+from numpy.typing import ArrayLike, NDArray
+
+from fydpad.errors import UserError
+
+Array = NDArray[np.float64]
+FORMAT = "fydpad-texture-model"
+KIND = "mlp"
+FORMAT_VERSION = 1
+BAND_HZ = (5.0, 500.0)  # thesis 3.2: hand jitter below 5 Hz, insensitivity above 500 Hz
+DF_TAU_S = 0.05
+INPUTS = ("vx_mm_s", "vy_mm_s", "df_n")
+THESIS_MODEL = Path(__file__).with_name("data") / "thesis_mlp.json"
+
+
+# ------------------------------------------------------------------ features
+def bandpass_fft(x: ArrayLike, fs_hz: float, band_hz: tuple[float, float] = BAND_HZ) -> Array:
+    """Thesis 3.2: DFT, zero every bin outside ``band_hz`` (inclusive), inverse DFT."""
+    x = np.asarray(x, float)
+    spec = np.fft.rfft(x)
+    f = np.fft.rfftfreq(x.size, 1.0 / fs_hz)
+    spec[(f < band_hz[0]) | (f > band_hz[1])] = 0.0
+    return np.fft.irfft(spec, x.size)
+
+
+def delta_force(force_n: ArrayLike, fs_hz: float, tau_s: float = DF_TAU_S,
+                mean_n: float | None = None) -> tuple[Array, float]:
+    """Δf(k) = f(k) - m(k-1), m(k) = m(k-1) + alpha Δf(k), alpha = 1 - exp(-1/(tau fs)).
+
+    ``mean_n`` is the moving mean carried from the previous block (None: start at the
+    first force, so a block starts without a step). Returns (Δf, the new mean).
+    """
+    f = np.asarray(force_n, float)
+    if f.size == 0:
+        return f.copy(), (0.0 if mean_n is None else float(mean_n))
+    alpha = 1.0 - math.exp(-1.0 / (tau_s * fs_hz))
+    m0 = float(f[0]) if mean_n is None else float(mean_n)
+    m, _ = ss.lfilter([alpha], [1.0, alpha - 1.0], f, zi=[(1.0 - alpha) * m0])
+    prev = np.concatenate([[m0], m[:-1]])
+    return f - prev, float(m[-1])
+
+
+def velocity_xy(x_mm: ArrayLike, y_mm: ArrayLike, speed_mm_s: ArrayLike,
+                last: tuple[float, float, float] = (math.nan, math.nan, 0.0)
+                ) -> tuple[Array, Array, tuple[float, float, float]]:
+    """(v_x, v_y) = speed * (cos, sin) of the direction of the last position change.
+
+    ``last`` = (x, y, direction in rad) carried from the previous block; the direction
+    is 0 (+x) until the finger first moves. Returns (v_x, v_y, new ``last``).
+    """
+    x = np.asarray(x_mm, float)
+    y = np.asarray(y_mm, float)
+    v = np.asarray(speed_mm_s, float)
+    if x.size == 0:
+        return x.copy(), x.copy(), last
+    px = np.concatenate([[last[0]], x[:-1]])
+    py = np.concatenate([[last[1]], y[:-1]])
+    dx, dy = x - px, y - py
+    moved = np.isfinite(dx) & np.isfinite(dy) & ((dx != 0) | (dy != 0))
+    ang = np.where(moved, np.arctan2(dy, dx), np.nan)
+    # forward-fill the direction of the last move
+    idx = np.where(moved, np.arange(x.size), -1)
+    np.maximum.accumulate(idx, out=idx)
+    theta = np.where(idx >= 0, ang[np.maximum(idx, 0)], last[2])
+    return v * np.cos(theta), v * np.sin(theta), (float(x[-1]), float(y[-1]), float(theta[-1]))
+
+
+# ------------------------------------------------------------------ network
+@dataclass
+class MlpNet:
+    """Weights of an n_in-H-1 network (logsig hidden, purelin output), network units."""
+
+    w_in: Array  # (H, n_in)
+    b_in: Array  # (H,)
+    w_out: Array  # (H,)
+    b_out: float
+
+    @property
+    def hidden(self) -> int:
+        return int(self.w_in.shape[0])
+
+    def forward(self, u: ArrayLike) -> Array:
+        """Outputs for inputs ``u`` of shape (n, n_in): eq. 4-7."""
+        u = np.asarray(u, float)
+        z = u @ self.w_in.T + self.b_in
+        return logsig(z) @ self.w_out + self.b_out
+
+
+def logsig(z: Array) -> Array:
+    """1 / (1 + exp(-z)) without overflow warnings (thesis eq. 4)."""
+    return 0.5 * (1.0 + np.tanh(0.5 * z))
+
+
+@dataclass
+class Scaling:
+    """u = (x - in_offset) * in_scale; y = out_offset + out_scale * net(u).
+
+    Trained here with MATLAB's default (``mapminmax``: each input and the target mapped
+    to [-1, 1] by their training min and max); the thesis names MATLAB's functions
+    (logsig, purelin) but does not state its scaling.
+    """
+
+    in_offset: Array
+    in_scale: Array
+    out_offset: float = 0.0
+    out_scale: float = 1.0
+    method: str = "mapminmax"
+    known: bool = True
+
+    @classmethod
+    def mapminmax(cls, x: Array, y: Array) -> Scaling:
+        lo, hi = x.min(axis=0), x.max(axis=0)
+        span = np.where(hi > lo, hi - lo, 1.0)  # a constant input maps to 0
+        ylo, yhi = float(y.min()), float(y.max())
+        return cls(0.5 * (lo + hi), 2.0 / span, 0.5 * (ylo + yhi),
+                   0.5 * (yhi - ylo) if yhi > ylo else 1.0)
+
+    def inputs(self, x: ArrayLike) -> Array:
+        return (np.asarray(x, float) - self.in_offset) * self.in_scale
+
+    def target(self, y: ArrayLike) -> Array:
+        return (np.asarray(y, float) - self.out_offset) / self.out_scale
+
+
+@dataclass
+class MlpModel:
+    """A thesis-style texture network with its input/output scaling and data settings."""
+
+    net: MlpNet
+    scaling: Scaling
+    fs_hz: float = 1000.0
+    band_hz: tuple[float, float] = BAND_HZ
+    df_tau_s: float = DF_TAU_S
+    target: str = "az"  # the accelerometer axis normal to the surface (thesis 3.1)
+    surface: str = ""
+    provenance: dict[str, Any] = field(default_factory=dict)
+
+    def predict(self, vx_mm_s: ArrayLike, vy_mm_s: ArrayLike, df_n: ArrayLike) -> Array:
+        """Normal acceleration in m/s^2 for per-sample inputs."""
+        x = np.column_stack([np.ravel(vx_mm_s), np.ravel(vy_mm_s), np.ravel(df_n)])
+        return self.scaling.out_offset + self.scaling.out_scale * self.net.forward(
+            self.scaling.inputs(x))
+
+
+# ------------------------------------------------------------------ model file
+def model_to_json(model: MlpModel) -> dict[str, Any]:
+    s = model.scaling
+    return {
+        "format": FORMAT,
+        "kind": KIND,
+        "format_version": FORMAT_VERSION,
+        "surface": model.surface,
+        "sample_rate_hz": model.fs_hz,
+        "inputs": list(INPUTS),
+        "output": f"{model.target}_m_s2",
+        "hidden_activation": "logsig",
+        "output_activation": "purelin",
+        "band_hz": list(model.band_hz),
+        "delta_force": {"definition": "force_n minus its causal exponential moving mean",
+                        "tau_s": model.df_tau_s},
+        "weights": {
+            "input": [[float(w) for w in row] for row in model.net.w_in],
+            "input_bias": [float(b) for b in model.net.b_in],
+            "output": [float(w) for w in model.net.w_out],
+            "output_bias": float(model.net.b_out),
+        },
+        "scaling": {
+            "method": s.method, "known": s.known,
+            "input_offset": [float(v) for v in s.in_offset],
+            "input_scale": [float(v) for v in s.in_scale],
+            "output_offset": float(s.out_offset), "output_scale": float(s.out_scale),
+            "convention": "u = (x - input_offset) * input_scale; "
+                          "y = output_offset + output_scale * net(u)",
+        },
+        "provenance": model.provenance,
+    }
+
+
+def save_mlp(model: MlpModel, path: str | Path) -> Path:
+    path = Path(path)
+    path.write_text(json.dumps(model_to_json(model), indent=1) + "\n", encoding="utf-8")
+    return path
+
+
+def _key(d: Any, key: str, where: str) -> Any:
+    if not isinstance(d, dict) or key not in d:
+        raise UserError(f"{where}: missing key '{key}'")
+    return d[key]
+
+
+def _vector(d: Any, key: str, where: str, shape: tuple[int, ...]) -> Array:
+    raw = _key(d, key, where)
+    try:
+        a = np.asarray(raw, float)
+    except (TypeError, ValueError):
+        raise UserError(f"{where}: key '{key}' must be numbers") from None
+    if a.shape != shape:
+        raise UserError(f"{where}: key '{key}' has shape {a.shape}, expected {shape}")
+    if not np.isfinite(a).all():
+        raise UserError(f"{where}: key '{key}' is not finite")
+    return a
+
+
+def parse_mlp(data: Any, where: str = "model") -> MlpModel:
+    """Check and convert a parsed JSON network; errors name the file and the key."""
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise UserError(f"{where}: not a fydpad texture model (key 'format' must be '{FORMAT}')")
+    if data.get("kind") != KIND:
+        raise UserError(f"{where}: key 'kind' is {data.get('kind')!r}, expected '{KIND}'")
+    if data.get("format_version") != FORMAT_VERSION:
+        raise UserError(f"{where}: key 'format_version' is {data.get('format_version')!r}; "
+                        f"this fydpad reads mlp version {FORMAT_VERSION} only")
+    if list(data.get("inputs", INPUTS)) != list(INPUTS):
+        raise UserError(f"{where}: key 'inputs' must be {list(INPUTS)}")
+    w = _key(data, "weights", where)
+    rows = _key(w, "input", f"{where}: weights")
+    hidden = len(rows) if isinstance(rows, list) else 0
+    if hidden < 1:
+        raise UserError(f"{where}: key 'weights.input' must list one row per hidden unit")
+    ww = f"{where}: weights"
+    net = MlpNet(_vector(w, "input", ww, (hidden, len(INPUTS))),
+                 _vector(w, "input_bias", ww, (hidden,)),
+                 _vector(w, "output", ww, (hidden,)),
+                 float(_vector(w, "output_bias", ww, ())))
+    sc = _key(data, "scaling", where)
+    sw = f"{where}: scaling"
+    scaling = Scaling(_vector(sc, "input_offset", sw, (len(INPUTS),)),
+                      _vector(sc, "input_scale", sw, (len(INPUTS),)),
+                      float(_vector(sc, "output_offset", sw, ())),
+                      float(_vector(sc, "output_scale", sw, ())),
+                      str(sc.get("method", "")), bool(sc.get("known", True)))
+    fs = float(_vector(data, "sample_rate_hz", where, ()))
+    band = _vector(data, "band_hz", where, (2,))
+    if not (fs > 0 and 0 <= band[0] < band[1]):
+        raise UserError(f"{where}: keys 'sample_rate_hz'/'band_hz' must be positive and "
+                        f"ordered (got {fs:g} Hz, {band.tolist()})")
+    tau = float(_vector(_key(data, "delta_force", where), "tau_s", f"{where}: delta_force", ()))
+    if not tau > 0:
+        raise UserError(f"{where}: key 'delta_force.tau_s' must be positive, got {tau:g}")
+    return MlpModel(net, scaling, fs, (float(band[0]), float(band[1])), tau,
+                    str(data.get("output", "az_m_s2")).removesuffix("_m_s2"),
+                    str(data.get("surface", "")), dict(data.get("provenance", {})))
+
+
+def load_mlp(path: str | Path) -> MlpModel:
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise UserError(f"{path}: missing") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise UserError(f"{path}: not a readable JSON model ({exc})") from None
+    return parse_mlp(data, str(path))
+
+
+def thesis_model() -> MlpModel:
+    """The thesis' trained weights (Tables 3.2-3.4, output bias 0.11); see its file."""
+    return load_mlp(THESIS_MODEL)
+
+
+# ------------------------------------------------------------------ registry
+def _family_from_json(data: dict[str, Any], where: str) -> Any:
+    from fydpad.texture.mlp_family import MlpTexture
+
+    return MlpTexture(parse_mlp(data, where))
+
+
+def _fit_json(scans: list, **options: Any) -> dict[str, Any]:
+    """``fit_family("mlp", scans, seed=.., learning_rate=.., mode=.., ...)``."""
+    from dataclasses import fields
+
+    from fydpad.texture.mlp_train import TrainConfig, fit_mlp
+
+    names = {f.name for f in fields(TrainConfig)}
+    surface = options.pop("surface", None)
+    bad = sorted(set(options) - names)
+    if bad:
+        raise UserError(f"mlp fit: unknown option(s) {', '.join(bad)} (known: "
+                        f"{', '.join(sorted(names | {'surface'}))})")
+    model, _, _ = fit_mlp(scans, TrainConfig(**options), surface=surface)
+    return model_to_json(model)
+
+
+def _register() -> None:
+    from fydpad.texture.families import Kind, register_kind
+
+    register_kind(Kind("mlp", _family_from_json, _fit_json,
+                       "3-10-1 network from (v_x, v_y, delta f) to the normal acceleration "
+                       "(thesis 003)"))
+    register_kind(Kind("mlp_lsf", _lsf_from_json, _lsf_fit,
+                       "network from (speed, force) to the LPC model's line spectral "
+                       "frequencies and variance, rendered by eq. 5"))
+
+
+def _lsf_from_json(data: dict[str, Any], where: str) -> Any:
+    from fydpad.texture.mlp_lsf import _family_from_json as from_json
+
+    return from_json(data, where)
+
+
+def _lsf_fit(scans: list, **options: Any) -> dict[str, Any]:
+    from fydpad.texture.mlp_lsf import _fit_json as fit
+
+    return fit(scans, **options)
+
+
+_register()

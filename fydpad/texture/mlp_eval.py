@@ -1,0 +1,297 @@
+"""Figures of docs/texture_mlp.md: the networks against the LPC family on held-out data.
+
+``python -m fydpad.texture.mlp_eval`` prints both tables (about 3 minutes);
+``python -m fydpad.texture.mlp_eval --plot DIR`` draws the spectra of docs/texture_mlp.md;
+``--identify`` gives the networks' identification rates (``families_compare``).
+
+1. the thesis network (fit_mlp) against the LPC family on the test thirds of the same
+   strokes, both modelling the z acceleration: R^2 (sample by sample) and the
+   power-spectrum correlation and log-spectral distance (``evaluate.compare``);
+2. the spectrum network (mlp_lsf) against the LPC family's interpolation on held-out
+   strokes at a modelled speed (20 mm/s) and between modelled speeds (25 mm/s), on the
+   LPC family's own signal (DFT321), with the ceiling of a second recording.
+
+Force: the generator's own ``force_n`` (``friction=True``); for comparison also
+``synthetic_force``, whose load follows the surface profile (the network's best case).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import replace
+
+import numpy as np
+import scipy.signal as ss
+from numpy.typing import NDArray
+
+from fydpad.errors import UserError
+from fydpad.texture.dft321 import preprocess
+from fydpad.texture.evaluate import compare, evaluate_scan, evaluation_mask
+from fydpad.texture.fit import fit_texture
+from fydpad.texture.mlp_family import MlpTexture
+from fydpad.texture.mlp_lsf import SpectrumTrainConfig, fit_spectrum_net
+from fydpad.texture.mlp_train import TrainConfig, fit_mlp, scan_features, thirds
+from fydpad.texture.scan_generator import DX_MM, TEXTURES, generate_scan, surface_profile
+from fydpad.texture.scan_io import Scan
+
+Array = NDArray[np.float64]
+SPEEDS = (10.0, 20.0, 30.0, 40.0)
+TEXTURES_EVAL = ("R1", "R2", "felt", "glass")
+_PROFILES: dict[str, Array] = {}
+
+
+def synthetic_force(scan: Scan, *, preload_n: float = 1.0, sway_n: float = 0.3,
+                    finger_n_mm: float = 1.5, noise_n: float = 0.005,
+                    full_scale_n: float = 10.0, bits: int = 10, seed: int = 0) -> Array:
+    """A force-sensor trace for a generated scan: what an FSR under the finger reads.
+
+    f = preload + slow sway (< 1 Hz) + finger stiffness * h(x(t)) + white noise, then
+    quantised like the thesis' 10-bit ADC over 10 N. h is the same surface profile the
+    generator's tip follows (so force and acceleration share the texture's phase).
+    """
+    name = scan.meta.get("surface", "")
+    if name not in TEXTURES or getattr(scan, "x_mm", None) is None:
+        raise ValueError(f"{scan.path}: synthetic force needs a generated scan (surface, x_mm)")
+    if name not in _PROFILES:
+        _PROFILES[name] = surface_profile(TEXTURES[name])
+    prof = _PROFILES[name]
+    rng = np.random.default_rng([seed, 0xF0 + len(scan.t_s)])
+    n = scan.t_s.size
+    slow = ss.sosfiltfilt(ss.butter(2, 1.0, fs=scan.fs_hz, output="sos"), rng.standard_normal(n))
+    slow *= sway_n / (np.std(slow) + 1e-12)
+    h = np.interp(scan.x_mm / DX_MM, np.arange(prof.size), prof)  # type: ignore[attr-defined]
+    f = preload_n + slow + finger_n_mm * (h - h.mean()) + noise_n * rng.standard_normal(n)
+    q = full_scale_n / 2 ** bits
+    return np.clip(np.round(f / q) * q, 0.0, full_scale_n)
+
+
+def stroke(texture: str, speed: float, seconds: float, seed: int,
+           force: str = "generator") -> Scan:
+    """A generated stroke with a force column: the generator's own (``friction=True``: a
+    hand's varying load plus sensor noise, independent of the profile) or ``"profile"``
+    (:func:`synthetic_force`: the load also follows h(x), the network's best case)."""
+    if force == "generator":
+        return generate_scan(texture, speed, seconds, seed=seed, friction=True)
+    if force != "profile":
+        raise ValueError(f"force must be 'generator' or 'profile', not {force!r}")
+    scan = generate_scan(texture, speed, seconds, seed=seed)
+    scan.force_n = synthetic_force(scan, seed=seed)
+    return scan
+
+
+def _third(scan: Scan, k: int, z_only: bool = False) -> Scan:
+    s = thirds(scan.t_s.size)[k]
+    acc = scan.acc[s]
+    if z_only:  # DFT321 of (0, 0, az) is az: the LPC family then models az as well
+        acc = np.column_stack([np.zeros((acc.shape[0], 2)), acc[:, 2]])
+    out = replace(scan, t_s=scan.t_s[s], acc=acc, speed_mm_s=scan.speed_mm_s[s],
+                  force_n=None if scan.force_n is None else scan.force_n[s])
+    out.x_mm = scan.x_mm[s]  # type: ignore[attr-defined]
+    return out
+
+
+def r_squared(target: Array, prediction: Array) -> float:
+    """1 - SS_res / SS_tot: 0 for predicting the mean, negative for worse."""
+    res = np.sum((target - prediction) ** 2)
+    tot = np.sum((target - target.mean()) ** 2)
+    return float(1.0 - res / tot)
+
+
+def thesis_vs_lpc(texture: str, cfg: TrainConfig | None = None, seconds: float = 12.0,
+                  speeds: Sequence[float] = SPEEDS, force: str = "generator"
+                  ) -> dict[str, float | str]:
+    """R^2, spectral correlation and LSD of both families on the strokes' test thirds."""
+    from fydpad.texture.families import finger_from_scan
+
+    cfg = cfg or TrainConfig()
+    scans = [stroke(texture, s, seconds, seed=1, force=force) for s in speeds]
+    try:
+        model, report, (tr, _va, te) = fit_mlp(scans, cfg)
+    except UserError:
+        return {"texture": texture, "stop": "diverged"}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        lpc, _ = fit_texture([_third(s, 0, z_only=True) for s in scans], speeds_mm_s=speeds)
+    rec_all, net_all, lpc_all, mask_all = [], [], [], []
+    m_net, m_lpc = [], []
+    for i, scan in enumerate(scans):
+        feats = scan_features(scan, model.band_hz, model.df_tau_s)
+        s = thirds(scan.t_s.size)[2]
+        rec = feats.y[s]
+        net = MlpTexture(model).render(finger_from_scan(scan))[s]
+        test = _third(scan, 2)
+        lpc_sig = _synth(lpc, test.speed_mm_s, seed=10 + i)  # LSF interpolation
+        mask = evaluation_mask(test, lpc)
+        m_net.append(compare(rec, net, scan.fs_hz, mask)[0])
+        m_lpc.append(compare(rec, lpc_sig, scan.fs_hz, mask)[0])
+        rec_all.append(rec[mask])
+        net_all.append(net[mask])
+        lpc_all.append(lpc_sig[mask])
+        mask_all.append(mask)
+    rec_c = np.concatenate(rec_all)
+    # What any function of these inputs could reach linearly: least squares on the test
+    # third itself (an optimistic ceiling for R^2 from (v, df)).
+    a = np.column_stack([np.ones(te.y.size), te.x, te.x[:, 2] * te.x[:, 0]])
+    coef, *_ = np.linalg.lstsq(a, te.y, rcond=None)
+    return {
+        "texture": texture, "stop": report.stop, "epochs": report.epochs,
+        "r2_mlp": r_squared(rec_c, np.concatenate(net_all)),
+        "r2_lpc": r_squared(rec_c, np.concatenate(lpc_all)),
+        "r2_linear_ceiling": r_squared(te.y, a @ coef),
+        "corr_mlp": float(np.mean([c.psd_correlation for c in m_net])),
+        "corr_lpc": float(np.mean([c.psd_correlation for c in m_lpc])),
+        "lsd_mlp": float(np.mean([c.lsd_db for c in m_net])),
+        "lsd_lpc": float(np.mean([c.lsd_db for c in m_lpc])),
+        "rms_ratio_mlp": float(np.std(np.concatenate(net_all)) / np.std(rec_c)),
+        "train_samples": int(tr.y.size),
+    }
+
+
+def _synth(model, speed: Array, seed: int) -> Array:
+    from fydpad.texture.synthesis import synthesize
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return synthesize(model, speed, seed=seed, method="lsf")
+
+
+def spectrum_vs_lpc(texture: str, seconds: float = 8.0, speeds: Sequence[float] = SPEEDS,
+                    cfg: SpectrumTrainConfig | None = None,
+                    held_speeds: Sequence[float] = (20.0, 25.0), order: int = 100
+                    ) -> list[dict[str, float | str]]:
+    """The spectrum network and the LPC family, same training strokes, held-out strokes."""
+    scans = [generate_scan(texture, s, seconds, seed=1) for s in speeds]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        lpc, _ = fit_texture(scans, speeds_mm_s=speeds)
+        net = fit_spectrum_net(scans, order=order,
+                               cfg=cfg or SpectrumTrainConfig()).texture_model()
+        rows = []
+        for v in held_speeds:
+            held = generate_scan(texture, v, seconds, seed=100)
+            second = generate_scan(texture, v, seconds, seed=200)
+            mask = evaluation_mask(held, lpc)
+            ceil, *_ = compare(preprocess(held.acc, held.fs_hz), preprocess(second.acc,
+                               held.fs_hz), held.fs_hz, mask & evaluation_mask(second, lpc))
+            c_lpc, _ = evaluate_scan(lpc, held, mask=mask, method="lsf")
+            c_str, _ = evaluate_scan(lpc, held, mask=mask, method="stretch")
+            c_net, _ = evaluate_scan(net, held, mask=mask, method="lsf")
+            rows.append({"texture": texture, "speed_mm_s": v, "order": order,
+                         "corr_lpc": c_lpc.psd_correlation, "lsd_lpc": c_lpc.lsd_db,
+                         "corr_stretch": c_str.psd_correlation, "lsd_stretch": c_str.lsd_db,
+                         "corr_net": c_net.psd_correlation, "lsd_net": c_net.lsd_db,
+                         "lsd_ceiling": ceil.lsd_db})
+    return rows
+
+
+def plot_figures(out_dir: str) -> list[str]:
+    """Spectra a person would rather look at: ``mlp_thesis_felt.png``, ``mlp_lsf_R1_25.png``."""
+    from pathlib import Path
+
+    from fydpad.texture.evaluate import welch_psd
+    from fydpad.texture.families import finger_from_scan
+    from fydpad.texture.plots import plot_spectra
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    scans = [stroke("felt", s, 12.0, seed=1, force="profile") for s in SPEEDS]
+    model, _, _ = fit_mlp(scans, TrainConfig())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        lpc, _ = fit_texture([_third(s, 0, z_only=True) for s in scans], speeds_mm_s=SPEEDS)
+    scan = scans[1]
+    s = thirds(scan.t_s.size)[2]
+    rec = scan_features(scan).y[s]
+    net = MlpTexture(model).render(finger_from_scan(scan))[s]
+    f, pr = welch_psd(rec, scan.fs_hz)
+    _, pn = welch_psd(net, scan.fs_hz)
+    _, pl = welch_psd(_synth(lpc, _third(scan, 2).speed_mm_s, 11), scan.fs_hz)
+    paths = [str(plot_spectra(out / "mlp_thesis_felt.png", [
+        ("felt 20 mm/s, a_z, test third: thesis network", f, pr, pn),
+        ("felt 20 mm/s, a_z, test third: LPC family", f, pr, pl)],
+        "recorded (blue) against model (orange)"))]
+    train = [generate_scan("R1", v, 8.0, seed=1) for v in SPEEDS]
+    held = generate_scan("R1", 25.0, 8.0, seed=100)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        lpc, _ = fit_texture(train, speeds_mm_s=SPEEDS)
+        netm = fit_spectrum_net(train).texture_model()
+        mask = evaluation_mask(held, lpc)
+        panels = []
+        for lab, m, meth in (("spectrum network", netm, "lsf"), ("LPC, LSF interp.", lpc, "lsf"),
+                             ("LPC, stretch interp.", lpc, "stretch")):
+            c, d = evaluate_scan(m, held, mask=mask, method=meth)
+            panels.append((f"R1 25 mm/s held out: {lab} (LSD {c.lsd_db:.2f} dB)", d["f_hz"],
+                           d["recorded"], d["synthesized"]))
+    paths.append(str(plot_spectra(out / "mlp_lsf_R1_25.png", panels,
+                                  "between modelled speeds (DFT321)")))
+    return paths
+
+
+IDENTIFY_SURFACES = ("R1", "R2", "canvas", "corduroy", "cork", "felt", "sandpaper_p80",
+                     "wood_grain")
+
+
+def identification() -> list[tuple[str, dict, float]]:
+    """docs/texture_families.md's comparison (same surfaces, strokes and identifier:
+    ``families_compare``) for the networks: one 6 s training stroke at 20 mm/s per
+    surface (seed 1), three test strokes each (seeds 101-103)."""
+    from fydpad.texture.families_compare import by_surface, fit_per_surface, identify_families
+
+    train = [generate_scan(n, 20.0, 6.0, seed=1, friction=True) for n in IDENTIFY_SURFACES]
+    test = [generate_scan(n, 20.0, 6.0, seed=s, friction=True) for n in IDENTIFY_SURFACES
+            for s in (101, 102, 103)]
+    out = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for kind, opts in (("mlp", {"learning_rate": 0.3}),
+                           ("mlp", {"mode": "batch", "init_range": 0.5}), ("mlp_lsf", {})):
+            models, labels = fit_per_surface(kind, by_surface(train), **{kind: opts})
+            out.append((kind, opts, identify_families(models, labels, test).rate))
+    return out
+
+
+def main() -> None:
+    import sys
+
+    if len(sys.argv) == 3 and sys.argv[1] == "--plot":
+        for p in plot_figures(sys.argv[2]):
+            print(p)
+        return
+    if sys.argv[1:] == ["--identify"]:
+        for kind, opts, rate in identification():
+            print(f"{kind} {opts}: identification rate {rate:.3f} over "
+                  f"{3 * len(IDENTIFY_SURFACES)} strokes")
+        return
+    print("1. thesis network (3-10-1) vs LPC (LSF interpolation), z acceleration, test thirds")
+    print(f"{'texture':9s} {'force':9s} {'stop':>10s} {'ep':>4s} {'R2 mlp':>8s} {'R2 lpc':>8s} "
+          f"{'R2 lin':>7s} {'corr mlp':>8s} {'corr lpc':>8s} {'LSD mlp':>8s} {'LSD lpc':>8s} "
+          f"{'rms mlp':>8s}")
+    variants = ((TrainConfig(), ""), (TrainConfig(mode="batch", init_range=0.5), "*"))
+    for name in TEXTURES_EVAL:
+        for force in ("generator", "profile"):
+            for cfg, lab in variants:
+                r = thesis_vs_lpc(name, cfg, force=force)
+                if r["stop"] == "diverged":
+                    print(f"{name + lab:9s} {force:9s} {'diverged':>10s} in the first epoch")
+                    continue
+                print(f"{name + lab:9s} {force:9s} {r['stop']:>10s} {r['epochs']:4d} "
+                      f"{r['r2_mlp']:8.3f} {r['r2_lpc']:8.3f} {r['r2_linear_ceiling']:7.3f} "
+                      f"{r['corr_mlp']:8.3f} {r['corr_lpc']:8.3f} {r['lsd_mlp']:8.2f} "
+                      f"{r['lsd_lpc']:8.2f} {r['rms_ratio_mlp']:8.3f}")
+    print("   * batch steepest descent, weights initialised in [-0.5, 0.5] (not the thesis')")
+    print("2. spectrum network vs the LPC family, DFT321, held-out strokes")
+    print("   (texture/order of the network; the LPC family is order 200)")
+    print(f"{'texture':8s} {'mm/s':>5s} {'corr lsf':>8s} {'corr str':>8s} {'corr net':>8s} "
+          f"{'LSD lsf':>8s} {'LSD str':>8s} {'LSD net':>8s} {'ceiling':>8s}")
+    for name, order in [(n, o) for o in (100, 200) for n in TEXTURES_EVAL]:
+        for r in spectrum_vs_lpc(name, order=order):
+            print(f"{name + f'/{order}':8s} {r['speed_mm_s']:5g} {r['corr_lpc']:8.3f} "
+                  f"{r['corr_stretch']:8.3f} "
+                  f"{r['corr_net']:8.3f} {r['lsd_lpc']:8.2f} {r['lsd_stretch']:8.2f} "
+                  f"{r['lsd_net']:8.2f} {r['lsd_ceiling']:8.2f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,155 @@
+"""The thesis network as a texture family (kind ``"mlp"``): render and 1 kHz tick.
+
+Per sample: (v_x, v_y, Δf) from the finger state (``fydpad.texture.mlp``), the network's
+normal acceleration, a causal first-order DC blocker at the training band's lower edge
+(5 Hz: the network was trained on 5-500 Hz data, but its output at rest is a constant
+that would offset the motors' PWM), then gated to 0 without contact or below
+``still_mm_s``. ``render`` and ``tick`` run the same equations and share their state,
+so a block rendered sample by sample equals the block rendered at once.
+
+Channels: ``"vibration"`` (the FYD-pad motors' vibration term, 1 kHz) and ``"audio"``
+(the same signal for an external actuator's amplifier; :mod:`fydpad.channels.resample`
+brings it to the sound card's rate). The network is a deterministic function of the
+inputs: it renders only what velocity and force fluctuation determine (docs/texture_mlp.md).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.signal as ss
+from numpy.typing import NDArray
+
+from fydpad.errors import UserError
+from fydpad.texture.family import FingerBlock
+from fydpad.texture.mlp import MlpModel, delta_force, velocity_xy
+
+Array = NDArray[np.float64]
+
+
+class MlpTexture:
+    """A fitted :class:`MlpModel` behind the ``TextureFamily`` interface."""
+
+    kind = "mlp"
+    tick_channels = ("vibration",)
+
+    def __init__(self, model: MlpModel, *, still_mm_s: float = 1.0, gain: float = 1.0):
+        self.model = model
+        fs = float(model.fs_hz)
+        self.channels = {"vibration": fs, "audio": fs}
+        self.still_mm_s = float(still_mm_s)
+        self.gain = float(gain)
+        self._alpha = 1.0 - math.exp(-1.0 / (model.df_tau_s * fs))
+        self._r = math.exp(-2.0 * math.pi * model.band_hz[0] / fs)  # DC blocker pole
+        # Fold input scaling and logsig(z) = 0.5 + 0.5 tanh(z / 2) into the weights:
+        # y = c + w2 . tanh(W x + b), four NumPy calls per tick, no temporaries.
+        net, s = model.net, model.scaling
+        w = 0.5 * net.w_in * s.in_scale
+        self._w = np.ascontiguousarray(w)
+        self._b = 0.5 * net.b_in - w @ s.in_offset
+        self._w2 = 0.5 * s.out_scale * net.w_out
+        self._c = float(s.out_offset + s.out_scale * (net.b_out + 0.5 * net.w_out.sum()))
+        self._x = np.zeros(3)
+        self._z = np.zeros(net.hidden)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the stroke: direction, force mean, DC blocker."""
+        self._last = (math.nan, math.nan, 0.0)
+        self._cos, self._sin = 1.0, 0.0
+        self._mean: float | None = None
+        self._hp_x = None  # previous raw output (None: first sample starts the blocker)
+        self._hp_y = 0.0
+        self._last_f = 0.0  # the last finite force: a missing reading holds it
+
+    # ------------------------------------------------------------------ offline
+    def raw(self, vx: Array, vy: Array, df: Array) -> Array:
+        """The network's acceleration (m/s^2) for per-sample inputs (folded weights)."""
+        z = np.tanh(np.column_stack([vx, vy, df]) @ self._w.T + self._b)
+        return self._c + z @ self._w2
+
+    def render(self, finger: FingerBlock, channel: str = "vibration") -> Array:
+        if channel not in self.channels:
+            raise UserError(f"an mlp model renders {', '.join(self.channels)}; not {channel!r}")
+        fs = self.model.fs_hz
+        if abs(finger.fs_hz - fs) > 1e-6 * fs:
+            return self._render_other_rate(finger)
+        n = finger.t_s.size
+        if n == 0:
+            return np.zeros(0)
+        # Fail safe: a missing speed is 0 (silence), a missing force holds the last one.
+        speed = np.where(np.isfinite(finger.speed_mm_s), finger.speed_mm_s, 0.0)
+        force = _hold_finite(finger.force_n, self._last_f)
+        self._last_f = float(force[-1])
+        vx, vy, self._last = velocity_xy(finger.x_mm, finger.y_mm, speed, self._last)
+        self._cos, self._sin = math.cos(self._last[2]), math.sin(self._last[2])
+        df, self._mean = delta_force(force, self.model.fs_hz, self.model.df_tau_s, self._mean)
+        r = self.raw(vx, vy, df)
+        x_prev = float(r[0]) if self._hp_x is None else self._hp_x
+        # y(k) = r(k) - r(k-1) + R y(k-1)
+        d = np.diff(np.concatenate([[x_prev], r]))
+        y, _ = ss.lfilter([1.0], [1.0, -self._r], d, zi=[self._r * self._hp_y])
+        self._hp_x, self._hp_y = float(r[-1]), float(y[-1])
+        on = finger.contact & (speed >= self.still_mm_s)
+        return np.where(on, self.gain * y, 0.0)
+
+    def _render_other_rate(self, finger: FingerBlock) -> Array:
+        """A finger stream at another rate (e.g. the audio card's): the network runs at
+        its own rate (its Δf and DC blocker are defined there), the output is brought to
+        the stream's rate by a polyphase filter (per block: offline use)."""
+        from fractions import Fraction
+
+        from fydpad.texture.families import resample_finger
+
+        n = finger.t_s.size
+        if n < 2:
+            return np.zeros(n)
+        y = self.render(resample_finger(finger, self.model.fs_hz))
+        ratio = Fraction(finger.fs_hz / self.model.fs_hz).limit_denominator(1000)
+        out = ss.resample_poly(y, ratio.numerator, ratio.denominator)
+        return np.pad(out[:n], (0, max(0, n - out.size)), mode="edge")
+
+    # ------------------------------------------------------------------ 1 kHz loop
+    def tick(self, t_s: float, contact: bool, x_mm: float, y_mm: float,
+             speed_mm_s: float, force_n: float) -> tuple[float]:
+        if not math.isfinite(speed_mm_s):
+            speed_mm_s = 0.0
+        if math.isfinite(force_n):
+            self._last_f = force_n
+        else:
+            force_n = self._last_f
+        lx, ly, th = self._last
+        dx, dy = x_mm - lx, y_mm - ly
+        if (dx != 0.0 or dy != 0.0) and math.isfinite(dx) and math.isfinite(dy):
+            th = math.atan2(dy, dx)
+            self._cos, self._sin = math.cos(th), math.sin(th)
+        self._last = (x_mm, y_mm, th)
+        m = force_n if self._mean is None else self._mean
+        df = force_n - m
+        self._mean = m + self._alpha * df
+        x = self._x
+        x[0] = speed_mm_s * self._cos
+        x[1] = speed_mm_s * self._sin
+        x[2] = df
+        z = self._z
+        np.dot(self._w, x, out=z)
+        np.add(z, self._b, out=z)
+        np.tanh(z, out=z)
+        r = self._c + float(np.dot(self._w2, z))
+        prev = r if self._hp_x is None else self._hp_x
+        y = r - prev + self._r * self._hp_y
+        self._hp_x, self._hp_y = r, y
+        on = contact and speed_mm_s >= self.still_mm_s
+        return (self.gain * y if on else 0.0,)
+
+
+def _hold_finite(x: Array, last: float) -> Array:
+    """``x`` with every non-finite sample replaced by the last finite one before it."""
+    x = np.asarray(x, float)
+    ok = np.isfinite(x)
+    if ok.all():
+        return x
+    idx = np.where(ok, np.arange(x.size), -1)
+    np.maximum.accumulate(idx, out=idx)
+    return np.where(idx >= 0, x[np.maximum(idx, 0)], last)

@@ -1,0 +1,109 @@
+"""The cross-family comparison: a confusion matrix per family on the same textures, and
+paper 004's 2 x 2 (SS1..SS4) with the softness rendered through the simulated fabric."""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from fydpad.texture.families_compare import (
+    by_surface,
+    compare_families,
+    shape_distance_db,
+    specimen_experiment,
+)
+from fydpad.texture.scan_generator import generate_scan, save_generated
+from tests.texture_families.helpers import run_cli
+
+NAMES = ("R1", "R2", "canvas", "cork", "felt")
+
+
+@pytest.fixture(scope="module")
+def scans():
+    train = [generate_scan(n, 20.0, 4.0, seed=1, friction=True) for n in NAMES]
+    test = [generate_scan(n, 20.0, 4.0, seed=s, friction=True) for n in NAMES
+            for s in (101, 102)]
+    return train, test
+
+
+def test_confusion_per_family_on_the_same_scans(scans):
+    train, test = scans
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = compare_families(train, test, ["lpc", "friction", "grating"])
+    for kind in ("lpc", "friction", "grating"):
+        c = np.asarray(res[kind].confusion)
+        assert c.sum() == len(test) and res[kind].labels[:len(NAMES)] == list(NAMES)
+    assert res["lpc"].rate >= 0.9
+    assert res["friction"].rate >= 0.7
+    # A grating model tells the two gratings apart (its own lambda), not the rest.
+    g = np.asarray(res["grating"].confusion)
+    assert g[0, 0] == 2 and g[1, 1] == 2
+
+
+def test_specimens_need_the_stiffness_feature(scans):
+    """Spectra alone cannot tell SS1 from SS3 (both R1) or SS2 from SS4; a simulated
+    press on the fabric holding each specimen's stiffness can."""
+    train, test = scans
+    tr, te = by_surface(train), by_surface(test)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = specimen_experiment("lpc", tr, te, te, trials=2)
+    spec = np.asarray(r["confusion"]["spectra"])
+    assert r["specimens"] == ["SS1", "SS2", "SS3", "SS4"]
+    # Roughness right every time, softness by chance: SS1 and SS3 land on one column.
+    rough = np.array([0, 1, 0, 1])
+    for i in range(4):
+        assert spec[i, rough != rough[i]].sum() == 0
+    assert r["rate"]["spectra"] <= 0.5 + 1e-9
+    assert r["rate"]["spectra+stiffness"] == 1.0
+    ks = {row["specimen"]: row["k_measured_n_per_mm"] for row in r["rows"]}
+    assert ks["SS1"] == pytest.approx(0.88, rel=0.1) and ks["SS3"] == pytest.approx(0.39,
+                                                                                   rel=0.1)
+
+
+def test_shape_distance_ignores_level_and_tilt_not_lines():
+    f = np.linspace(20, 500, 200)
+    base = 1.0 + 50 * (np.abs(f - 100) < 3)
+    assert shape_distance_db(base, 7 * base * f ** 2, f) < 1e-9
+    assert shape_distance_db(base, 1.0 + 50 * (np.abs(f - 130) < 3), f) > 2.0
+
+
+def test_cli_compare_writes_json_and_plots(scans, tmp_path):
+    train, test = scans
+    paths = {}
+    for tag, group in (("tr", train[:2]), ("te", test[:4])):
+        d = tmp_path / tag
+        d.mkdir()
+        paths[tag] = [str(save_generated(s, d / f"{s.surface}_{k}.csv"))
+                      for k, s in enumerate(group)]
+    assert run_cli("compare", "--train", *paths["tr"], "--scans", *paths["te"], "--kinds",
+                   "lpc,grating", "--out-dir", str(tmp_path / "out")) == 0
+    res = json.loads((tmp_path / "out" / "compare.json").read_text())
+    assert set(res["families"]) == {"lpc", "grating"}
+    assert (tmp_path / "out" / "confusion_lpc.png").stat().st_size > 5000
+
+
+def test_cli_identify_with_one_family_and_refuses_mixed_kinds(scans, tmp_path):
+    train, test = scans
+    models = []
+    for s in train[:2]:  # R1, R2
+        p = str(save_generated(s, tmp_path / f"{s.surface}_train.csv"))
+        out = str(tmp_path / f"{s.surface}_friction.json")
+        assert run_cli("fit", "--kind", "friction", p, "--out", out) == 0
+        models.append(out)
+    test_paths = [str(save_generated(s, tmp_path / f"{s.surface}_{k}.csv"))
+                  for k, s in enumerate(test[:4])]
+    assert run_cli("identify", *models, "--scans", *test_paths, "--json",
+                   str(tmp_path / "i.json")) == 0
+    res = json.loads((tmp_path / "i.json").read_text())
+    assert res["kind"] == "friction" and res["rate"] == 1.0
+    assert run_cli("fit", "--kind", "grating", "--wavelength-mm", "2", "--out",
+                   str(tmp_path / "g.json")) == 0
+    from fydpad.errors import UserError
+
+    with pytest.raises(UserError, match="mix kinds"):
+        run_cli("identify", models[0], str(tmp_path / "g.json"), "--scans", test_paths[0])

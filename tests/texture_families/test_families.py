@@ -1,0 +1,142 @@
+"""One interface for the texture families: registry, the LPC adapter, model-file errors,
+and the station's render chain driving a family's vibration and tension channels."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from fydpad.errors import UserError
+from fydpad.texture.families import (
+    KINDS,
+    LpcFamily,
+    constant_stroke,
+    fit_family,
+    load_family,
+    save_model_json,
+)
+from fydpad.texture.fit import fit_texture
+from fydpad.texture.model_file import save_model
+from fydpad.texture.scan_generator import generate_scan
+from fydpad.texture.synthesis import TextureRenderer
+from tests.conftest import REPO
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("families")
+    scans = [generate_scan("canvas", v, 3.0, seed=1, friction=True) for v in (10.0, 30.0)]
+    model, _ = fit_texture(scans, order=40, speeds_mm_s=[10.0, 30.0])
+    save_model(model, d / "lpc.json")  # the issue-4 format: no "kind"
+    save_model_json(fit_family("friction", scans[:1]), d / "friction.json")
+    save_model_json(fit_family("grating", None, wavelength_mm=2.15), d / "grating.json")
+    return d
+
+
+def test_registry_and_kind_from_file(files):
+    for k in ("lpc", "friction", "grating"):
+        assert k in KINDS or load_family(str(files / f"{k}.json")).kind == k
+    fam = load_family(str(files / "lpc.json"))
+    assert isinstance(fam, LpcFamily) and fam.tick_channels == ("vibration",)
+    assert load_family(f"friction:{files / 'friction.json'}").kind == "friction"
+    g = load_family(f"grating:{files / 'grating.json'}")
+    assert g.tick_channels == ("vibration", "tension") and "audio" in g.channels
+
+
+def test_lpc_adapter_renders_what_the_renderer_does(files):
+    fam = load_family(str(files / "lpc.json"))
+    fam.seed = 3
+    fb = constant_stroke(20.0, 1.0, 1000.0)
+    y = fam.render(fb, "vibration")
+    r = TextureRenderer(fam.model, method="lsf", seed=3, ramp_s=1e-6)
+    r.warmup(20.0, 0.5)
+    np.testing.assert_array_equal(y, r.block(fb.speed_mm_s, fb.contact))
+    fam.rate_hz = 1000.0
+    fam.prepare()
+    vals = [fam.tick(k / 1000, True, 10 + 0.02 * k, 5.0, 20.0, 1.0)[0] for k in range(600)]
+    assert np.std(vals[300:]) > 0
+
+
+@pytest.mark.parametrize(("kind", "edit", "says"), [
+    ("friction", {"kind": "velvet"}, "key 'kind' is 'velvet', not a texture family"),
+    ("friction", {"kind": "grating"}, "missing key 'wavelength_mm'"),
+    ("friction", {"format_version": 2}, "key 'format_version'"),
+    ("friction", {"mu": None}, "key 'mu'"),
+    ("friction", {"mu": [0.5, -1.0]}, "key 'mu'"),
+    ("friction", {"dx_mm": 0}, "key 'dx_mm'"),
+    ("grating", {"ratio": [6, 6]}, "key 'ratio'"),
+    ("grating", {"wavelength_mm": None}, "key 'wavelength_mm'"),
+    ("grating", {"profile": "triangle"}, "key 'profile'"),
+    ("grating", {"format_version": 0}, "key 'format_version'"),
+    ("grating", {"levels": {"vibrotactile_n": [0.1]}}, "key 'vibrotactile_n'"),
+])
+def test_bad_model_file_names_file_and_key(files, tmp_path, kind, edit, says):
+    data = json.loads((files / f"{kind}.json").read_text())
+    for k, v in edit.items():
+        if v is None:
+            del data[k]
+        else:
+            data[k] = v
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(data))
+    with pytest.raises(UserError) as e:
+        load_family(str(bad))
+    assert str(bad) in str(e.value) and says in str(e.value)
+
+
+def test_spec_kind_must_match(files):
+    with pytest.raises(UserError, match="key 'kind' is 'grating', but the spec asked for"):
+        load_family(f"friction:{files / 'grating.json'}")
+    with pytest.raises(UserError, match="unknown texture kind"):
+        fit_family("nope", [])
+
+
+def test_command_line_bad_model_is_one_line_exit_2(files, tmp_path):
+    bad = tmp_path / "m.json"
+    bad.write_text(json.dumps({"format": "fydpad-texture-model", "kind": "friction",
+                               "format_version": 1, "dx_mm": 0.01, "x0_mm": 0}))
+    r = subprocess.run([sys.executable, "-m", "fydpad.cli", "texture", "synth", str(bad),
+                        "--speed-mm-s", "10", "--seconds", "1", "--out",
+                        str(tmp_path / "o.csv")], capture_output=True, text=True, cwd=REPO,
+                       timeout=60)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1
+    assert "m.json: missing key 'mu'" in r.stderr
+
+
+def test_drive_chain_plays_vibration_and_scales_stiffness_by_tension(files):
+    """The station's render chain on the simulated motors: the grating's tension channel
+    moves the softness request around the specimen's stiffness, by position."""
+    from fydpad.config import StationConfig
+    from fydpad.station.chains import build_render_chain
+    from fydpad.station.render import RenderSpec
+
+    spec = RenderSpec(texture=f"grating:{files / 'grating.json'}", motors="sim",
+                      config=StationConfig())
+    chain = build_render_chain(spec)
+    try:
+        k0 = 0.6
+        lo, hi = chain._k_lo, chain._k_hi
+        assert lo < k0 < hi
+        req, vib = [], []
+        for i in range(1500):  # 1.5 s at 20 mm/s, centroids at 30 fps
+            t = i / 1000
+            x = 20.0 * np.floor(t * 30) / 30
+            v, *_ = chain.tick(t, True, x, 5.0, 20.0, 1.0, 1.0, k0)
+            vib.append(v)
+            req.append(chain.drive.requested_k_n_per_mm)
+        req, vib = np.asarray(req[200:]), np.asarray(vib[200:])
+        assert req.min() < k0 < req.max()
+        assert _peak(vib) == pytest.approx(20.0 / 2.15, abs=1.0)
+        assert _peak(req) == pytest.approx(20.0 / 2.15, abs=1.0)
+    finally:
+        chain.safe_stop()
+
+
+def _peak(y):
+    f = np.fft.rfftfreq(8 * y.size, 1e-3)
+    p = np.abs(np.fft.rfft((y - y.mean()) * np.hanning(y.size), 8 * y.size))
+    return f[np.argmax(p)]
