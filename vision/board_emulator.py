@@ -72,7 +72,7 @@ class BoardEmulator:
         self._thread = threading.Thread(target=self._run, name="board-emulator", daemon=True)
         self._thread.start()
         if self.hello_on_start:
-            self.send(hello_line(self.rate_hz, self.adc_bits, self.vref_mv))
+            self.send(self._hello())
         return self
 
     def pause(self) -> None:
@@ -119,6 +119,9 @@ class BoardEmulator:
 
     # ------------------------------------------------------------------ internals
 
+    def _hello(self) -> bytes:
+        return hello_line(self.rate_hz, self.adc_bits, self.vref_mv)
+
     def _line(self, k: int) -> bytes:
         v_raw, force_raw = self.sample_fn(k)
         t_ms = self.start_ms + round(k * 1000.0 / self.rate_hz)
@@ -163,5 +166,9 @@ class BoardEmulator:
             if not cmd:
                 continue
             self.commands.append(cmd)
-            if cmd == b"?":
-                self.send(hello_line(self.rate_hz, self.adc_bits, self.vref_mv))
+            self._on_command(cmd)
+
+    def _on_command(self, cmd: bytes) -> None:
+        """Answer one host command (``?``: the hello line); others are ignored."""
+        if cmd == b"?":
+            self.send(self._hello())

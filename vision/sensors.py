@@ -193,8 +193,9 @@ class LineError(ValueError):
     """A line that is not a valid board line; the message says why."""
 
 
-def parse_line(line: bytes, adc_bits: int = 10) -> DataLine | BoardInfo:
-    """One line (without the newline) -> DataLine or BoardInfo, or LineError."""
+def unframe_line(line: bytes) -> list[str]:
+    """``$payload*HH`` (without the newline) -> the payload's comma-separated fields, or
+    LineError / ChecksumError. The last ``$`` starts the line (resync after a cut line)."""
     line = line.rstrip(b"\r")
     start = line.rfind(b"$")  # a line cut short and followed by a good one: resync
     if start < 0:
@@ -211,9 +212,14 @@ def parse_line(line: bytes, adc_bits: int = 10) -> DataLine | BoardInfo:
     if checksum(body) != expected:
         raise ChecksumError("checksum mismatch")
     try:
-        fields = body.decode("ascii").split(",")
+        return body.decode("ascii").split(",")
     except UnicodeDecodeError:
         raise LineError("non-ASCII bytes") from None
+
+
+def parse_line(line: bytes, adc_bits: int = 10) -> DataLine | BoardInfo:
+    """One line (without the newline) -> DataLine or BoardInfo, or LineError."""
+    fields = unframe_line(line)
     try:
         if fields[0] == "D" and len(fields) == 6:
             v = (int(fields[2]), int(fields[3]), int(fields[4]))
@@ -246,29 +252,48 @@ class BoardStats:
     last_error: str = ""
 
 
-class _Clock:
-    """Board milliseconds -> seconds from the first sample: unwraps the 32-bit counter
-    and keeps time going forward across a board reset (its counter restarts)."""
+def take_line(buf: bytearray, max_bytes: int = MAX_LINE_BYTES) -> tuple[bytes | None, bool]:
+    """Pop the next complete line (without its newline) off ``buf``: (line, False). None
+    when no line is complete; then, if ``buf`` holds more than ``max_bytes`` with no
+    newline, it is dropped up to its last ``$`` (a line may be starting) and the second
+    value is True (an overlong run, to be counted)."""
+    nl = buf.find(b"\n")
+    if nl >= 0:
+        line = bytes(buf[:nl])
+        del buf[:nl + 1]
+        return line, False
+    if len(buf) > max_bytes:
+        start = buf.rfind(b"$")
+        del buf[:start if start > 0 else len(buf)]
+        return None, True
+    return None, False
 
-    def __init__(self) -> None:
+
+class DeviceClock:
+    """A device's 32-bit tick counter -> seconds from the first sample: unwraps the
+    counter and keeps time going forward across a device reset (its counter restarts).
+    ``ticks_per_s`` is 1000 for the sensor board's milliseconds, 1e6 for microseconds."""
+
+    def __init__(self, ticks_per_s: float = 1000.0) -> None:
+        self.ticks_per_s = float(ticks_per_s)
         self._last: int | None = None
-        self._offset_ms = 0
-        self._t0_ms: int | None = None
+        self._offset = 0
+        self._t0: int | None = None
         self.resets = 0
 
-    def seconds(self, t_ms: int, period_ms: float) -> float:
-        if self._last is not None and t_ms < self._last:
-            if self._last - t_ms > 2**31:
-                self._offset_ms += 2**32  # the counter wrapped (after 49.7 days)
+    def seconds(self, ticks: int, period_ticks: float) -> float:
+        if self._last is not None and ticks < self._last:
+            if self._last - ticks > 2**31:
+                self._offset += 2**32  # the counter wrapped (ms: 49.7 days; us: 71.6 min)
             else:
-                # The board restarted its counter: continue one period after the last.
-                self._offset_ms += self._last - t_ms + round(period_ms)
+                # The device restarted its counter: continue one period after the last.
+                self._offset += self._last - ticks + round(period_ticks)
                 self.resets += 1
-        self._last = t_ms
-        t = t_ms + self._offset_ms
-        if self._t0_ms is None:
-            self._t0_ms = t
-        return (t - self._t0_ms) / 1000.0
+        self._last = ticks
+        t = ticks + self._offset
+        if self._t0 is None:
+            self._t0 = t
+        return (t - self._t0) / self.ticks_per_s
 
 
 @dataclass
@@ -303,7 +328,7 @@ class SerialBoard:
         self.info: BoardInfo | None = None
         self.stats = BoardStats()
         self._serial_errors: tuple[type[BaseException], ...] = (serial.SerialException, OSError)
-        self._clock = _Clock()
+        self._clock = DeviceClock(1000.0)
         self._buf = bytearray()
         self._queues = _Queues()
         self._lock = threading.Lock()
@@ -336,18 +361,12 @@ class SerialBoard:
     def _read_one_data_line(self) -> None:
         deadline = time.monotonic() + self.timeout_s
         while True:
-            nl = self._buf.find(b"\n")
-            if nl >= 0:
-                line = bytes(self._buf[:nl])
-                del self._buf[:nl + 1]
+            line, overlong = take_line(self._buf)
+            self.stats.overlong += overlong
+            if line is not None:
                 if self._handle(line):
                     return
                 continue
-            if len(self._buf) > MAX_LINE_BYTES:
-                # No newline in sight: drop all but a trailing line start, if any.
-                self.stats.overlong += 1
-                start = self._buf.rfind(b"$")
-                del self._buf[:start if start > 0 else len(self._buf)]
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 bad = self.stats.bad_checksum + self.stats.malformed + self.stats.overlong
@@ -455,15 +474,16 @@ def volts_array(samples: Sequence[IRSample]) -> tuple[NDArray[np.float64], NDArr
     return t, v
 
 
-def parse_serial_spec(spec: str, default_baud: int = 115200) -> tuple[str, int]:
-    """``serial:PORT[@BAUD]`` -> (port, baud); ValueError saying what is wrong."""
+def parse_serial_spec(spec: str, default_baud: int = 115200,
+                      what: str = "sensor board") -> tuple[str, int]:
+    """``serial:PORT[@BAUD]`` -> (port, baud); ValueError naming ``what`` and the problem."""
     kind, sep, rest = spec.partition(":")
     if kind != "serial" or not sep or not rest:
-        raise ValueError(f"sensor board {spec!r}: expected serial:PORT[@BAUD], "
-                         "e.g. serial:/dev/ttyACM0@115200")
+        raise ValueError(f"{what} {spec!r}: expected serial:PORT[@BAUD], "
+                         f"e.g. serial:/dev/ttyACM0@{default_baud}")
     port, at, baud = rest.rpartition("@") if "@" in rest else (rest, "", "")
     if at:
         if not baud.isdigit() or int(baud) <= 0:
-            raise ValueError(f"sensor board {spec!r}: baud {baud!r} is not a positive integer")
+            raise ValueError(f"{what} {spec!r}: baud {baud!r} is not a positive integer")
         return port, int(baud)
     return port, default_baud

@@ -5,9 +5,11 @@ from __future__ import annotations
 from fydpad.accel.base import Accelerometer, AccelError
 
 
-def open_accelerometer(spec: str, plant: object | None = None) -> Accelerometer:
-    """``sim`` (needs the simulated ``plant``), ``replay:FILE.csv``; ``serial:PORT[@BAUD]``
-    is not implemented yet. AccelError says what to fix."""
+def open_accelerometer(spec: str, plant: object | None = None,
+                       timeout_s: float = 0.5) -> Accelerometer:
+    """``sim`` (needs the simulated ``plant``), ``replay:FILE.csv`` or ``serial:PORT[@BAUD]``
+    (docs/accel_protocol.md; 921600 baud by default; silent for ``timeout_s`` is a fault).
+    AccelError says what to fix."""
     kind, _, arg = spec.partition(":")
     if kind == "sim":
         from fydpad.accel.sim import SimAccelerometer
@@ -19,7 +21,12 @@ def open_accelerometer(spec: str, plant: object | None = None) -> Accelerometer:
         from fydpad.accel.replay import ReplayAccelerometer
         return ReplayAccelerometer(arg)
     if kind == "serial":
-        raise AccelError(f"accelerometer {spec!r}: the serial backend is not implemented yet "
-                         "(issue 8); use replay:FILE.csv or sim")
+        from fydpad.accel.serial import DEFAULT_BAUD, SerialAccelerometer
+        from vision.sensors import parse_serial_spec
+        try:
+            port, baud = parse_serial_spec(spec, DEFAULT_BAUD, what="accelerometer")
+        except ValueError as exc:
+            raise AccelError(str(exc)) from None
+        return SerialAccelerometer(port, baud, timeout_s=timeout_s)
     raise AccelError(f"accelerometer spec {spec!r}: expected sim, replay:FILE.csv "
                      "or serial:PORT[@BAUD]")

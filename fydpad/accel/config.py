@@ -13,3 +13,5 @@ class AccelConfig:
     device: str = "sim"
     #: White noise of the simulated part, m/s^2 rms (an ADXL345 is ~0.03 at 1 kHz).
     sim_noise_m_s2: float = 0.0
+    #: A serial accelerometer that sends no valid sample for this long is a fault, s.
+    serial_timeout_s: float = 0.5

@@ -6,7 +6,9 @@ from fydpad.channels.base import ChannelError, OutputChannel
 
 
 def open_channel(spec: str, rate_hz: float, name: str = "vibration") -> OutputChannel:
-    """Open ``wav:FILE``, ``csv:FILE`` or ``audio[:DEVICE]``; ChannelError says what to fix."""
+    """Open ``wav:FILE``, ``csv:FILE`` (written at ``rate_hz``) or ``audio[:DEVICE][@RATE]``
+    (the sound card: fed at ``rate_hz``, played at RATE, default 48 kHz, through
+    fydpad.channels.resample). ChannelError says what to fix."""
     kind, _, arg = spec.partition(":")
     if kind == "wav" and arg:
         from fydpad.channels.files import WavChannel
@@ -14,14 +16,10 @@ def open_channel(spec: str, rate_hz: float, name: str = "vibration") -> OutputCh
     if kind == "csv" and arg:
         from fydpad.channels.files import CsvChannel
         return CsvChannel(arg, rate_hz, name)
-    if kind == "audio":
-        try:
-            import sounddevice  # noqa: F401
-        except (ImportError, OSError) as exc:
-            raise ChannelError(
-                f"audio channel: sounddevice/PortAudio unavailable ({exc}); install "
-                "`pip install -e '.[audio]'` and libportaudio2, or choose a device with "
-                "--audio-device") from exc
-        raise ChannelError("audio channel: sound-card output is not implemented yet "
-                           "(issue 8); use wav:FILE")
-    raise ChannelError(f"channel spec {spec!r}: expected wav:FILE, csv:FILE or audio[:DEVICE]")
+    if kind == "audio" or spec.startswith("audio@"):
+        # ``rate_hz`` is the renderer's; the card runs at its own rate (resampled).
+        from fydpad.channels.audio import AudioChannel, parse_audio_spec
+        device, card_hz = parse_audio_spec(spec, rate_hz)
+        return AudioChannel(device, rate_hz, card_hz, name)
+    raise ChannelError(f"channel spec {spec!r}: expected wav:FILE, csv:FILE or "
+                       "audio[:DEVICE][@RATE]")

@@ -112,8 +112,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="model file from 'fydpad texture fit' (any kind; read from the file)")
     s.add_argument("--speed-mm-s", type=float, required=True, help="finger speed in mm/s")
     s.add_argument("--seconds", type=float, required=True, help="duration in seconds")
-    s.add_argument("--out", required=True, metavar="OUT.csv|OUT.wav",
-                   help="CSV t_s,a (LPC) or t_s,<channel>; .wav writes a WAV file")
+    s.add_argument("--out", required=True, metavar="OUT.csv|OUT.wav|audio[:DEVICE][@RATE]",
+                   help="CSV t_s,a (LPC) or t_s,<channel>; .wav writes a WAV file; audio plays "
+                   "it on the sound card (resampled to RATE, default 48000; needs the "
+                   "'audio' extra; full scale 1.0, clipped samples counted)")
     s.add_argument("--channel", choices=("vibration", "tension", "audio"),
                    help="output channel (default vibration). vibration/tension: the FYD-pad's "
                    "1 kHz terms; audio: an external display at --audio-hz (friction: "
@@ -377,7 +379,8 @@ def run_synth(args: argparse.Namespace) -> int:
     kind = model_kind(read_model_json(args.model))
     if args.kind is not None and args.kind != kind:
         raise UserError(f"{args.model}: key 'kind' is {kind!r}, not --kind {args.kind}")
-    if kind != "lpc" or args.channel not in (None, "vibration") or args.out.endswith(".wav"):
+    if (kind != "lpc" or args.channel not in (None, "vibration") or args.out.endswith(".wav")
+            or _is_audio(args.out)):
         return _run_synth_family(args)
     from fydpad.texture.synthesis import TextureRenderer
 
@@ -427,7 +430,9 @@ def _run_synth_family(args: argparse.Namespace) -> int:
         y = fam.render(finger, channel)
     except ValueError as exc:
         raise UserError(f"{args.model}: {exc}") from None
-    if args.out.lower().endswith(".wav"):
+    if _is_audio(args.out):
+        _play_audio(args.out, y, rate, channel)
+    elif args.out.lower().endswith(".wav"):
         _write_wav(args.out, y, rate)
     else:
         with CsvRowWriter(args.out, ("t_s", channel), comment=f"kind={fam.kind} "
@@ -438,6 +443,28 @@ def _run_synth_family(args: argparse.Namespace) -> int:
     print(f"{args.out}: {fam.kind} {channel}, {y.size} samples at {rate:g} Hz, "
           f"rms {float(np.sqrt(np.mean(y * y))):.4g}")
     return 0
+
+
+def _is_audio(out: str) -> bool:
+    return out == "audio" or out.startswith(("audio:", "audio@"))
+
+
+def _play_audio(spec: str, y: np.ndarray, rate: float, channel: str) -> None:
+    """Play on the sound card through the audio channel (waits for the end)."""
+    from fydpad.channels import ChannelError, open_channel
+    from fydpad.channels.audio import AudioChannel
+
+    try:
+        ch = open_channel(spec, rate, channel)
+        assert isinstance(ch, AudioChannel)
+        with ch:
+            ch.play(np.asarray(y, float))
+    except ChannelError as exc:
+        raise UserError(str(exc)) from None
+    st = ch.stats
+    print(f"{spec}: played {st['played_frames']} frames at {ch.device_rate_hz:g} Hz on "
+          f"{ch.device_name}; {st['underruns']} underruns, {st['clipped_frames']} clipped, "
+          f"{st['dropped_frames']} dropped")
 
 
 def _write_wav(path: str, y: np.ndarray, rate: float) -> None:

@@ -16,8 +16,8 @@ def test_specs(tmp_path):
         open_accelerometer("sim")
     with pytest.raises(AccelError, match="expected sim"):
         open_accelerometer("usb")
-    with pytest.raises(AccelError, match="not implemented"):
-        open_accelerometer("serial:/dev/ttyACM0")
+    # serial:PORT[@BAUD] is opened on connect(); tests/accel/test_serial.py runs it
+    assert open_accelerometer("serial:/dev/ttyACM0").port == "/dev/ttyACM0"
 
 
 def test_accel_config_section_round_trips(tmp_path):

@@ -1,0 +1,125 @@
+"""The bounded buffer between a renderer and a sound card's callback (issue 8).
+
+:class:`SampleRing` is a single-producer single-consumer ring of float32 samples. The
+writer only advances ``_w`` and the reader only ``_r``, each after its copy, so neither
+waits for the other (CPython's GIL makes each index update atomic and ordered; no lock
+that the 1 kHz loop could block on).
+
+:class:`RingFeed` puts the rest of an audio channel around it, free of I/O: the writer's
+end scales, resamples (:class:`fydpad.channels.resample.Resampler`, state carried across
+blocks), clips and pushes; a full ring drops the samples that do not fit and counts them.
+The reader's end (the card's callback) plays what is there; when the ring runs dry it
+outputs zeros, counts an underrun and waits until ``prefill_frames`` are buffered again
+before it plays on (so one late block costs one gap, not a gap per callback).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fydpad.channels.resample import Resampler
+
+
+class SampleRing:
+    """Bounded SPSC ring of float32 samples: ``push`` drops what does not fit, ``pop_into``
+    zero-fills what is missing; both return how many samples moved."""
+
+    def __init__(self, capacity: int) -> None:
+        if capacity <= 0:
+            raise ValueError(f"ring capacity must be positive, not {capacity}")
+        self.capacity = int(capacity)
+        self._buf = np.zeros(self.capacity, np.float32)
+        self._w = 0  # samples ever pushed (writer's)
+        self._r = 0  # samples ever popped (reader's)
+
+    @property
+    def level(self) -> int:
+        """Samples buffered now."""
+        return self._w - self._r
+
+    @property
+    def free(self) -> int:
+        return self.capacity - (self._w - self._r)
+
+    def push(self, x: NDArray[np.floating]) -> int:
+        n = min(len(x), self.capacity - (self._w - self._r))
+        i = self._w % self.capacity
+        first = min(n, self.capacity - i)
+        self._buf[i:i + first] = x[:first]
+        self._buf[:n - first] = x[first:n]
+        self._w += n  # publish after the copy
+        return n
+
+    def pop_into(self, out: NDArray[np.float32]) -> int:
+        n = min(len(out), self._w - self._r)
+        i = self._r % self.capacity
+        first = min(n, self.capacity - i)
+        out[:first] = self._buf[i:i + first]
+        out[first:n] = self._buf[:n - first]
+        out[n:] = 0.0
+        self._r += n  # free the space after the copy
+        return n
+
+
+class RingFeed:
+    """Writer (``write``, the render loop) and reader (``fill``, the card's callback) ends
+    of an audio channel. Counters are in output frames except ``n_written`` (input
+    samples); each is written by one end only."""
+
+    def __init__(self, rate_in_hz: float, rate_out_hz: float, capacity_frames: int,
+                 prefill_frames: int, full_scale: float = 1.0) -> None:
+        if not 0 < prefill_frames <= capacity_frames:
+            raise ValueError(f"prefill {prefill_frames} must be in 1..{capacity_frames} frames")
+        if not full_scale > 0:
+            raise ValueError(f"full_scale must be positive, not {full_scale}")
+        self.rate_in_hz, self.rate_out_hz = float(rate_in_hz), float(rate_out_hz)
+        self.resampler = (None if self.rate_in_hz == self.rate_out_hz
+                          else Resampler(self.rate_in_hz, self.rate_out_hz))
+        self.ring = SampleRing(capacity_frames)
+        self.prefill_frames = int(prefill_frames)
+        self.full_scale = float(full_scale)
+        #: Set by the closer: play out what is buffered, do not wait for a prefill.
+        self.draining = False
+        # writer's counters
+        self.n_written = 0
+        self.n_clipped = 0
+        self.n_dropped = 0
+        # reader's counters
+        self.n_played = 0
+        self.n_underruns = 0
+        self.n_underrun_frames = 0
+        self._playing = False
+        self._started = False
+
+    def write(self, block: NDArray[np.floating]) -> None:
+        """Scale, resample, clip at full scale, push; never blocks (a full ring drops)."""
+        x = np.asarray(block, dtype=np.float64)
+        self.n_written += len(x)
+        y = x if self.resampler is None else self.resampler.process(x)
+        y = y / self.full_scale
+        over = np.abs(y) > 1.0
+        if over.any():
+            self.n_clipped += int(np.count_nonzero(over))
+            y = np.clip(y, -1.0, 1.0)
+        self.n_dropped += len(y) - self.ring.push(y)
+
+    def fill(self, out: NDArray[np.float32]) -> int:
+        """Fill one callback buffer; returns the frames that came from the ring."""
+        level = self.ring.level
+        if not self._playing:
+            if level >= self.prefill_frames or (self.draining and level > 0):
+                self._playing = self._started = True
+            else:
+                out[:] = 0.0
+                if self._started and not self.draining:
+                    self.n_underrun_frames += len(out)  # still waiting after an underrun
+                return 0
+        n = self.ring.pop_into(out)
+        self.n_played += n
+        if n < len(out):
+            self._playing = False
+            if not self.draining:
+                self.n_underruns += 1
+                self.n_underrun_frames += len(out) - n
+        return n
