@@ -1,0 +1,152 @@
+"""Open the chain a command drives: the motor drive, the fabric accelerometer, the clock
+they share, the pacing and the load cell (simulated plant or the real device)."""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from fydpad.accel.base import AccelError
+from fydpad.chain import ChainError
+from fydpad.chain.measure import press_to_force, settle
+
+#: Ticks allowed for a new stiffness position to settle before measuring.
+SETTLE_S = 1.0
+#: The simulated load cell's noise, N rms.
+SIM_FORCE_NOISE_N = 0.01
+
+
+@dataclass
+class ChainSession:
+    """A started drive with its accelerometer; ``close`` leaves it safe."""
+
+    drive: object
+    accel: object
+    accel_spec: str
+    motors: str
+    plant: object | None
+    sensors: object | None
+    rng: np.random.Generator
+
+    @property
+    def rate_hz(self) -> float:
+        return self.drive.config.rate_hz
+
+    def clock(self) -> float:
+        """End-of-tick time: the plant's virtual clock, or the host's on the device."""
+        return self.plant.t_s if self.plant is not None else time.perf_counter()
+
+    def force(self) -> float:
+        """One load-cell reading, N (NaN without a load cell)."""
+        if self.plant is not None:
+            return self.plant.force_n() + self.rng.normal(0.0, SIM_FORCE_NOISE_N)
+        if self.sensors is not None:
+            return self.sensors.latest_n
+        return math.nan
+
+    def hold(self, stiffness_n_per_mm: float, force_n: float) -> float:
+        """Go to the stiffness setting and let it settle; on the simulated plant the
+        finger presses with ``force_n`` (on the device the user does). Returns theta."""
+        d = self.drive
+        d.set_stiffness(stiffness_n_per_mm, strict=True)
+        if self.plant is not None:
+            settle(d, int(SETTLE_S * self.rate_hz))
+            press_to_force(self.plant, force_n)
+            settle(d, int(0.2 * self.rate_hz))
+            return 0.5 * (self.plant.theta_rad[0] + self.plant.theta_rad[1])
+        pace = self.pacer()
+        for _ in range(int(SETTLE_S * self.rate_hz)):
+            pace()
+            d.tick(0.0)
+        th = d.motors.read_positions_rad()
+        return 0.5 * (th[0] + th[1])
+
+    def pacer(self):
+        """The per-tick wait: none on the simulated plant (virtual clock), a LoopTimer
+        at the render rate on the device."""
+        if self.plant is not None:
+            return None
+        from fydpad.pacing import LoopTimer
+
+        timer = LoopTimer(self.rate_hz, "chain")
+        timer.start()
+        return timer.wait
+
+    def close(self) -> None:
+        self.drive.safe_stop()
+        try:
+            self.accel.disconnect()
+        except (AccelError, OSError):
+            pass
+        if self.sensors is not None:
+            self.sensors.close()
+
+
+class LoadCellThread:
+    """The sensor board's load cell read in a thread of its own (its reads block for a
+    board period, the 1 kHz drive must not); ``latest_n`` is the newest force, N."""
+
+    def __init__(self, board) -> None:
+        import threading
+
+        self.board = board
+        self.latest_n = math.nan
+        self.error: Exception | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="load-cell", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                _, f = self.board.read()
+            except Exception as exc:  # reported by the command once the run ends
+                self.error = exc
+                self.latest_n = math.nan
+                return
+            if f is not None:
+                self.latest_n = float(f.force_n)
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        self.board.close()
+
+
+def open_session(config, motors: str = "sim", accel_spec: str | None = None,
+                 sensors_spec: str | None = None, seed: int = 0) -> ChainSession:
+    """Build the drive (``motors`` sim|qb through ``build_drive``), open and connect the
+    accelerometer (``accel_spec``, default the config's ``[accel] device``) and, on the
+    device, the load cell of the serial sensor board. ChainError names what failed."""
+    from fydpad.accel import open_accelerometer
+    from fydpad.motors.drive import build_drive
+
+    accel_spec = accel_spec or config.accel.device
+    drive = build_drive(replace(config.motors, backend=motors), config.pwm, config.qb,
+                        config.softness)
+    plant = drive.motors.plant if motors == "sim" else None
+    sensors = None
+    try:
+        accel = open_accelerometer(accel_spec, plant, config.accel.serial_timeout_s)
+        if hasattr(accel, "noise_m_s2") and plant is not None:
+            accel.noise_m_s2 = config.accel.sim_noise_m_s2
+        if sensors_spec:
+            from vision.sensors import SerialBoard, parse_serial_spec
+
+            port, baud = parse_serial_spec(sensors_spec)
+            sensors = LoadCellThread(SerialBoard(port, baud, ir_config=config.ir,
+                                                 force_config=config.force,
+                                                 timeout_s=config.ir.serial_timeout_s))
+        elif plant is None:
+            warnings.warn("no load cell (--sensors): the normal force is not monitored; "
+                          "hold it at the requested force yourself", stacklevel=2)
+        accel.connect()
+    except (AccelError, ValueError, OSError) as exc:
+        raise ChainError(f"accelerometer {accel_spec!r}: {exc}") from None
+    drive.start()
+    return ChainSession(drive, accel, accel_spec, motors, plant, sensors,
+                        np.random.default_rng(seed))
