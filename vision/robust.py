@@ -59,6 +59,9 @@ class RobustParams:
     max_elongation: float = 3.0
     #: Smallest ratio of the core's area to the area above a quarter of the peak.
     min_sharpness: float = 0.55
+    #: Kept by hysteresis (peak below ``contrast_on``), a contact's share of its core
+    #: above 90 % of its peak may be at most this (a hovering finger's shadow: ~0.65).
+    max_hold_flatness: float = 0.5
     #: A light touch: its darkest spot stands out of its surroundings (white top-hat over
     #: prominence_size_mm) by this much to start a contact, and to keep one.
     prominence_on: float = 0.095
@@ -82,6 +85,8 @@ class RobustResult:
     area_mm2: float
     peak_contrast: float
     sharpness: float
+    prominence: float
+    flatness: float = 0.0
 
 
 class RobustTracker:
@@ -158,6 +163,10 @@ class RobustTracker:
         self._tophat_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (kw, kh))
         self._ring_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
         self._contrast = np.empty((sh, sw), np.float32)
+        self._dark = np.zeros((sh, sw), np.uint8)
+        gw = 2 * int(np.ceil(p.bg_guard_mm / self._cell_w_mm / 2)) + 1
+        gh = 2 * int(np.ceil(p.bg_guard_mm / self._cell_h_mm / 2)) + 1
+        self._guard_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (gw, gh))
 
     # -- per frame --------------------------------------------------------------
 
@@ -209,8 +218,8 @@ class RobustTracker:
         np.divide(ratio, self._gain, out=contrast)
         np.subtract(1.0, contrast, out=contrast)
         mask = (contrast > p.contrast_floor).astype(np.uint8)
+        self._dark = mask
         n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
-        needed = p.contrast_off if self.in_contact else p.contrast_on
         sh, sw = self._shape
         best: RobustResult | None = None
         best_score = 0.0
@@ -238,14 +247,21 @@ class RobustTracker:
             if not p.min_area_mm2 <= core_area <= p.max_area_mm2:
                 continue
             sharpness = core_cells / max(1, int(np.count_nonzero(region > peak * 0.25)))
+            flatness = int(np.count_nonzero(region > peak * 0.9)) / max(1, core_cells)
             # How far the darkest spot stands out of its surroundings (white top-hat):
             # a light touch is a small dark core on the fingertip's shadow; a hovering
             # finger's shadow is a broad plateau that the opening keeps whole.
             tophat = self._tophat(contrast, x0, y0, bw, bh)
             prominence = float(np.max(np.where(inside, tophat, 0.0)))
-            firm = peak >= needed and sharpness >= p.min_sharpness
-            light = prominence >= (p.prominence_off if self.in_contact else p.prominence_on)
-            if not (firm or light):
+            sharp = sharpness >= p.min_sharpness
+            starts = (peak >= p.contrast_on and sharp) or prominence >= p.prominence_on
+            # Kept by hysteresis alone, a contact must still peak in its middle: a
+            # release leaves a shrinking dark centre, a lifted finger a flat-topped
+            # shadow as dark and as sharp-edged as a light contact.
+            kept = (self.in_contact and flatness <= p.max_hold_flatness
+                    and ((peak >= p.contrast_off and sharp)
+                         or prominence >= p.prominence_off))
+            if not (starts or kept):
                 continue
             # Soft weights (contrast above a floor) rather than the hard core: a hard cut
             # jumps by whole pyramid cells as the edge crosses them. The floor sits above
@@ -285,6 +301,8 @@ class RobustTracker:
                     area_mm2=core_area,
                     peak_contrast=peak,
                     sharpness=sharpness,
+                    prominence=prominence,
+                    flatness=flatness,
                 )
                 self._best_box = (x0, y0, bw, bh)
         self.in_contact = best is not None
@@ -307,9 +325,13 @@ class RobustTracker:
         p = self.params
         # Learn the fabric under the current light: divide the light back out first.
         target = img / self._gain
-        rate = np.where(target > self._bg, p.bg_rate_brighter, p.bg_rate_darker).astype(
-            np.float32
-        )
+        # Nothing dark enough to be a candidate is learned darker, contact or not: a
+        # finger hovering still would otherwise sink into the background, and when it
+        # moves on, its ghost carves a sharp crescent out of its shadow that passes for
+        # a light touch. Marks present from the first frame are in the background anyway.
+        dark = cv2.dilate(self._dark, self._guard_kernel).view(bool)
+        rate = np.where(target > self._bg, p.bg_rate_brighter,
+                        np.where(dark, 0.0, p.bg_rate_darker)).astype(np.float32)
         if result is not None:
             x0, y0, bw, bh = self._best_box
             gx = int(np.ceil(p.bg_guard_mm / self._cell_w_mm))

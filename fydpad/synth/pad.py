@@ -279,6 +279,13 @@ class SyntheticPad:
         x, y, z = (float(a) for a in self.path.at(t))
         return FrameTruth(k, t, z > 0, x, y, max(z, 0.0), z)
 
+    def straddles_contact(self, k: int) -> bool:
+        """True when the finger touched the fabric for part, not all, of frame k's
+        exposure (at the sub-frame instants the frame is rendered from): the camera saw a
+        touch-down or a release, so either answer about contact is right for that frame."""
+        zs = self.renderer.context(k).zs
+        return bool(np.any(zs > 0) and not np.all(zs > 0))
+
     def frame(self, k: int) -> NDArray[np.uint8]:
         return self.renderer.render(k)
 
