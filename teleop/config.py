@@ -29,7 +29,10 @@ class SafetyConfig:
     max_accel_mm_s2: float = 10000.0  # about 1 g: a 100 mm/s, 8 mm tap needs 2.5 m/s^2
     resume_speed_mm_s: float = 60.0  # after clutch or watchdog, glide back at this speed
     resume_done_mm: float = 0.2  # until within this distance of the target (then no speed step)
-    reengage_jump_mm: float = 2.0  # a touch this far from the held x, y glides there
+    reengage_jump_mm: float = 2.0  # a touch this far from the held x, y glides there,
+    # at this speed (the acceleration limit applies): fast, since the finger put itself
+    # there (60 mm/s costs 1-6 mm MAE on taps at random places; 300 overshoots, docs/teleop.md)
+    reengage_speed_mm_s: float = 150.0
     max_age_s: float = 0.2  # samples older than this (capture to arrival) are dropped
     watchdog_s: float = 0.25  # no valid sample this long -> hold
 
@@ -55,6 +58,12 @@ class PredictionConfig:
     degree: int = 2  # quadratic: follows tap turns
     max_horizon_s: float = 0.12  # never extrapolate further than this
     arm_lag_s: float = 0.0  # feed-forward of the arm's own lag; 0 = arm default
+    # The indentation: "imm" (two constant-acceleration Kalman filters, docs/teleop.md) or
+    # "poly" (the quadratic over window_z samples, as x and y).
+    method_z: str = "imm"
+    noise_z_mm: float = 0.5  # IR indentation noise per frame (bundled recordings: 0.3-0.5)
+    jerk_psd_z: tuple[float, float] = (3e4, 3e8)  # calm and quick model, mm^2/s^5
+    mode_stay: float = 0.98  # probability the motion keeps its model from frame to frame
 
 
 @dataclass

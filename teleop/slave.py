@@ -21,7 +21,7 @@ from teleop import protocol as P
 from teleop.config import TeleopConfig
 from teleop.link import LoggingAuthenticator, SlaveSocket
 from teleop.mapping import Mapping
-from teleop.predict import Predictor
+from teleop.predict import IMMPredictor, Predictor
 from teleop.safety import MotionLimiter, SampleGate, Watchdog
 from teleop.slaves import Arm, ArmFault
 
@@ -44,7 +44,14 @@ class SlaveLoop:
         # x, y restart at every touch (unknown while lifted). z restarts too, seeded with
         # the last lifted sample (indentation 0): the touch-down is then a ramp from 0.
         self.predictor = Predictor(pc.window, pc.degree, pc.max_horizon_s)
-        self.predictor_z = Predictor(pc.window_z, pc.degree, pc.max_horizon_s)
+        self.predictor_z: Predictor | IMMPredictor
+        if pc.method_z == "imm":
+            self.predictor_z = IMMPredictor(pc.noise_z_mm, tuple(pc.jerk_psd_z), pc.mode_stay,
+                                            pc.max_horizon_s)
+        elif pc.method_z == "poly":
+            self.predictor_z = Predictor(pc.window_z, pc.degree, pc.max_horizon_s)
+        else:
+            raise ValueError(f"prediction.method_z must be 'imm' or 'poly', got {pc.method_z!r}")
         self.lag_s = pc.arm_lag_s if pc.arm_lag_s > 0 else arm.lag_s
         self.home_mm = self.mapping.to_robot(np.zeros(3))
         self.limiter = MotionLimiter(self.cfg.safety, self.home_mm)
@@ -57,6 +64,7 @@ class SlaveLoop:
         self._latest_recv_s = math.nan
         self._contact = False
         self._gliding = False
+        self._glide_speed_mm_s = self.cfg.safety.resume_speed_mm_s
         self._touchdown = False
         self._was_alive = False
         self._actual_mm = self.home_mm.copy()
@@ -149,6 +157,7 @@ class SlaveLoop:
             return None
         if not self._was_alive:
             self._gliding = True  # resume: glide to the finger, no jump
+            self._glide_speed_mm_s = self.cfg.safety.resume_speed_mm_s
         self._was_alive = True
         s = self._latest
         cmd_ws = self.mapping.to_workspace(self.limiter.cmd_mm)
@@ -166,8 +175,10 @@ class SlaveLoop:
         if self._touchdown:
             # After a clutch the finger may touch elsewhere: glide there instead of jumping.
             self._touchdown = False
-            if float(np.linalg.norm(tgt[:2] - cmd_ws[:2])) > self.cfg.safety.reengage_jump_mm:
+            if (not self._gliding and float(np.linalg.norm(tgt[:2] - cmd_ws[:2]))
+                    > self.cfg.safety.reengage_jump_mm):
                 self._gliding = True
+                self._glide_speed_mm_s = self.cfg.safety.reengage_speed_mm_s
         return tgt
 
     def tick(self, now_s: float, dt_s: float) -> None:
@@ -179,8 +190,9 @@ class SlaveLoop:
             if self._gliding:
                 if np.linalg.norm(tgt - self.limiter.cmd_mm) <= self.cfg.safety.resume_done_mm:
                     self._gliding = False
-            self.limiter.speed_cap_mm_s = (self.cfg.safety.resume_speed_mm_s if self._gliding
-                                           else self.cfg.safety.max_speed_mm_s)
+            self.limiter.speed_cap_mm_s = (min(self._glide_speed_mm_s,
+                                               self.cfg.safety.max_speed_mm_s)
+                                           if self._gliding else self.cfg.safety.max_speed_mm_s)
             cmd = self.limiter.step(tgt, dt_s)
         try:
             if self.status != P.STATUS_FAULT:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from teleop.predict import Predictor
+from teleop.predict import IMMPredictor, Predictor
 
 
 def test_quadratic_motion_is_extrapolated_exactly():
@@ -52,3 +52,57 @@ def test_noise_is_not_amplified_much():
         if k > 6:
             errs.append(abs(p.predict_flat(k / 30 + 1 / 30)[0]))
     assert np.mean(errs) < 0.35
+
+
+def _one_step_errors(pred, z_true, noise_mm, seed=2):
+    """|prediction one 30 fps frame ahead - truth| after each noisy sample."""
+    rng = np.random.default_rng(seed)
+    errs = []
+    for k in range(len(z_true) - 1):
+        pred.add(k / 30, np.array([z_true[k] + rng.normal(0, noise_mm)]))
+        if k >= 6:
+            errs.append(abs(pred.predict_flat((k + 1) / 30)[0] - z_true[k + 1]))
+    return np.array(errs)
+
+
+def test_imm_smooths_a_still_noisy_indentation_better_than_the_quadratic():
+    """0.4 mm noise (the IR indentation's) on a still finger: the quadratic hands it on
+    amplified, the IMM's calm model averages it out."""
+    z = np.full(300, 5.0)
+    imm = _one_step_errors(IMMPredictor(0.5, (3e4, 3e8)), z, 0.4)
+    poly = _one_step_errors(Predictor(4, 2), z, 0.4)
+    assert imm.mean() < 0.5 * poly.mean(), (imm.mean(), poly.mean())
+
+
+def test_imm_follows_a_tap():
+    """A tap (sin^2, 7.6 mm deep, 80 mm/s peak) with little noise: the quick model takes
+    over; the one-frame-ahead error stays near the quadratic's, under 1 mm on average."""
+    t = np.arange(60) / 30
+    z = 7.6 * np.sin(np.pi * np.clip(t - 0.5, 0, 0.3) / 0.3) ** 2
+    imm = _one_step_errors(IMMPredictor(0.5, (3e4, 3e8)), z, 0.1)
+    poly = _one_step_errors(Predictor(4, 2), z, 0.1)
+    assert imm.mean() < 1.0 and imm.mean() < 1.5 * poly.mean(), (imm.mean(), poly.mean())
+
+
+def test_imm_extrapolates_constant_acceleration():
+    """Noise-free constant acceleration: once converged, the prediction is on the path."""
+    p = IMMPredictor(0.05, (1e2, 1e6), max_horizon_s=0.1)
+    f = lambda t: 3.0 + 40 * t - 300 * t * t  # noqa: E731
+    for k in range(60):
+        p.add(k / 30, np.array([f(k / 30)]))
+    t = 59 / 30 + 0.03
+    assert p.predict_flat(t)[0] == pytest.approx(f(t), abs=0.02)
+
+
+def test_imm_interface_matches_the_polynomial():
+    p = IMMPredictor(0.5, (3e4, 3e8))
+    assert p.predict(0.0) is None and len(p) == 0
+    p.add(0.0, np.array([2.0]))
+    assert p.predict_flat(0.05)[0] == pytest.approx(2.0)  # one sample: at rest there
+    assert p.latest()[0] == 2.0
+    with pytest.raises(ValueError, match="not after"):
+        p.add(0.0, np.array([2.0]))
+    p.reset()
+    assert len(p) == 0
+    with pytest.raises(ValueError, match="noise"):
+        IMMPredictor(0.0, (1.0,))
