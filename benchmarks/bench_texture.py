@@ -111,6 +111,8 @@ def quality(textures: list[str] | None = None) -> None:
                  for k in (1, 2)]
         model, _ = fit_texture(train)
         models.append(model)
+        norm, _ = fit_texture(train, speeds_mm_s=[10.0 + 5 * k for k in range(7)],
+                              speed_normalise=True)
         for v in (10.0, 15.0, 20.0, 25.0, 30.0, 35.0, 40.0):
             held = generate_scan(name, v, 10.0, seed=100)
             second = generate_scan(name, v, 10.0, seed=200)
@@ -121,10 +123,13 @@ def quality(textures: list[str] | None = None) -> None:
             for m in methods:
                 c, _ = evaluate_scan(model, held, method=m, mask=mask)
                 res += [c.psd_correlation, c.lsd_db]
+            c, _ = evaluate_scan(norm, held, method="stretch", mask=mask)
             rows[(name, v)] = res
             print(f"  {name:15s} {v:4.0f} mm/s  ceiling corr {res[0]:.3f} LSD {res[1]:.2f} | "
                   + " | ".join(f"{m} {res[2 + 2 * i]:.3f} {res[3 + 2 * i]:.2f}"
-                               for i, m in enumerate(methods)), flush=True)
+                               for i, m in enumerate(methods))
+                  + f" | speed-normalised fit, 5 mm/s grid {c.psd_correlation:.3f} "
+                  f"{c.lsd_db:.2f}", flush=True)
     print("summary (mean over textures; 'ok' = corr >= 0.95 and LSD <= ceiling + 0.25 dB)")
     for v in (10.0, 15.0, 20.0, 25.0, 30.0, 35.0, 40.0):
         r = np.array([rows[(n, v)] for n in names])

@@ -21,6 +21,13 @@ from fydpad.texture.segment import (
     DEFAULT_TOLERANCE_MM_S,
     segment_by_speed,
 )
+from fydpad.texture.speed_warp import NFFT as _NFFT
+from fydpad.texture.speed_warp import (
+    ar_from_log_psd,
+    fit_exponents,
+    log_psd,
+    normalised_spectrum,
+)
 
 Array = NDArray[np.float64]
 
@@ -73,7 +80,7 @@ def fit_texture(
     scans: Iterable[Scan], *, order: int = 200, speeds_mm_s: Sequence[float] = DEFAULT_SPEEDS_MM_S,
     tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S, highpass_hz: float = 10.0,
     min_seconds: float = 0.25, method: str = "autocorrelation", surface: str | None = None,
-    prewhiten_order: int = 8,
+    prewhiten_order: int = 8, speed_normalise: bool = False,
     drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
     wrap: Callable[[Iterable], Iterable] = lambda it: it,
 ) -> tuple[TextureModel, list[FitReport]]:
@@ -81,12 +88,20 @@ def fit_texture(
 
     Each scan is high-passed at ``highpass_hz`` and reduced by DFT321 as a whole, then
     cut into speed runs; each speed pools the autocorrelations of its runs.
+
+    ``speed_normalise``: a second pass fits each speed on its runs resampled to that
+    constant speed (:func:`speed_warp.normalised_spectrum`, warp exponents from the
+    first pass), so a spatial texture's model is its spectrum *at* that speed, not
+    pooled over the +-tolerance a hand wanders; the renderer then interpolates without
+    a hold band (the synthesis follows the finger's speed and smears it once, as the
+    hand did). Recorded in ``provenance["speed_normalised"]``.
     """
     scans = list(scans)
     if not scans:
         raise UserError("no scans to fit")
     fs = scans[0].fs_hz
     pooled: dict[float, list[Array]] = {float(s): [] for s in speeds_mm_s}
+    speeds_of: dict[float, list[Array]] = {float(s): [] for s in speeds_mm_s}
     for scan in wrap(scans):
         if abs(scan.fs_hz - fs) > 1e-6 * fs:
             raise UserError(f"{scan.path}: column 't_s': sample rate {scan.fs_hz:g} Hz differs "
@@ -95,6 +110,7 @@ def fit_texture(
         for s, rs in segment_by_speed(scan.speed_mm_s, fs, speeds_mm_s, tolerance_mm_s,
                                       min_seconds).items():
             pooled[s].extend(x[a:b] for a, b in rs)
+            speeds_of[s].extend(scan.speed_mm_s[a:b] for a, b in rs)
     got_speeds, hs, sig, reports = [], [], [], []
     for s, segs in pooled.items():
         n = sum(seg.size for seg in segs)
@@ -120,6 +136,10 @@ def fit_texture(
     if not got_speeds:
         raise UserError("no part of the scans is near any target speed (column 'speed_mm_s')")
     label = surface or scans[0].surface
+    normalised = None
+    if speed_normalise and len(got_speeds) > 1:
+        hs, sig, normalised = _speed_normalised(got_speeds, hs, sig, pooled, speeds_of, fs,
+                                                highpass_hz, order)
     model = TextureModel(
         surface=label, fs_hz=fs, speeds_mm_s=np.asarray(got_speeds), h=np.vstack(hs),
         sigma2=np.asarray(sig), highpass_hz=highpass_hz, fit_band_hz=(highpass_hz, fs / 2),
@@ -132,4 +152,29 @@ def fit_texture(
             "samples_per_speed": {f"{r.speed_mm_s:g}": r.n_samples for r in reports},
         },
     )
+    if normalised is not None:
+        model.provenance["speed_normalised"] = normalised
     return model, reports
+
+
+def _speed_normalised(speeds: list[float], hs: list[Array], sig: list[float],
+                      pooled: dict[float, list[Array]], speeds_of: dict[float, list[Array]],
+                      fs: float, highpass_hz: float, order: int
+                      ) -> tuple[list[Array], list[float], dict[str, float]]:
+    """Refit every speed on its runs moved to that exact speed (see fit_texture)."""
+    polys = np.vstack([np.concatenate([[1.0], -h]) for h in hs])
+    f_hz = np.arange(_NFFT // 2 + 1) * fs / _NFFT
+    beta, gamma = fit_exponents(np.asarray(speeds), log_psd(polys, sig), f_hz,
+                                (highpass_hz, fs / 2))
+    out_h, out_s = [], []
+    for s in speeds:
+        acc, n = np.zeros(_NFFT // 2 + 1), 0.0
+        for x, v in zip(pooled[s], speeds_of[s], strict=True):
+            p, m = normalised_spectrum(x, v, s, beta, gamma)
+            acc, n = acc + p, n + m
+        a, s2 = ar_from_log_psd(np.log(np.maximum(acc / n, 1e-300)), order)
+        if not is_stable(a):
+            raise UserError(f"speed {s:g} mm/s: the speed-normalised filter is unstable")
+        out_h.append(h_from_poly(a))
+        out_s.append(s2)
+    return out_h, out_s, {"beta": beta, "gamma": gamma}

@@ -60,6 +60,8 @@ class SpeedInterpolator:
             # Near its speed the fitted model is kept (see speed_warp): 30 % of the fit
             # tolerance, the value that scored best on the generator's strokes (docs).
             hold = HOLD_FRACTION * model.tolerance_mm_s if hold_mm_s is None else hold_mm_s
+            if hold_mm_s is None and model.provenance.get("speed_normalised"):
+                hold = 0.0  # a model at its exact speed: nothing to hold (fit.py)
             self._warp = SpeedWarp(model.speeds_mm_s, self.polys, model.sigma2, model.fs_hz,
                                    model.fit_band_hz, hold)
         if method == "lsf":

@@ -170,3 +170,24 @@ def test_stretch_keeps_a_temporal_spectrum_in_place():
     assert it._warp.gamma == pytest.approx(2.0, abs=0.05)
     a, s2 = it(15.0)
     np.testing.assert_allclose(log_psd(a, s2)[0], log_psd(a0, 1e-3 * 1.5**2)[0], atol=0.05)
+
+
+def test_normalise_speed_turns_a_spatial_tone_scanned_at_a_wandering_speed_into_one_line():
+    """Ground truth: a surface sin(2 pi x / lambda) scanned at 20 mm/s +-20 % sounds at
+    v / lambda (smeared over 8-12 Hz x harmonics); moved to 25 mm/s in space (beta = 1)
+    it is one line at 25 / lambda."""
+    from fydpad.texture.speed_warp import normalise_speed
+
+    fs, lam = 1000.0, 0.2  # mm: 100-150 Hz
+    t = np.arange(8000) / fs
+    v = 20.0 * (1 + 0.2 * np.sin(2 * np.pi * 0.5 * t))
+    x_mm = np.cumsum(v) / fs
+    y, top = normalise_speed(np.sin(2 * np.pi * x_mm / lam), v, 25.0, 1.0, 0.0)
+    f = np.fft.rfftfreq(y.size, 1 / fs)
+    p = np.abs(np.fft.rfft(y * np.hanning(y.size))) ** 2
+    raw = np.abs(np.fft.rfft(np.sin(2 * np.pi * x_mm / lam) * np.hanning(t.size))) ** 2
+    assert abs(f[np.argmax(p)] - 25.0 / lam) < 0.5
+    near = np.abs(f - 125.0) <= 2.0
+    assert p[near].sum() / p.sum() > 0.95  # one line
+    assert raw[np.abs(np.fft.rfftfreq(t.size, 1 / fs) - 100.0) <= 2.0].sum() / raw.sum() < 0.3
+    assert top == pytest.approx(25.0 / 24.0, rel=0.01)  # data up to fs/2 * v0 / v_max

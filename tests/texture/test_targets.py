@@ -30,6 +30,7 @@ from fydpad.texture.scan_generator import TEXTURES, generate_scan
 TARGET_TEXTURES = ("R1", "R2", "felt", "glass")
 SPEEDS = (10.0, 20.0, 30.0, 40.0)
 HELD_SPEEDS = (15.0, 30.0)
+NORMALISED_GRID = (10.0, 15.0, 20.0, 25.0, 30.0, 35.0, 40.0)
 
 
 @pytest.fixture(scope="module")
@@ -39,7 +40,10 @@ def figures():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for name in TARGET_TEXTURES:
-            model, _ = fit_texture([generate_scan(name, s, 8.0, seed=1) for s in SPEEDS])
+            train = [generate_scan(name, s, 8.0, seed=1) for s in SPEEDS]
+            model, _ = fit_texture(train)
+            # The option: every 5 mm/s, each speed fitted on runs moved to it in space.
+            norm, _ = fit_texture(train, speeds_mm_s=NORMALISED_GRID, speed_normalise=True)
             for v in (20.0, 25.0):
                 held = generate_scan(name, v, 8.0, seed=100)
                 second = generate_scan(name, v, 8.0, seed=200)
@@ -49,6 +53,8 @@ def figures():
                 for method in ("stretch", "lsf", "linear"):
                     c, _ = evaluate_scan(model, held, method=method, mask=mask)
                     out[(name, v, method)] = (c.psd_correlation, c.lsd_db, ceil.lsd_db)
+                c, _ = evaluate_scan(norm, held, method="stretch", mask=mask)
+                out[(name, v, "normalised")] = (c.psd_correlation, c.lsd_db, ceil.lsd_db)
     return out
 
 
@@ -72,6 +78,23 @@ def test_targets_at_a_modelled_speed(figures):
                    "(docs/texture.md)")
 def test_targets_between_modelled_speeds(figures):
     _check(figures, 25.0, "stretch")
+
+
+def test_speed_normalised_fit_closes_most_of_the_gap_between_speeds(figures):
+    """fit_texture(speed_normalise=True) on the same strokes, every 5 mm/s: mean LSD above
+    the ceiling at 25 mm/s falls below half the default's (measured: R1 +0.59, R2 +0.88,
+    felt +0.26, glass +0.06 dB against +1.50, +1.50, +1.02, +0.12)."""
+    gap = {m: np.mean([figures[(n, 25.0, m)][1] - figures[(n, 25.0, m)][2]
+                       for n in TARGET_TEXTURES]) for m in ("stretch", "normalised")}
+    assert gap["normalised"] < 0.5 * gap["stretch"], gap
+
+
+@pytest.mark.xfail(strict=True, reason="measured with fit_texture(speed_normalise=True), "
+                   "speeds every 5 mm/s: at 25 mm/s LSD above the ceiling by 0.59 (R1), 0.88 "
+                   "(R2), 0.26 dB (felt), glass +0.06; corr 0.960-0.980; at 20 mm/s R2 +0.35, "
+                   "glass +0.28 (the default meets 20 mm/s) (docs/texture.md)")
+def test_targets_between_modelled_speeds_speed_normalised(figures):
+    _check(figures, 25.0, "normalised")
 
 
 @pytest.mark.parametrize("method", ["stretch", "lsf"])
