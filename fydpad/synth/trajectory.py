@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-TRAJECTORIES = ("circle", "lissajous", "tapping", "walk", "fast", "hover")
+TRAJECTORIES = ("circle", "lissajous", "tapping", "walk", "fast", "hover", "presses")
 
 #: Peak speed of a minimum-jerk move over its mean speed.
 _MIN_JERK_PEAK = 1.875
@@ -232,6 +232,15 @@ def _random_point(rng: np.random.Generator, p: TrajectoryParams, margin: float =
             float(rng.uniform(-p.reach_mm[1] + margin, p.reach_mm[1] - margin)))
 
 
+def _point_near(rng: np.random.Generator, p: TrajectoryParams, x_mm: float, y_mm: float,
+                radius_mm: float, margin: float = 4.0) -> tuple[float, float]:
+    """A random point within ``radius_mm`` of (x, y), inside the reach."""
+    r = radius_mm * np.sqrt(rng.uniform(0.1, 1.0))
+    a = rng.uniform(0.0, 2.0 * np.pi)
+    return (float(np.clip(x_mm + r * np.cos(a), -p.reach_mm[0] + margin, p.reach_mm[0] - margin)),
+            float(np.clip(y_mm + r * np.sin(a), -p.reach_mm[1] + margin, p.reach_mm[1] - margin)))
+
+
 def walk(seconds: float, rng: np.random.Generator, p: TrajectoryParams) -> FingerPath:
     """Smooth random free motion: strokes between random points at random speeds (up to
     ``max_speed``), depth varying 2-20 mm, with a lift and re-touch now and then."""
@@ -277,22 +286,59 @@ def hover(seconds: float, rng: np.random.Generator, p: TrajectoryParams) -> Fing
     x, y = _random_point(rng, p)
     b = _start(p, x, y)
     b.move_at(x, y, -rng.uniform(4.0, 8.0), p.max_speed_mm_s, 40.0)
+    touches = 0
     while b.t_s < seconds - 1.5:
-        for _ in range(int(rng.integers(1, 3))):  # hover about
-            x, y = _random_point(rng, p)
+        # Hover about in hops of a second or so (one before the first touch, so that
+        # even a short session has contacts to tell apart from the shadow).
+        for _ in range(1 if touches == 0 else int(rng.integers(1, 3))):
+            x, y = _point_near(rng, p, b.pos[0], b.pos[1], 30.0)
             b.move_at(x, y, -rng.uniform(1.5, 8.0), 0.6 * p.max_speed_mm_s, 20.0, 0.4)
-        if b.t_s < seconds - 2.5:
+        if touches == 0 or b.t_s < seconds - 2.5:
             b.move(b.pos[0], b.pos[1], rng.uniform(2.0, 6.0), 0.6)   # touch
-            x, y = _random_point(rng, p)
+            x, y = _point_near(rng, p, b.pos[0], b.pos[1], 40.0)
             b.move_at(x, y, rng.uniform(2.0, 6.0), 0.6 * p.max_speed_mm_s, 20.0, 0.4)
             b.move(b.pos[0], b.pos[1], -rng.uniform(2.0, 5.0), 0.6)  # release to hover
+            touches += 1
     _lift(b, p)
+    return b.build(seconds)
+
+
+#: The workspace whose calibration points ``presses`` presses (the paper's, the default).
+PRESSES_WORKSPACE_MM = (100.0, 70.0)
+#: Peak speed of a hop between calibration marks, lifted (a hand moving to the next mark,
+#: not a tracked stroke).
+HOP_SPEED_MM_S = 250.0
+
+
+def presses(seconds: float, rng: np.random.Generator, p: TrajectoryParams) -> FingerPath:
+    """The workspace calibration's presses, round after round: the fabric clear for 2 s,
+    then the 9 marked points of the 100 x 70 mm workspace
+    (``vision.calibration.default_targets_mm``) pressed in reading order, 6-8 mm deep,
+    each held 0.8 s, hopping 3 mm above the fabric between them (< 1 s clear); for
+    ``fydpad calibrate workspace`` and the web view's calibration."""
+    from vision.calibration import default_targets_mm
+
+    targets = default_targets_mm(PRESSES_WORKSPACE_MM)
+    b = _start(p, float(targets[0][0]), float(targets[0][1]))
+    while b.t_s < seconds:
+        b.move_at(b.pos[0], b.pos[1], -p.travel_height_mm, p.max_speed_mm_s,
+                  p.max_z_speed_mm_s, 0.5)
+        b.hold(1.5)  # the fabric clear: a new round
+        for x, y in targets:
+            x, y = float(x), float(y)
+            # Hops 3 mm above the fabric at a hand's pace between marks (up to
+            # HOP_SPEED_MM_S, < 1 s without contact within a round); presses and releases
+            # within the finger's z speed.
+            b.move_at(x, y, -3.0, HOP_SPEED_MM_S, p.max_z_speed_mm_s, 0.4)
+            b.move_at(x, y, rng.uniform(6.0, 8.0), p.max_speed_mm_s, p.max_z_speed_mm_s)
+            b.hold(0.8)
+            b.move_at(x, y, -3.0, p.max_speed_mm_s, p.max_z_speed_mm_s)
     return b.build(seconds)
 
 
 _BUILDERS: dict[str, Callable[[float, np.random.Generator, TrajectoryParams], FingerPath]] = {
     "circle": circle, "lissajous": lissajous, "tapping": tapping, "walk": walk,
-    "fast": fast, "hover": hover,
+    "fast": fast, "hover": hover, "presses": presses,
 }
 
 
