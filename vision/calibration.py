@@ -229,3 +229,21 @@ def press_centroids(
         sl = slice(start + trim, stop - trim)
         presses.append((float(np.median(u[sl])), float(np.median(v[sl]))))
     return presses
+
+
+def homography_from_presses(
+    presses_px: Sequence[tuple[float, float]],
+    targets_mm: ArrayLike,
+    image_flip: str,
+    frame_size: tuple[int, int],
+    intrinsics: CameraIntrinsics | None,
+) -> tuple[WorkspaceHomography, NDArray[np.float64]]:
+    """The homography from press centroids (flipped-frame pixels, in target order) to the
+    marked points, and each point's residual (mm)."""
+    targets = np.asarray(targets_mm, np.float64).reshape(-1, 2)
+    raw = np.vstack([raw_undistorted_point(u, v, image_flip, frame_size, intrinsics)
+                     for u, v in presses_px]) if len(presses_px) else np.empty((0, 2))
+    homography = fit_workspace_homography(raw, targets)
+    residual = np.hypot(*(apply_homography(homography.h, raw) - targets).T)
+    return homography, residual
+

@@ -7,10 +7,14 @@ streaming thread, ``send`` of raw bytes, ``pause``, ``unplug``, bytes the reader
 take in time dropped like a UART without flow control) with the accelerometer's lines:
 it streams a signal in m/s^2, quantised to the part's counts. ``skip`` loses samples on
 the device (a FIFO overrun), ``restart`` is a device reset (counter and clock restart).
+With ``clocked``, the part samples on its own clock like the real one: a starved emulator
+thread (a loaded machine) loses the samples it is late for, as counted gaps, instead of
+slowing its device clock down.
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 
 import numpy as np
@@ -43,7 +47,8 @@ class AccelEmulator(BoardEmulator):
 
     def __init__(self, signal: ArrayLike | Signal = _at_rest, rate_hz: float = 1000.0,
                  ug_per_lsb: float = 3900.0, range_g: float = 16.0, part: str = "ADXL345",
-                 start_us: int = 0, counter0: int = 0, hello_on_start: bool = True) -> None:
+                 start_us: int = 0, counter0: int = 0, hello_on_start: bool = True,
+                 clocked: bool = False) -> None:
         fn = signal if callable(signal) else looped(signal)
         super().__init__(rate_hz=rate_hz, hello_on_start=hello_on_start)
         self.signal_fn: Signal = fn
@@ -52,6 +57,19 @@ class AccelEmulator(BoardEmulator):
         self.part = part
         self.start_us = int(start_us)
         self.counter0 = int(counter0)
+        self.clocked = bool(clocked)
+        self._t0_s: float | None = None
+
+    def start(self, streaming: bool = True) -> AccelEmulator:
+        self._t0_s = time.monotonic()
+        super().start(streaming)
+        return self
+
+    def send_sample(self, k: int | None = None) -> None:
+        if k is None and self.clocked and self._t0_s is not None:
+            with self._lock:  # the sample due now on the device's clock; the rest are lost
+                self.k = max(self.k, int((time.monotonic() - self._t0_s) * self.rate_hz))
+        super().send_sample(k)
 
     @property
     def lsb_m_s2(self) -> float:

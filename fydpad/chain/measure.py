@@ -12,6 +12,7 @@ read with the least transport delay; on the simulated plant both clocks are the 
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -104,6 +105,14 @@ def drive_signal(
                 if progress is not None:
                     progress(read_every)
         read(n)
+        if pace is not None:
+            # On the device the last ticks' samples are still on the wire (USB, the
+            # reader's 10 ms port timeout): wait for them, up to ``stall_s``.
+            deadline = time.monotonic() + stall_s
+            while (blocks and float(blocks[-1][-1, 0]) + offset < t_tick[-1]
+                   and time.monotonic() < deadline):
+                time.sleep(0.002)
+                read(n)
     finally:
         comp.gain = gain
     clips = comp.vibration_clips - clips0

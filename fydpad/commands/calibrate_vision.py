@@ -19,12 +19,10 @@ from fydpad.progress import progress
 from vision.calibration import (
     CalibrationError,
     CharucoBoardSpec,
-    apply_homography,
     calibrate_charuco,
     default_targets_mm,
-    fit_workspace_homography,
+    homography_from_presses,
     press_centroids,
-    raw_undistorted_point,
 )
 from vision.contact import ContactTracker
 from vision.sources import CameraSource, FrameSource, SourceError
@@ -212,13 +210,8 @@ def fit_from_presses(
             f"found {len(presses)} presses held >= {min_hold_s} s, expected {len(targets)}: "
             "press each marked point once, in order, and hold it still"
         )
-    raw = np.vstack([
-        raw_undistorted_point(pu, pv, camera.image_flip, frame_size, camera.intrinsics)
-        for pu, pv in presses
-    ])
     try:
-        homography = fit_workspace_homography(raw, targets)
+        return homography_from_presses(presses, targets, camera.image_flip, frame_size,
+                                       camera.intrinsics)
     except CalibrationError as exc:
         raise UserError(str(exc)) from None
-    residual = np.hypot(*(apply_homography(homography.h, raw) - targets).T)
-    return homography, residual

@@ -60,6 +60,18 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "from the file; KIND: checks it). lpc and mlp drive the vibration term; "
                    "friction and grating drive it by position and scale the softness "
                    "stiffness through the tension channel (docs/texture_families.md)")
+    p.add_argument("--compensate", metavar="TF.npz",
+                   help="pre-compensate the vibration term by the inverse of the actuator "
+                   "chain's TF (`fydpad chain identify`; the entry nearest the rendered "
+                   "stiffness; docs/chain.md)")
+    p.add_argument("--channel", action="append", default=[], metavar="[SIGNAL=]TARGET",
+                   help="also send a texture signal to an output channel (repeatable): TARGET "
+                   "wav:FILE, csv:FILE or audio[:DEVICE][@RATE] (the sound card); SIGNAL "
+                   "vibration (eq. 3's texture term at 1 kHz, the default for files) or a "
+                   "channel the family declares, e.g. audio (friction's V = b mu(x) Y(t), a "
+                   "grating's V_e, at 48 kHz; the default for the sound card where the "
+                   "family has it); ',fs=X' sets the full scale of WAV and card (default 1). "
+                   "Stop or fault silences the card (docs/channels.md)")
     p.add_argument("--teleop", metavar="ENDPOINT",
                    help="stream the finger to a slave robot (`teleop slave`) at this endpoint")
     p.add_argument("--vibration-gain", type=float, default=1.0,
@@ -80,6 +92,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "loopback unless HOST is given, then with a token printed at start")
     p.add_argument("--web-results", metavar="DIR", default="experiment-results",
                    help="with --web: the experiment results directory (default: %(default)s)")
+    p.add_argument("--web-stimuli", metavar="FILE.json",
+                   help="with --web: the experiment's stimuli (name, stiffness, texture model; "
+                   "docs/experiment.md); default: the paper's SS1-SS4 with grating models")
     # -- end web view --
     p.set_defaults(func=run)
 
@@ -183,6 +198,25 @@ def _stiffness(args: argparse.Namespace) -> float:
     return math.nan if args.softness is None else args.softness
 
 
+def _check_channels(args: argparse.Namespace, render_hz: float) -> None:
+    """--channel: the spec parses, the texture renders its signal, the card is there. The
+    channels themselves are opened by the render process."""
+    from fydpad.channels import ChannelError
+    from fydpad.station.outputs import check_channel
+
+    if not args.texture or args.motors == "none":
+        raise UserError("--channel needs a texture to render: --texture MODEL and "
+                        "--motors sim or qb")
+    from fydpad.texture.families import load_family
+
+    family = load_family(args.texture)
+    for text in args.channel:
+        try:
+            check_channel(text, [family], render_hz)
+        except ChannelError as exc:
+            raise UserError(str(exc)) from None
+
+
 def run(args: argparse.Namespace) -> int:
     config = load_config(args.config)
     camera = None
@@ -211,6 +245,12 @@ def run(args: argparse.Namespace) -> int:
         from fydpad.texture.families import load_family
 
         load_family(args.texture)
+    if args.compensate:  # a TF file of another chain fails here, in one line
+        from fydpad.chain.tf_file import load_tf_set
+
+        load_tf_set(args.compensate, config.loops.render_hz, "vibration")
+    if args.channel:  # a bad spec, signal or device fails here, in one line
+        _check_channels(args, config.loops.render_hz)
     render = RenderSpec(
         rate_hz=config.loops.render_hz,
         texture=args.texture,
@@ -220,6 +260,8 @@ def run(args: argparse.Namespace) -> int:
         commands_csv=str(Path(args.record) / "commands.csv") if args.record else None,
         realtime=not args.no_realtime,
         config=config,
+        compensate=args.compensate,
+        channels=tuple(args.channel),
     )
     options = StationOptions(
         duration_s=args.duration, real_time=not args.as_fast_as_possible, vision_hz=vision_hz,
@@ -250,11 +292,15 @@ def run(args: argparse.Namespace) -> int:
     web = None
     if getattr(args, "web", None):
         from fydpad.web import parse_web_address, start_web
+        from fydpad.web.stimuli import experiment_stimuli
 
         try:
             web_host, web_port = parse_web_address(args.web)
+            stimuli = experiment_stimuli(args.web_stimuli, args.web_results)
+            if args.motors != "none":  # every stimulus's texture, loaded by the render process
+                render.textures = tuple(dict.fromkeys(s.texture for s in stimuli if s.texture))
             web = start_web(station, config, args.config, web_host, web_port,
-                            results_dir=args.web_results)
+                            results_dir=args.web_results, stimuli=stimuli)
         except (ValueError, OSError) as exc:
             raise UserError(str(exc)) from None
         print(f"web view: {web.url}", file=sys.stderr, flush=True)

@@ -20,50 +20,126 @@ class DriveChain:
         cfg = spec.config
         motors = replace(cfg.motors, backend=spec.motors, rate_hz=spec.rate_hz)
         self.drive = build_drive(motors, cfg.pwm, cfg.qb, cfg.softness)
-        self.texture = None
-        if spec.texture is not None:
-            from fydpad.station.texture_source import open_texture
-
-            self.texture = open_texture(spec.texture, spec.rate_hz)
-            ch = self.texture.tick_channels
-            # Where the family's tick puts each 1 kHz channel (-1: not rendered).
-            self._vib_i = ch.index("vibration") if "vibration" in ch else -1
-            self._ten_i = ch.index("tension") if "tension" in ch else -1
-            table = self.drive.table
-            self._k_lo, self._k_hi = (table.k_range_n_per_mm if table is not None
-                                      else (0.0, math.inf))
+        # Every model is loaded now, so switching (the experiment's stimuli) reads no file
+        # in the 1 kHz loop: slot 0 is --texture (None: none), then spec.textures.
+        self.specs = [spec.texture, *spec.textures]
+        self.models = [None if s is None else _TickModel(s, spec.rate_hz) for s in self.specs]
+        if spec.textures:  # the commands log says which model each tick rendered
+            self.outputs = (*DriveChain.outputs, "texture")
+        self.index = 0
+        self.texture = self.models[0]
+        self.switches = 0
+        self.friction_b_v = math.nan
+        table = self.drive.table
+        self._k_lo, self._k_hi = (table.k_range_n_per_mm if table is not None
+                                  else (0.0, math.inf))
         self._strict = cfg.softness.strict
+        self.compensator = None  # chain compensation (issue 8): TF inverse, per stiffness
+        if spec.compensate is not None:
+            from fydpad.chain.live import open_compensator
+
+            self.compensator = open_compensator(spec.compensate, spec.rate_hz)
+        self.channels = None  # --channel: the texture's signals to cards and files (issue 8)
+        if spec.channels:
+            from fydpad.station.outputs import ChannelOutputs
+
+            self.channels = ChannelOutputs(list(spec.channels), self.models, spec.rate_hz,
+                                           spec.channel_block_ticks)
         self.drive.start()
+
+    def apply_control(self, texture_index: float, friction_b_v: float) -> None:
+        """Select the texture model (-1 or out of range: none) and set friction models'
+        b (NaN: keep the files'); called by the render loop when the control changes."""
+        i = int(texture_index) if texture_index == texture_index else 0
+        i = i if 0 <= i < len(self.models) else -1
+        if i != self.index:
+            self.index = i
+            self.texture = self.models[i] if i >= 0 else None
+            if self.texture is not None:
+                self.texture.reset()  # a fresh start: no filter state of its last use
+            self.switches += 1
+        if friction_b_v == friction_b_v and friction_b_v != self.friction_b_v:
+            self.friction_b_v = friction_b_v
+            for m in self.models:
+                if m is not None and hasattr(m.family, "b"):
+                    m.family.b = float(friction_b_v)
+
+    def live_stats(self) -> dict:
+        """The texture in use, for the station's live figures and the web view."""
+        t = self.texture
+        return {"index": self.index, "model": self.specs[self.index] if self.index >= 0
+                else None, "kind": t.family.kind if t is not None else None,
+                "switches": self.switches,
+                "friction_b_v": (getattr(t.family, "b", None) if t is not None else None)}
 
     def tick(self, t_s, contact, x_mm, y_mm, speed_mm_s, force_n, vibration_gain,
              stiffness_n_per_mm):
         drive = self.drive
         drive.composer.gain = vibration_gain
         vib = 0.0
-        if self.texture is not None:
-            out = self.texture.tick(t_s, contact, x_mm, y_mm, speed_mm_s, force_n)
-            if self._vib_i >= 0:
-                vib = out[self._vib_i]
+        out = None
+        tex = self.texture
+        if tex is not None:
+            out = tex.family.tick(t_s, contact, x_mm, y_mm, speed_mm_s, force_n)
+            if tex.vib_i >= 0:
+                vib = out[tex.vib_i]
             k = stiffness_n_per_mm
-            if self._ten_i >= 0 and self._k_lo <= k <= self._k_hi:
+            if tex.ten_i >= 0 and self._k_lo <= k <= self._k_hi:
                 # The tension channel scales the softness request, kept within the table
                 # (no clamping warning per tick) and rounded (unchanged values are free).
-                k = min(max(k * out[self._ten_i], self._k_lo), self._k_hi)
+                k = min(max(k * out[tex.ten_i], self._k_lo), self._k_hi)
                 stiffness_n_per_mm = round(k, 4)
         drive.set_stiffness(stiffness_n_per_mm, self._strict)
+        if self.channels is not None:
+            self.channels.tick(t_s, contact, x_mm, y_mm, speed_mm_s, force_n, vibration_gain,
+                               self.index, out, vib)
+        comp = self.compensator
+        if comp is not None:
+            comp.select(drive.requested_k_n_per_mm)  # the TF nearest what is rendered
+            vib = comp.tick(vib)
         # The per-texture gain is applied by the composer (drive.composer.gain).
         d = drive.tick(vib)
+        if len(self.models) > 1:
+            return (vib, d[0], d[1], drive.theta_ref_rad, self.index)
         return (vib, d[0], d[1], drive.theta_ref_rad)
 
     def safe_stop(self) -> None:
-        self.drive.safe_stop()
+        try:
+            self.drive.safe_stop()
+        finally:
+            if self.channels is not None:  # files keep what was rendered; the card: silence
+                self.channels.close()
 
     def stats(self) -> dict:
         """Clipping counts of eq. (3), the softness request and texture limiter resets."""
         out = self.drive.stats()
-        if self.texture is not None:
-            out["texture_limiter_resets"] = getattr(self.texture, "resets", 0)
+        if any(m is not None for m in self.models):
+            out["texture_limiter_resets"] = sum(getattr(m.family, "resets", 0)
+                                                for m in self.models if m is not None)
+        if len(self.models) > 1:
+            out["texture_switches"] = self.switches
+        if self.compensator is not None:
+            out.update(self.compensator.stats())
+        if self.channels is not None:
+            out["channels"] = self.channels.stats()
         return out
+
+
+class _TickModel:
+    """A texture family opened for the 1 kHz tick, with where its tick puts each channel."""
+
+    def __init__(self, spec: str, rate_hz: float):
+        from fydpad.station.texture_source import open_texture
+
+        self.family = open_texture(spec, rate_hz)
+        ch = self.family.tick_channels
+        # Where the family's tick puts each 1 kHz channel (-1: not rendered).
+        self.vib_i = ch.index("vibration") if "vibration" in ch else -1
+        self.ten_i = ch.index("tension") if "tension" in ch else -1
+
+    def reset(self) -> None:
+        if hasattr(self.family, "reset"):
+            self.family.reset()
 
 
 def build_render_chain(spec: RenderSpec) -> DriveChain:

@@ -27,8 +27,11 @@ from fydpad.pacing import LatencyHistogram, LoopTimer
 from fydpad.station.shared import SharedFingerState, SharedRecord
 from vision.recording import CsvRowWriter
 
-#: Control values the station may change while the render process runs.
-CONTROL_FIELDS = ("vibration_gain", "stiffness_n_per_mm", "vibration_enabled", "epoch_s")
+#: Control values the station may change while the render process runs. ``texture_index``
+#: selects the texture model among ``[RenderSpec.texture, *RenderSpec.textures]`` (-1: none;
+#: the experiment's stimuli); ``friction_b_v`` sets a friction model's b (NaN: the file's).
+CONTROL_FIELDS = ("vibration_gain", "stiffness_n_per_mm", "vibration_enabled", "epoch_s",
+                  "texture_index", "friction_b_v")
 
 
 class RenderChain(Protocol):
@@ -52,6 +55,9 @@ class RenderSpec:
     rate_hz: float = 1000.0
     #: A texture model file (None: no vibration).
     texture: str | None = None
+    #: More texture models, all loaded at start and selected live by the control record's
+    #: ``texture_index`` (1, 2, ...; 0 is ``texture``): no file I/O in the 1 kHz loop.
+    textures: tuple[str, ...] = ()
     vibration_gain: float = 1.0
     stiffness_n_per_mm: float = math.nan
     #: "sim" (the simulated fabric and motor plant) or "qb" (the QB board) or "none".
@@ -65,6 +71,12 @@ class RenderSpec:
     chain: str | None = None
     #: The device configuration (motor, PWM, board and softness sections are used).
     config: Any = None
+    #: A TF file of ``fydpad chain identify``: its inverse pre-compensates the vibration.
+    compensate: str | None = None
+    #: Output channels, ``[SIGNAL=]TARGET[,fs=X]`` each (fydpad.station.outputs).
+    channels: tuple[str, ...] = ()
+    #: Ticks per block handed to the channels (10: 10 ms).
+    channel_block_ticks: int = 10
 
 
 class NullChain:
@@ -87,7 +99,7 @@ def build_chain(spec: RenderSpec) -> RenderChain:
 
         module, _, name = spec.chain.partition(":")
         return getattr(importlib.import_module(module), name)(spec)
-    if spec.motors == "none" and spec.texture is None:
+    if spec.motors == "none" and spec.texture is None and not spec.textures:
         return NullChain()
     from fydpad.station.chains import build_render_chain
 
@@ -124,6 +136,10 @@ def render_main(
         if spec.commands_csv:
             log = CsvRowWriter(Path(spec.commands_csv), ("t_s", "frame", *chain.outputs))
         last_seq = 0
+        last_ctl_seq = -1
+        # Optional: a chain that switches textures or takes b live (DriveChain does).
+        apply_control = getattr(chain, "apply_control", None)
+        live_stats = getattr(chain, "live_stats", None)
         # The station that started us, as multiprocessing knows it: getppid() here would
         # already be init's pid if the station was killed while this process started.
         started_by = mp.parent_process()
@@ -134,7 +150,11 @@ def render_main(
         while not stop_event.is_set():
             tick_time = timer.wait()
             seq, v = state.read()
-            _, ctl = control.read()
+            ctl_seq, ctl = control.read()
+            if ctl_seq != last_ctl_seq:  # only when the station wrote something new
+                last_ctl_seq = ctl_seq
+                if apply_control is not None:
+                    apply_control(ctl[4], ctl[5])
             t0 = ctl[3]  # the station's epoch: t_s = 0 at its first frame
             gain = ctl[0] if ctl[2] > 0.5 else 0.0
             if seq:
@@ -151,8 +171,11 @@ def render_main(
                     # The station died without stopping us (SIGKILL): stop safely, now.
                     raise RuntimeError("the station process is gone")
                 # Once a second: the live figures for the status line and the web view.
-                results.put(("live", {"render": timer.stats().as_dict(),
-                                      "frame_to_command_ms": latency.percentiles_ms()}))
+                live = {"render": timer.stats().as_dict(),
+                        "frame_to_command_ms": latency.percentiles_ms()}
+                if live_stats is not None:
+                    live["texture"] = live_stats()
+                results.put(("live", live))
     except BaseException as exc:
         results.put(("fault", f"render loop: {exc!r}\n{traceback.format_exc()}"))
     finally:

@@ -213,7 +213,7 @@ class Station:
         self.shared = SharedFingerState()
         self.control = SharedRecord(CONTROL_FIELDS)
         self._control = [options.render.vibration_gain, options.render.stiffness_n_per_mm, 1.0,
-                         math.nan]
+                         math.nan, 0.0, math.nan]  # texture 0 (--texture), b of the file
         self.control.write(self._control)
         self.stop_event = threading.Event()
         self.faults: list[str] = []
@@ -356,8 +356,10 @@ class Station:
                                    or "render process did not start")
         t0 = time.perf_counter() + 0.05
         self.t0 = t0
-        self._control[3] = t0
-        self.control.write(self._control)
+        # Only the epoch: the web view may have set other fields while the chain was built.
+        control = [float(v) for v in self.control.read()[1]]
+        control[3] = t0
+        self.control.write(control)
         threads = [threading.Thread(target=self._vision_loop, args=(t0,), name="vision")]
         if self.sensors is not None:
             threads.append(threading.Thread(target=self._sensor_loop, args=(t0,),

@@ -39,6 +39,8 @@ class Stimulus:
     #: Grating period of the texture (mm); the texture model renders it.
     grating_mm: float
     description: str = ""
+    #: The texture model the station renders (``[KIND:]MODEL.json``); None: softness only.
+    texture: str | None = None
 
 
 #: The paper's four specimens (section IV-A): S1 = 0.88 N/mm, S2 = 0.39 N/mm; R1 = 3.90 mm,
@@ -257,10 +259,11 @@ def read_answers(csv_path: Path) -> list[dict]:
     return rows
 
 
-def _drop_torn_line(csv_path: Path) -> None:
-    """Cut an answer a crash left half-written, so the next answer starts a clean line."""
+def drop_torn_line(csv_path: Path, header: Sequence[str] = CSV_FIELDS) -> None:
+    """Cut an answer a crash left half-written, so the next answer starts a clean line;
+    a missing file is created with its ``header``."""
     if not csv_path.exists():
-        _fsync_write(csv_path, ",".join(CSV_FIELDS) + "\n", "w")
+        _fsync_write(csv_path, ",".join(header) + "\n", "w")
         return
     data = csv_path.read_bytes()
     if data and not data.endswith(b"\n"):
@@ -302,7 +305,7 @@ class ExperimentSession:
         if plan_path.exists():
             plan = SessionPlan.from_json(plan_path.read_text(encoding="utf-8"), str(plan_path))
             answers = read_answers(csv_path)
-            _drop_torn_line(csv_path)
+            drop_torn_line(csv_path)
             for row in answers:
                 k = int(row["trial"])
                 if row["presented"] != plan.order[k - 1]:

@@ -24,13 +24,17 @@ from aiohttp import web
 
 from fydpad.annotate import annotate_frame
 from fydpad.config import save_config
+from fydpad.web.calibration import PressCollector
 from fydpad.web.experiment import (
+    PAPER_STIMULI,
     ExperimentError,
     ExperimentSession,
     Stimulus,
     plot_png,
     report,
 )
+from fydpad.web.staircase import StaircaseSession
+from vision.calibration import CalibratedMapping, CalibrationError
 
 STATIC = Path(__file__).parent / "static"
 #: Samples kept for the plots (10 s at up to 60 fps, plus slack).
@@ -56,34 +60,53 @@ def is_loopback(host: str) -> bool:
         return False
 
 
+def write_control(station, **values: float) -> None:
+    """Change some of the render process's control fields (by name), keep the others."""
+    from fydpad.station.render import CONTROL_FIELDS
+
+    control = [float(v) for v in station.control.read()[1]]
+    for name, v in values.items():
+        control[CONTROL_FIELDS.index(name)] = float(v)
+    station.control.write(control)
+
+
 class StationStimulus:
-    """Presents an experiment stimulus on the station: stiffness through the control
-    record, texture through ``texture_hook(stimulus)`` (texture models land separately;
-    without a hook the grating is only shown)."""
+    """Presents an experiment stimulus on the station through the render process's
+    control record: its stiffness, and its texture model selected by index among those
+    the render process loaded at start (``RenderSpec.textures``; not loaded: texture
+    off). ``texture_hook(stimulus)``, if given, is called too."""
 
     def __init__(self, station, texture_hook=None):
         self.station = station
         self.texture_hook = texture_hook
         self.current: Stimulus | None = None
+        render = getattr(station.options, "render", None)
+        #: Model spec -> its index in the render process ([texture, *textures]).
+        self.texture_index = {t: i + 1 for i, t in enumerate(getattr(render, "textures", ()))}
 
     def __call__(self, stim: Stimulus | None) -> None:
         self.current = stim
-        control = [float(v) for v in self.station.control.read()[1]]
-        if stim is None:
-            control[2] = 0.0  # session complete: vibration off
+        if stim is None:  # session complete: vibration and texture off
+            write_control(self.station, vibration_enabled=0.0, texture_index=-1.0)
         else:
-            control[1] = stim.stiffness_n_per_mm
-            control[2] = 1.0
-        self.station.control.write(control)
+            write_control(self.station, stiffness_n_per_mm=stim.stiffness_n_per_mm,
+                          vibration_enabled=1.0,
+                          texture_index=self.texture_index.get(stim.texture, -1))
         if self.texture_hook is not None:
             self.texture_hook(stim)
+
+    def rendered(self, stim: Stimulus | None) -> bool:
+        """Whether the station renders this stimulus's texture (else it is only shown)."""
+        return stim is not None and stim.texture in self.texture_index
 
 
 class WebView:
     """The application's state and handlers (runs in the web thread)."""
 
-    def __init__(self, station, config, config_path, results_dir, token, texture_hook=None):
+    def __init__(self, station, config, config_path, results_dir, token, texture_hook=None,
+                 stimuli: tuple[Stimulus, ...] | list[Stimulus] = PAPER_STIMULI):
         self.station = station
+        self.stimuli = list(stimuli)
         self.config = config
         self.config_path = Path(config_path) if config_path else None
         self.results_dir = Path(results_dir)
@@ -95,6 +118,9 @@ class WebView:
         self.session: ExperimentSession | None = None
         self.stimulus = StationStimulus(station, texture_hook)
         self.texture_name = getattr(getattr(station.options, "render", None), "texture", None)
+        self.staircase: StaircaseSession | None = None
+        self.calibration: PressCollector | None = None
+        self._calibration_fit: dict | None = None
 
     # -- sampling -------------------------------------------------------------------------
 
@@ -107,6 +133,10 @@ class WebView:
                 s = view.state
                 self.samples.append((view.frame_index, s.t_s, bool(s.contact), _num(s.x_mm),
                                      _num(s.y_mm), _num(s.indentation_mm), _num(s.force_n)))
+                cal, c = self.calibration, view.contact
+                if cal is not None:
+                    cal.feed(s.t_s, c is not None, c.u_px if c else math.nan,
+                             c.v_px if c else math.nan)
             await asyncio.sleep(0.02)
 
     # -- auth -----------------------------------------------------------------------------
@@ -133,6 +163,9 @@ class WebView:
     async def experiment_page(self, request):
         return web.FileResponse(STATIC / "experiment.html")
 
+    async def calibrate_page(self, request):
+        return web.FileResponse(STATIC / "calibrate.html")
+
     # -- live -----------------------------------------------------------------------------
 
     def settings(self) -> dict:
@@ -143,6 +176,7 @@ class WebView:
             "method": tr.method, "workspace_mm": list(tr.workspace_mm),
             "vibration_gain": _num(control[0]), "stiffness_n_per_mm": _num(control[1]),
             "vibration_enabled": bool(control[2]), "texture": self.texture_name,
+            "texture_index": _num(control[4]), "friction_b_v": _num(control[5]),
             "config_path": str(self.config_path) if self.config_path else None,
         }
 
@@ -161,11 +195,14 @@ class WebView:
             "frame": frame,
             "samples": samples,
             "stats": {k: stats.get(k) for k in ("render", "vision", "frame_to_command_ms")},
+            # What the render process says it renders (texture model, switches, b).
+            "texture": stats.get("texture"),
             # The tele-operation link posts {"mae_mm": [...], ...} here when it lands.
             "link": stats.get("link"),
             "settings": self.settings(),
             "stimulus": dataclasses.asdict(self.stimulus.current)
             if self.stimulus.current else None,
+            "stimulus_rendered": self.stimulus.rendered(self.stimulus.current),
             "jpeg_encoded": self.jpeg_encoded,
         })
 
@@ -261,7 +298,7 @@ class WebView:
             body = await request.json()
             seed = body.get("seed")
             self.session = ExperimentSession.open(
-                self.results_dir, str(body.get("participant", "")),
+                self.results_dir, str(body.get("participant", "")), self.stimuli,
                 repeats=int(body.get("repeats", 3)),
                 seed=None if seed in (None, "") else int(seed), present=self.stimulus)
         except (ExperimentError, ValueError, TypeError) as exc:
@@ -301,10 +338,102 @@ class WebView:
             return web.json_response({"error": str(exc)}, status=404)
         return web.json_response({"participants": parts, "confusion": conf.as_dict()})
 
+    # -- the friction-gain staircase -----------------------------------------------------
+
+    def _apply_b(self, b_v: float) -> None:
+        """The staircase's b to the station's own texture model (--texture, slot 0): the
+        friction model the participant compares with the real sample."""
+        write_control(self.station, friction_b_v=b_v, texture_index=0.0,
+                      vibration_enabled=1.0)
+
+    async def stairs_status(self, request):
+        return web.json_response({"staircase": self.staircase.status()
+                                  if self.staircase is not None else None})
+
+    async def stairs_start(self, request):
+        try:
+            body = await request.json()
+            self.staircase = StaircaseSession.open(
+                self.results_dir, str(body.get("participant", "")),
+                start=float(body.get("start", 400.0)), step=float(body.get("step", 10.0)),
+                present=self._apply_b)
+        except (ExperimentError, ValueError, TypeError) as exc:
+            return web.json_response({"error": str(exc)}, status=400)
+        return web.json_response({"staircase": self.staircase.status()})
+
+    async def stairs_answer(self, request):
+        if self.staircase is None:
+            return web.json_response({"error": "no staircase"}, status=400)
+        try:
+            body = await request.json()
+            self.staircase.answer(str(body["rougher"]), body.get("trial"))
+        except (ExperimentError, ValueError, TypeError, KeyError) as exc:
+            return web.json_response({"error": str(exc)}, status=400)
+        return web.json_response({"staircase": self.staircase.status()})
+
+    # -- the workspace calibration ---------------------------------------------------------
+
+    async def cal_start(self, request):
+        try:
+            body = await request.json()
+            self.calibration = PressCollector.for_workspace(
+                self.station.tracker.workspace_mm, int(body.get("points", 9)),
+                float(body.get("min_hold_s", 0.4)), float(body.get("clear_s", 1.0)))
+        except (CalibrationError, ValueError, TypeError) as exc:
+            return web.json_response({"error": str(exc)}, status=400)
+        self._calibration_fit = None
+        return web.json_response({"calibration": self.cal_state()})
+
+    def cal_state(self) -> dict | None:
+        cal = self.calibration
+        if cal is None:
+            return None
+        out = cal.status()
+        if cal.state == "done" and self._calibration_fit is None:
+            view = self.station.snapshot.latest()
+            h, w = view.raw_frame.shape[:2]
+            try:
+                hom, residual = cal.fit(self.station.tracker.image_flip, (w, h),
+                                        self.config.camera.intrinsics)
+                self._calibration_fit = {"matrix": list(hom.matrix), "rms_mm": hom.rms_mm,
+                                         "residual_mm": residual.round(3).tolist(),
+                                         "hom": hom}
+            except CalibrationError as exc:
+                self._calibration_fit = {"error": str(exc)}
+        if self._calibration_fit is not None:
+            out["fit"] = {k: v for k, v in self._calibration_fit.items() if k != "hom"}
+        return out
+
+    async def cal_status(self, request):
+        return web.json_response({"calibration": self.cal_state()})
+
+    async def cal_cancel(self, request):
+        self.calibration, self._calibration_fit = None, None
+        return web.json_response({"calibration": None})
+
+    async def cal_save(self, request):
+        """Apply the fitted homography live and write it to the configuration file."""
+        fit = self._calibration_fit
+        if fit is None or "hom" not in fit:
+            return web.json_response({"error": "no fitted calibration to save"}, status=400)
+        hom = fit["hom"]
+        tr = self.station.tracker
+        self.station.tracker = tr.with_settings(calibration=CalibratedMapping(
+            hom, self.config.camera.intrinsics, tr.image_flip))
+        self.config.camera = dataclasses.replace(self.config.camera,
+                                                 workspace_homography=hom)
+        if self.config_path is None:
+            return web.json_response({"ok": True, "message": "applied; not saved: the "
+                                      "station was started without --config FILE"})
+        save_config(self.config, self.config_path)
+        return web.json_response({"ok": True, "message": f"applied and saved "
+                                  f"{self.config_path} [camera.workspace_homography]"})
+
     def app(self) -> web.Application:
         app = web.Application(middlewares=[self.auth], client_max_size=64 * 1024)
         app.router.add_get("/", self.index)
         app.router.add_get("/experiment", self.experiment_page)
+        app.router.add_get("/calibrate", self.calibrate_page)
         app.router.add_get("/api/state", self.state)
         app.router.add_get("/api/frame.jpg", self.frame_jpg)
         app.router.add_post("/api/settings", self.post_settings)
@@ -314,6 +443,13 @@ class WebView:
         app.router.add_post("/api/experiment/answer", self.exp_answer)
         app.router.add_get("/api/experiment/plot.png", self.exp_plot)
         app.router.add_get("/api/experiment/report", self.exp_report)
+        app.router.add_get("/api/staircase", self.stairs_status)
+        app.router.add_post("/api/staircase/start", self.stairs_start)
+        app.router.add_post("/api/staircase/answer", self.stairs_answer)
+        app.router.add_get("/api/calibration", self.cal_status)
+        app.router.add_post("/api/calibration/start", self.cal_start)
+        app.router.add_post("/api/calibration/cancel", self.cal_cancel)
+        app.router.add_post("/api/calibration/save", self.cal_save)
         app.router.add_static("/static/", STATIC)
         return app
 
@@ -379,11 +515,14 @@ class WebServer:
 
 def start_web(station, config, config_path=None, host: str = "127.0.0.1", port: int = 8080,
               token: str | None = None, results_dir: str | Path = "experiment-results",
-              texture_hook=None) -> WebServer:
-    """Serve the station's web view; off loopback a token is required (made if absent)."""
+              texture_hook=None, stimuli: tuple[Stimulus, ...] | list[Stimulus] = PAPER_STIMULI
+              ) -> WebServer:
+    """Serve the station's web view; off loopback a token is required (made if absent).
+    ``stimuli``: the experiment's (their textures rendered if ``RenderSpec.textures``
+    has them)."""
     if token is None and not is_loopback(host):
         token = secrets.token_urlsafe(16)
-    view = WebView(station, config, config_path, results_dir, token, texture_hook)
+    view = WebView(station, config, config_path, results_dir, token, texture_hook, stimuli)
     return WebServer(view, host, port).start()
 
 

@@ -28,14 +28,18 @@ def session():
     s.close()
 
 
-def lock_in(session, f_hz: float, amp_duty: float = 0.1, periods: int = 512) -> complex:
-    """Ground truth, point by point: a sine at f_hz through the same drive, settled for a
-    third of the run, then Y/X at f_hz over a whole number of cycles (lock-in)."""
+def lock_in(session, f_hz: float, amp_duty: float = 0.1, settle: int = 256,
+            measure: int = 1024) -> complex:
+    """Ground truth, point by point: a sine at f_hz through the same drive, ``settle`` ticks
+    to settle (the fabric mode's time constant is 1/(zeta w0) ~ 7 ms at 190 Hz; against
+    512 ticks, 256 changed no point by more than 0.04 dB and 0.24 degrees without sensor
+    noise), then Y/X at f_hz over ``measure`` ticks, a whole number of cycles on the Welch
+    bins (lock-in)."""
     from fydpad.chain.measure import drive_signal
 
     rate = session.rate_hz
-    k = np.arange(3 * periods)
+    k = np.arange(settle + measure)
     x = amp_duty * np.sin(2 * np.pi * f_hz * k / rate)
     run = drive_signal(session.drive, session.accel, x, session.clock)
-    e = np.exp(-2j * np.pi * f_hz * k[-2 * periods:] / rate)
-    return complex(run.y_m_s2[-2 * periods:] @ e) / complex(run.x_duty[-2 * periods:] @ e)
+    e = np.exp(-2j * np.pi * f_hz * k[-measure:] / rate)
+    return complex(run.y_m_s2[-measure:] @ e) / complex(run.x_duty[-measure:] @ e)

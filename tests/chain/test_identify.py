@@ -21,8 +21,9 @@ def identified():
         rate = s.rate_hz
         est = entry.estimate
         good = est.coherent(BAND_HZ)
-        # ~30 Welch bins over the coherent band, exactly on the bins (whole cycles in 512).
-        idx = np.flatnonzero(good)[:: max(1, good.sum() // 30)]
+        # ~28 Welch bins evenly over the coherent band (every ~16 Hz: the resonance's
+        # half-power width is ~2 zeta f0 = 45 Hz), exactly on the bins (whole cycles).
+        idx = np.flatnonzero(good)[:: max(1, good.sum() // 25)]
         truth = np.array([lock_in(s, est.freqs_hz[i]) for i in idx])
         plant = s.plant
         tension = plant.tension_n()

@@ -40,23 +40,11 @@ def _opener():
     return urllib.request.build_opener(urllib.request.ProxyHandler({}))
 
 
-@pytest.fixture(scope="module")
-def station(tmp_path_factory):
-    """A station replaying a blob circling the workspace, its web view on 0.0.0.0 (token)."""
-    tmp = tmp_path_factory.mktemp("station")
-    n = int(SECONDS * FPS)
-    positions = [(30 * math.cos(2 * math.pi * k / 90), 20 * math.sin(2 * math.pi * k / 90))
-                 for k in range(n)]
-    write_blob_recording(tmp / "rec", positions, fps=FPS)
-    config = tmp / "pad.toml"
-    save_config(StationConfig(), config)
-    err = (tmp / "station.err").open("w+")
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "fydpad.cli", "run", "--replay", str(tmp / "rec"),
-         "--config", str(config), "--web", "0.0.0.0:0", "--web-results",
-         str(tmp / "results"), "--duration", str(SECONDS), "--no-realtime",
-         "--stats", str(tmp / "stats.json")],
-        cwd=tmp, stdout=subprocess.DEVNULL, stderr=err)
+def start_station(args: list[str], cwd: Path):
+    """``fydpad run ARGS`` in a subprocess; returns (process, base URL, token, stderr file)."""
+    err = (cwd / "station.err").open("w+")
+    proc = subprocess.Popen([sys.executable, "-m", "fydpad.cli", "run", *args], cwd=cwd,
+                            stdout=subprocess.DEVNULL, stderr=err)
     url = None
     deadline = time.monotonic() + 30
     while url is None and time.monotonic() < deadline and proc.poll() is None:
@@ -69,11 +57,13 @@ def station(tmp_path_factory):
         err.seek(0)
         pytest.fail(f"the station did not start its web view: {err.read()}")
     base, _, token = url.partition("/?token=")
-    base = base.replace("0.0.0.0", "127.0.0.1")
-    yield {"base": base, "token": token, "config": config, "results": tmp / "results",
-           "proc": proc}
-    # Ctrl-C: the station's safe stop, which also ends its render process (SIGTERM would
-    # leave the render process orphaned).
+    base = base.rstrip("/").replace("0.0.0.0", "127.0.0.1")
+    return proc, base, token, err
+
+
+def stop_station(proc, err) -> None:
+    """Ctrl-C: the station's safe stop, which also ends its render process (SIGTERM would
+    leave the render process orphaned)."""
     proc.send_signal(signal.SIGINT)
     try:
         proc.wait(timeout=20)
@@ -81,6 +71,25 @@ def station(tmp_path_factory):
         proc.kill()
         proc.wait(timeout=5)
     err.close()
+
+
+@pytest.fixture(scope="module")
+def station(tmp_path_factory):
+    """A station replaying a blob circling the workspace, its web view on 0.0.0.0 (token)."""
+    tmp = tmp_path_factory.mktemp("station")
+    n = int(SECONDS * FPS)
+    positions = [(30 * math.cos(2 * math.pi * k / 90), 20 * math.sin(2 * math.pi * k / 90))
+                 for k in range(n)]
+    write_blob_recording(tmp / "rec", positions, fps=FPS)
+    config = tmp / "pad.toml"
+    save_config(StationConfig(), config)
+    proc, base, token, err = start_station(
+        ["--replay", str(tmp / "rec"), "--config", str(config), "--web", "0.0.0.0:0",
+         "--web-results", str(tmp / "results"), "--duration", str(SECONDS), "--no-realtime",
+         "--stats", str(tmp / "stats.json")], tmp)
+    yield {"base": base, "token": token, "config": config, "results": tmp / "results",
+           "proc": proc}
+    stop_station(proc, err)
 
 
 @pytest.fixture(scope="module")

@@ -1,14 +1,6 @@
 "use strict";
-const $ = (id) => document.getElementById(id);
 let session = null;
 function msg(text, err) { $("msg").textContent = text; $("msg").className = err ? "msg err" : "msg"; }
-async function call(url, body) {
-  const r = body === undefined ? await fetch(url) : await fetch(url, { method: "POST",
-    headers: { "Content-Type": "application/json" }, body: JSON.stringify(body) });
-  const j = await r.json();
-  if (!r.ok) throw new Error(j.error || r.statusText);
-  return j;
-}
 function pct(v) { return v === null ? "—" : (100 * v).toFixed(1) + " %"; }
 function show(s) {
   session = s;
@@ -18,7 +10,8 @@ function show(s) {
   if (!s.done) {
     $("trial").textContent = `trial ${s.trial} of ${s.total}`;
     $("current").textContent = s.current.name;
-    $("currentdesc").textContent = `${s.current.description}: ${s.current.stiffness_n_per_mm} N/mm, grating ${s.current.grating_mm} mm`;
+    $("currentdesc").textContent = `${s.current.description}: ${s.current.stiffness_n_per_mm} N/mm, grating ${s.current.grating_mm} mm` +
+      `; texture model ${s.current.texture || "none"}`;
   } else {
     $("donemsg").textContent = `${s.total} answers written to ${s.csv}`;
   }

@@ -73,7 +73,9 @@ async function poll() {
       const s = j.settings;
       $("render").textContent = `softness ${fmt(s.stiffness_n_per_mm, 2)} N/mm; texture ${s.texture || "none"} ` +
         `(${s.vibration_enabled ? "on" : "off"}, gain ${fmt(s.vibration_gain, 2)})` +
-        (j.stimulus ? `; experiment stimulus ${j.stimulus.name} (grating ${j.stimulus.grating_mm} mm)` : "");
+        (j.stimulus ? `; experiment stimulus ${j.stimulus.name} (grating ${j.stimulus.grating_mm} mm, ` +
+          `${j.stimulus_rendered ? "rendered" : "shown only"})` : "") +
+        (j.texture ? `; render process: model ${j.texture.model || "none"}, ${j.texture.switches} switches` : "");
       fillSettings(s, firstSettings); firstSettings = false;
     }
   } catch (e) { $("status").textContent = "station not reachable"; }
@@ -131,7 +133,6 @@ $("apply").onclick = apply;
 $("save").onclick = async () => {
   try { await apply(); const j = await post("api/save"); msg(j.message); } catch (e) { msg(e.message, true); }
 };
-$("calib").onclick = () => msg("Workspace calibration needs the live camera: stop the station and run " +
-  "`fydpad calibrate workspace --config FILE` (it writes camera.workspace_homography into the file), then restart.");
+$("calib").onclick = () => { window.location.href = "calibrate"; };
 
 poll(); nextFrame();
