@@ -2,6 +2,22 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+from typing import Any
+
 
 class UserError(Exception):
     """Bad input or a missing device: the message names the file, key, line or device."""
+
+
+def read_json(path: str | Path, what: str = "JSON") -> Any:
+    """The parsed JSON file at ``path``; a missing or unreadable file is a UserError that
+    names it (``what`` says what the file should have been, e.g. "JSON model")."""
+    path = Path(path)
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise UserError(f"{path}: missing") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise UserError(f"{path}: not a readable {what} ({exc})") from None

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from fydpad.errors import UserError
+from fydpad.errors import UserError, read_json
 from fydpad.texture.family import Array, FingerBlock, TextureFamily, TickPosition
 
 FORMAT = "fydpad-texture-model"
@@ -81,12 +81,7 @@ def split_spec(spec: str) -> tuple[str | None, str]:
 
 def read_model_json(path: str | Path) -> dict[str, Any]:
     path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise UserError(f"{path}: missing") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise UserError(f"{path}: not a readable JSON model ({exc})") from None
+    data = read_json(path, "JSON model")
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise UserError(f"{path}: not a fydpad texture model (key 'format' must be '{FORMAT}')")
     return data

@@ -31,7 +31,7 @@ import numpy as np
 import scipy.signal as ss
 from numpy.typing import ArrayLike, NDArray
 
-from fydpad.errors import UserError
+from fydpad.errors import UserError, read_json
 
 Array = NDArray[np.float64]
 FORMAT = "fydpad-texture-model"
@@ -274,12 +274,7 @@ def parse_mlp(data: Any, where: str = "model") -> MlpModel:
 
 def load_mlp(path: str | Path) -> MlpModel:
     path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise UserError(f"{path}: missing") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise UserError(f"{path}: not a readable JSON model ({exc})") from None
+    data = read_json(path, "JSON model")
     return parse_mlp(data, str(path))
 
 

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fydpad.errors import UserError
+from fydpad.errors import UserError, read_json
 from fydpad.texture.lpc import is_stable, poly_from_h
 
 FORMAT = "fydpad-texture-model"
@@ -128,10 +128,5 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
 
 def load_model(path: str | Path) -> TextureModel:
     path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise UserError(f"{path}: missing") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise UserError(f"{path}: not a readable JSON model ({exc})") from None
+    data = read_json(path, "JSON model")
     return parse_model(data, str(path))

@@ -10,12 +10,11 @@ experiment.md).
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import replace
 from pathlib import Path
 
-from fydpad.errors import UserError
+from fydpad.errors import UserError, read_json
 from fydpad.web.experiment import PAPER_STIMULI, Stimulus
 
 
@@ -39,12 +38,7 @@ def grating_textures(stimuli: tuple[Stimulus, ...] | list[Stimulus], texture_dir
 def load_stimuli(path: str | Path) -> list[Stimulus]:
     """Stimuli from a JSON file; an error names the file, the entry and the key."""
     path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise UserError(f"{path}: missing") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise UserError(f"{path}: not readable JSON ({exc})") from None
+    data = read_json(path, "JSON")
     if not isinstance(data, list) or len(data) < 2:
         raise UserError(f"{path}: expected a JSON list of at least two stimuli")
     out = []
