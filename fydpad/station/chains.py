@@ -63,6 +63,8 @@ class DriveChain:
             for m in self.models:
                 if m is not None and hasattr(m.family, "b"):
                     m.family.b = float(friction_b_v)
+            if self.channels is not None:
+                self.channels.set_friction_b(float(friction_b_v))
 
     def live_stats(self) -> dict:
         """The texture in use, for the station's live figures and the web view."""

@@ -224,6 +224,14 @@ class _Route:
 class ChannelOutputs:
     """The render loop's output channels: ``tick`` once per tick, ``close`` at the end."""
 
+    def set_friction_b(self, b_v: float) -> None:
+        """A new electrostatic gain b (the staircase's) for the block renderers' copies
+        of friction models too: the audio channel is where b is felt."""
+        for route in self.routes:
+            for r in route.renderers:
+                if r is not None and hasattr(r, "b"):
+                    r.b = b_v
+
     def __init__(self, specs: list[str], models: list[Any], rate_hz: float,
                  block_ticks: int = 10) -> None:
         if block_ticks < 1:

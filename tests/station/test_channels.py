@@ -164,6 +164,27 @@ def test_blocks_of_any_size_write_the_same_files(friction_model: Path, tmp_path:
     assert v.size == 1234 * 48 and np.count_nonzero(v["audio"]) > 0
 
 
+def test_a_live_b_reaches_the_electrostatic_channel(friction_model: Path, tmp_path: Path):
+    """The staircase sets b while the station runs: the audio-rate channel (rendered by
+    its own copy of the model) plays the new b, not the file's."""
+    from fydpad.config import StationConfig
+    from fydpad.station.render import RenderSpec, build_chain
+
+    chain = build_chain(RenderSpec(motors="sim", texture=str(friction_model),
+                                   channels=(f"audio=csv:{tmp_path / 'V.csv'}",),
+                                   config=StationConfig(), realtime=False))
+    chain.apply_control(0, 250.0)
+    for k in range(200):
+        chain.tick(k / 1000.0, True, 2.0 + 0.02 * k, 0.0, 20.0, 0.5, 1.0, 0.6)
+    chain.safe_stop()
+    v = np.genfromtxt(tmp_path / "V.csv", delimiter=",", names=True)["audio"]
+    mu = chain.models[0].family.mu
+    on = v[v > 0]
+    assert on.size > 0
+    # V = b mu(x) Y(t): with b = 250 (the file's default is 400) V stays within 250 mu.
+    assert on.max() <= 250.0 * mu.max() + 1e-9 and on.min() >= 250.0 * mu.min() - 1e-9
+
+
 @pytest.mark.parametrize("text, signal, target, fs", [
     ("wav:out.wav", None, "wav:out.wav", 1.0),
     ("audio=wav:V.wav,fs=500", "audio", "wav:V.wav", 500.0),
