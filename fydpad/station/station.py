@@ -69,33 +69,54 @@ class LatestSensors:
 
 
 class SensorFeed:
-    """Sensor samples replayed at their own time stamps (``ir.csv``/``force.csv``)."""
+    """Sensor samples replayed at their own time stamps (``ir.csv``/``force.csv``).
+
+    In real time, :meth:`run` sleeps until each sample is due on the station's clock. As
+    fast as possible (``--no-realtime``) the frames' own times are the clock: the vision
+    loop calls :meth:`advance_to` with each frame's time, so every frame sees the samples
+    up to it however fast or slow the machine is.
+    """
 
     def __init__(self, ir=None, force=None):
         self.ir = ir
         self.force = force
+        # Both streams merged in time order: (t_s, 0 = IR | 1 = force, row).
+        events = []
+        if ir is not None:
+            events += [(float(t), 0, i) for i, t in enumerate(ir[0])]
+        if force is not None:
+            events += [(float(t), 1, i) for i, t in enumerate(force[0])]
+        events.sort()
+        self._events = events
+        self._next = 0
+
+    def _apply(self, event: tuple[float, int, int], latest: LatestSensors) -> None:
+        t_s, kind, i = event
+        if kind == 0:
+            v = self.ir[1][i]
+            latest.set_ir(t_s, (float(v[0]), float(v[1]), float(v[2])))
+        else:
+            latest.set_force(t_s, float(self.force[1][i]))
+
+    def advance_to(self, t_s: float, latest: LatestSensors) -> None:
+        """Apply every sample due at or before ``t_s`` (session seconds)."""
+        events = self._events
+        while self._next < len(events) and events[self._next][0] <= t_s:
+            self._apply(events[self._next], latest)
+            self._next += 1
 
     def run(self, latest: LatestSensors, clock_t0: float, stop: threading.Event) -> None:
-        # Merge both streams in time order and sleep until each sample is due.
-        events = []
-        if self.ir is not None:
-            t, v = self.ir
-            events += [(float(t[i]), 0, i) for i in range(len(t))]
-        if self.force is not None:
-            t, _f = self.force
-            events += [(float(t[i]), 1, i) for i in range(len(t))]
-        events.sort()
-        for t_s, kind, i in events:
+        events = self._events
+        while self._next < len(events):
             if stop.is_set():
                 return
-            delay = clock_t0 + t_s - time.perf_counter()
+            event = events[self._next]
+            delay = clock_t0 + event[0] - time.perf_counter()
             if delay > 0:
                 stop.wait(delay)
-            if kind == 0:
-                v = self.ir[1][i]
-                latest.set_ir(t_s, (float(v[0]), float(v[1]), float(v[2])))
-            else:
-                latest.set_force(t_s, float(self.force[1][i]))
+                continue  # stopped meanwhile, or due now
+            self._apply(event, latest)
+            self._next += 1
 
 
 class SerialSensorFeed:
@@ -232,6 +253,9 @@ class Station:
         #: The station clock's zero (perf_counter seconds), set when the loops start.
         self.t0: float | None = None
         self.frames_dropped = 0
+        #: A replayed feed as fast as possible: advanced by the vision loop, no thread.
+        self._sensors_by_frame = (not options.real_time
+                                  and hasattr(self.sensors, "advance_to"))
 
     # -- loops ------------------------------------------------------------------
 
@@ -266,6 +290,8 @@ class Station:
                     arrival = timer.wait_until(t0 + frame.t_s)
                 else:
                     arrival = timer.mark()
+                    if self._sensors_by_frame:
+                        self.sensors.advance_to(frame.t_s, self.latest)
                 contact = self.tracker.process(frame.image)
                 s = self.latest
                 ind = (self.indentation.update(s.volts, contact)
@@ -289,7 +315,9 @@ class Station:
                 if track is not None:
                     track.write_row(frame.t_s, frame.index, state.contact, state.x_mm,
                                     state.y_mm, state.indentation_mm)
-                if opts.duration_s is not None and time.perf_counter() - t0 >= opts.duration_s:
+                # In real time the station's clock, else the session's (the frames').
+                elapsed_s = time.perf_counter() - t0 if opts.real_time else frame.t_s
+                if opts.duration_s is not None and elapsed_s >= opts.duration_s:
                     break
         except Exception as exc:
             self.faults.append(f"vision loop: {exc}")
@@ -361,7 +389,7 @@ class Station:
         control[3] = t0
         self.control.write(control)
         threads = [threading.Thread(target=self._vision_loop, args=(t0,), name="vision")]
-        if self.sensors is not None:
+        if self.sensors is not None and not self._sensors_by_frame:
             threads.append(threading.Thread(target=self._sensor_loop, args=(t0,),
                                             name="sensors", daemon=True))
         try:
