@@ -62,10 +62,7 @@ def register_kind(kind: Kind) -> None:
 
 def get_kind(name: str) -> Kind:
     if name not in KINDS and name in _LAZY:
-        try:
-            importlib.import_module(_LAZY[name])
-        except ImportError:
-            pass
+        importlib.import_module(_LAZY[name])  # a family that fails to import is a bug
     if name not in KINDS:
         raise UserError(f"unknown texture kind {name!r} (known: {', '.join(sorted(_LAZY))})")
     return KINDS[name]

@@ -72,11 +72,15 @@ class TickPosition:
     recognised by a change of value and stamped with the tick time (up to one tick
     late); between frames the position is extrapolated along the velocity over the last
     ``frames`` frames (a longer base than one frame: the 1-tick stamping jitter, 3 % of a
-    33 ms frame, shrinks ``frames`` times), for at most ``hold_s``. No allocation.
+    33 ms frame, shrinks ``frames`` times), for at most ``hold_s``. A centroid that has
+    not changed for ``stop_s`` (more than two frames at the paper's 10 Hz) is a finger at
+    rest: the position is then the centroid itself, not where the last velocity would
+    have carried it. No allocation.
     """
 
-    def __init__(self, hold_s: float = 0.1, frames: int = 3) -> None:
+    def __init__(self, hold_s: float = 0.1, frames: int = 3, stop_s: float = 0.25) -> None:
         self.hold_s = hold_s
+        self.stop_s = stop_s
         self.frames = frames
         self._ts = [0.0] * (frames + 1)
         self._xs = [0.0] * (frames + 1)
@@ -102,5 +106,7 @@ class TickPosition:
                 if t_s > self._ts[j]:
                     self._v = (x_mm - self._xs[j]) / (t_s - self._ts[j])
             self._x, self._t = x_mm, t_s
-        dt = min(t_s - self._t, self.hold_s)
-        return x_mm + (self._v * dt if self._v == self._v else 0.0)
+        dt = t_s - self._t
+        if dt >= self.stop_s:
+            self._v = 0.0  # no new centroid for a while: the finger has stopped
+        return x_mm + (self._v * min(dt, self.hold_s) if self._v == self._v else 0.0)

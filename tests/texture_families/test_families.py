@@ -140,3 +140,24 @@ def _peak(y):
     f = np.fft.rfftfreq(8 * y.size, 1e-3)
     p = np.abs(np.fft.rfft((y - y.mean()) * np.hanning(y.size), 8 * y.size))
     return f[np.argmax(p)]
+
+
+def test_tick_position_extrapolates_between_frames_and_rests_when_the_finger_stops():
+    """30 fps centroids of a finger at 100 mm/s that stops at 10 mm: between frames the
+    position runs on along the velocity; once the centroid stays put, the position is the
+    centroid itself (not 10 mm + v * hold)."""
+    from fydpad.texture.families import TickPosition
+
+    pos = TickPosition()
+    frame_s = 1 / 30
+    out = []
+    for k in range(3000):  # 3 s of 1 kHz ticks
+        t = k / 1000
+        frame_t = np.floor(t / frame_s) * frame_s
+        x = min(100.0 * frame_t, 10.0)  # the newest centroid, held between frames
+        out.append(pos.update(t, True, x))
+    out = np.array(out)
+    t = np.arange(3000) / 1000
+    moving = (t > 0.07) & (t < 0.099)  # from the third frame on: a velocity
+    assert np.max(np.abs(out[moving] - 100.0 * t[moving])) < 1.0  # runs on, not steps
+    assert np.all(out[t > 0.5] == 10.0)  # at rest: exactly where the finger stopped
