@@ -163,7 +163,12 @@ class RobustTracker:
         self._tophat_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (kw, kh))
         self._ring_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
         self._contrast = np.empty((sh, sw), np.float32)
-        self._dark = np.zeros((sh, sw), np.uint8)
+        # Per-frame buffers (the per-frame path allocates no full-frame arrays).
+        self._dark = np.zeros((sh, sw), bool)
+        self._dark_grown = np.zeros((sh, sw), np.uint8)
+        self._brighter = np.zeros((sh, sw), bool)
+        self._target = np.empty((sh, sw), np.float32)
+        self._rate = np.empty((sh, sw), np.float32)
         gw = 2 * int(np.ceil(p.bg_guard_mm / self._cell_w_mm / 2)) + 1
         gh = 2 * int(np.ceil(p.bg_guard_mm / self._cell_h_mm / 2)) + 1
         self._guard_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (gw, gh))
@@ -217,8 +222,8 @@ class RobustTracker:
         contrast = self._contrast
         np.divide(ratio, self._gain, out=contrast)
         np.subtract(1.0, contrast, out=contrast)
-        mask = (contrast > p.contrast_floor).astype(np.uint8)
-        self._dark = mask
+        np.greater(contrast, p.contrast_floor, out=self._dark)
+        mask = self._dark.view(np.uint8)
         n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
         sh, sw = self._shape
         best: RobustResult | None = None
@@ -324,20 +329,26 @@ class RobustTracker:
     def _update_background(self, img: NDArray[np.float32], result: RobustResult | None) -> None:
         p = self.params
         # Learn the fabric under the current light: divide the light back out first.
-        target = img / self._gain
+        target = np.divide(img, self._gain, out=self._target)
         # Nothing dark enough to be a candidate is learned darker, contact or not: a
         # finger hovering still would otherwise sink into the background, and when it
         # moves on, its ghost carves a sharp crescent out of its shadow that passes for
         # a light touch. Marks present from the first frame are in the background anyway.
-        dark = cv2.dilate(self._dark, self._guard_kernel).view(bool)
-        rate = np.where(target > self._bg, p.bg_rate_brighter,
-                        np.where(dark, 0.0, p.bg_rate_darker)).astype(np.float32)
+        dark = cv2.dilate(self._dark.view(np.uint8), self._guard_kernel,
+                          dst=self._dark_grown).view(bool)
+        rate = self._rate
+        rate.fill(p.bg_rate_darker)
+        rate[dark] = 0.0
+        np.copyto(rate, np.float32(p.bg_rate_brighter),
+                  where=np.greater(target, self._bg, out=self._brighter))
         if result is not None:
             x0, y0, bw, bh = self._best_box
             gx = int(np.ceil(p.bg_guard_mm / self._cell_w_mm))
             gy = int(np.ceil(p.bg_guard_mm / self._cell_h_mm))
             rate[max(0, y0 - gy) : y0 + bh + gy, max(0, x0 - gx) : x0 + bw + gx] = 0.0
-        self._bg += rate * (target - self._bg)
+        np.subtract(target, self._bg, out=target)
+        target *= rate
+        self._bg += target
 
 
 def _elongation(w: NDArray[np.float64], cu: float, cv_: float, total: float) -> float:
