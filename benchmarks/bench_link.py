@@ -10,12 +10,20 @@ figures. Targets: p99 <= 2 ms, no sample lost at 1 kHz for 60 s.
 
 --raw replaces the robot slave by a process that only decodes each sample and
 acknowledges it: the link's own latency, without the slave loop's physics and IK.
+
+Besides the report's latency (clock offset from the echo with the shortest round trip,
+as between two machines), the same figures from the one clock both processes share here
+(CLOCK_MONOTONIC: slave's receive time - master's send time, no offset), the machine's
+load average before and after (the other processes on a shared machine) and the CPU time
+the benchmark's processes used (a busy-waiting loop shows here).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -58,6 +66,28 @@ def raw_echo(endpoint_q, stop_s: float, link: LinkConfig) -> None:
     slave.close()
 
 
+def same_clock_ms(log) -> np.ndarray:
+    """One-way latency per acknowledged sample on one host's monotonic clock."""
+    from teleop import protocol as P
+    seen: dict[int, float] = {}
+    for _, st in log.states:
+        if st.reason == P.REASON_ACK and st.echo_seq not in seen:
+            seen[st.echo_seq] = st.t_echo_recv_s - st.t_echo_send_s
+    return np.array(list(seen.values())) * 1e3
+
+
+def print_latency(log, load_before: tuple[float, float, float]) -> None:
+    for name, lat_ms in (("one-way latency ms (echo offset)", log.latencies_s() * 1e3),
+                         ("one-way latency ms (same clock) ", same_clock_ms(log))):
+        print(f"{name}: p50 {np.percentile(lat_ms, 50):.3f}  p99 {np.percentile(lat_ms, 99):.3f}"
+              f"  max {lat_ms.max():.3f}  (n={lat_ms.size})")
+    ru = [resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)]
+    cpu = sum(r.ru_utime + r.ru_stime for r in ru)
+    print(f"load average before {' '.join(f'{x:.2f}' for x in load_before)}, after "
+          f"{' '.join(f'{x:.2f}' for x in os.getloadavg())} (1, 5, 15 min; "
+          f"{os.cpu_count()} cores); CPU used by master + slave {cpu:.1f} s")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--duration", type=float, default=60.0)
@@ -65,8 +95,9 @@ def main() -> int:
     ap.add_argument("--curve", action="store_true", help="CurveZMQ on (keys in a temp dir)")
     ap.add_argument("--raw", action="store_true", help="bare echo slave: the link alone")
     args = ap.parse_args()
+    load_before = os.getloadavg()
     if args.raw:
-        return run_raw(args)
+        return run_raw(args, load_before)
     tmp = Path(tempfile.mkdtemp())
     cmd = [sys.executable, "-m", "teleop.cli", "slave", "--robot", "sim",
            "--bind", "tcp://127.0.0.1:*", "--report", str(tmp / "slave.json")]
@@ -90,12 +121,12 @@ def main() -> int:
             t0 = time.monotonic()
             log = stream(states, sock, preroll_s=0.2)
             wall = time.monotonic() - t0
-        lat_ms = log.latencies_s() * 1e3
         acks = [st for _, st in log.states]
         delivered = acks[-1].received - acks[0].received + 1 if acks else 0
     finally:
         slave.send_signal(2)
         slave.communicate(timeout=20)
+        slave.wait()
     rep = json.loads((tmp / "slave.json").read_text())
     lost = log.sent + log.send_failed - rep["received"]
     print(f"rate {args.rate:.0f} Hz, {args.duration:.0f} s ({wall:.1f} s wall), "
@@ -103,12 +134,11 @@ def main() -> int:
     print(f"sent {log.sent}, send refused {log.send_failed}, slave received {rep['received']}"
           f" (seen by acks {delivered}), accepted {rep['accepted']}, lost {lost}, "
           f"dropped by slave {rep['dropped']}")
-    print(f"one-way latency ms: p50 {np.percentile(lat_ms, 50):.3f}  "
-          f"p99 {np.percentile(lat_ms, 99):.3f}  max {lat_ms.max():.3f}  (n={lat_ms.size})")
+    print_latency(log, load_before)
     return 0
 
 
-def run_raw(args: argparse.Namespace) -> int:
+def run_raw(args: argparse.Namespace, load_before: tuple[float, float, float]) -> int:
     import multiprocessing as mp
     link = LinkConfig()
     if args.curve:
@@ -128,14 +158,12 @@ def run_raw(args: argparse.Namespace) -> int:
     finally:
         proc.terminate()
         proc.join(5)
-    lat_ms = log.latencies_s() * 1e3
     got = max((st.received for _, st in log.states), default=0)
     print(f"raw link, rate {args.rate:.0f} Hz, {args.duration:.0f} s, "
           f"curve {'on' if args.curve else 'off'}")
     print(f"sent {log.sent}, send refused {log.send_failed}, echoed {got}, "
           f"lost {log.sent + log.send_failed - got}")
-    print(f"one-way latency ms: p50 {np.percentile(lat_ms, 50):.3f}  "
-          f"p99 {np.percentile(lat_ms, 99):.3f}  max {lat_ms.max():.3f}  (n={lat_ms.size})")
+    print_latency(log, load_before)
     return 0
 
 

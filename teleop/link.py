@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import ipaddress
 import logging
+import select
+from collections.abc import Callable
 from pathlib import Path
 from urllib.parse import urlparse
 
@@ -36,6 +38,25 @@ def is_loopback(endpoint: str) -> bool:
         return ipaddress.ip_address(host).is_loopback
     except ValueError:
         return False  # a name or interface: assume it leaves the machine
+
+
+def wait_readable(sock: zmq.Socket, t_end_s: float, clock: Callable[[], float]) -> bool:
+    """Wait until ``sock`` has a message (True) or the clock reaches ``t_end_s`` (False).
+
+    zmq_poll counts whole milliseconds and pyzmq truncates a float timeout, so waiting
+    0.7 ms with it is a busy loop: at 1 kHz the master spun a whole core and the slave
+    (2 ms ticks) half of one, which on a loaded machine delays the very threads that move
+    the messages. Here the socket's signalling descriptor (edge-triggered: ZMQ_EVENTS is
+    checked before each wait) is waited on with select(), to the microsecond.
+    """
+    fd = sock.getsockopt(zmq.FD)
+    while True:
+        if sock.getsockopt(zmq.EVENTS) & zmq.POLLIN:
+            return True
+        remaining = t_end_s - clock()
+        if remaining <= 0:
+            return False
+        select.select([fd], [], [], remaining)
 
 
 def curve_enabled(cfg: LinkConfig, endpoint: str) -> bool:

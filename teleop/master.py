@@ -18,7 +18,7 @@ import zmq
 
 from teleop import protocol as P
 from teleop.config import TeleopConfig
-from teleop.link import MasterSocket
+from teleop.link import MasterSocket, wait_readable
 from teleop.report import axes_dict, best_lag_s, latency_ms, mae_per_axis, plot_tracking
 from vision.state import FingerState
 
@@ -92,16 +92,9 @@ def stream(states: Iterable[FingerState], sock: MasterSocket, *, rate_hz: float 
     """
     log = StreamLog()
     seq = first_seq
-    poller = zmq.Poller()
-    poller.register(sock.sock, zmq.POLLIN)
 
     def collect_until(t_end: float) -> None:
         while True:
-            now = clock()
-            if now >= t_end and not poller.poll(0):
-                return
-            if now < t_end and not poller.poll(max(0.0, (t_end - now) * 1e3)):
-                continue
             while True:
                 try:
                     buf = sock.sock.recv(zmq.NOBLOCK)
@@ -111,6 +104,8 @@ def stream(states: Iterable[FingerState], sock: MasterSocket, *, rate_hz: float 
                     log.states.append((clock(), P.decode_state(buf)))
                 except P.ProtocolError:
                     pass  # not ours; the slave never sends these
+            if not wait_readable(sock.sock, t_end, clock):
+                return
 
     def send(fs: FingerState, t_cap: float) -> None:
         nonlocal seq

@@ -19,7 +19,7 @@ import zmq
 
 from teleop import protocol as P
 from teleop.config import TeleopConfig
-from teleop.link import LoggingAuthenticator, SlaveSocket
+from teleop.link import LoggingAuthenticator, SlaveSocket, wait_readable
 from teleop.mapping import Mapping
 from teleop.predict import IMMPredictor, Predictor
 from teleop.safety import MotionLimiter, SampleGate, Watchdog
@@ -211,8 +211,6 @@ class SlaveLoop:
     def run(self, stop: threading.Event, duration_s: float | None = None) -> None:
         """Loop until ``stop`` is set (or ``duration_s`` passes)."""
         period = self.cfg.slave.period_s
-        poller = zmq.Poller()
-        poller.register(self.sock.sock, zmq.POLLIN)
         self.t_start_s = t_next = self.clock()
         t_prev = t_next
         while not stop.is_set():
@@ -220,9 +218,9 @@ class SlaveLoop:
             if duration_s is not None and now - self.t_start_s >= duration_s:
                 break
             while now < t_next:
-                ev = dict(poller.poll(max(0.0, (t_next - now) * 1e3)))
+                ready = wait_readable(self.sock.sock, t_next, self.clock)
                 now = self.clock()
-                if ev:
+                if ready:
                     while True:
                         try:
                             frames = self.sock.sock.recv_multipart(zmq.NOBLOCK)

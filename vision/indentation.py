@@ -459,6 +459,85 @@ def resample_distances_mm(
     return out, out_fl
 
 
+#: Causal distance filter (``filter_distances_mm``): white-acceleration PSD of the fabric
+#: above each sensor, mm^2/s^3, and the sensor's noise per measurement, mm (6 mV on
+#: ~80 mm/V at rest: 0.45-0.55 mm, docs/teleop.md).
+DISTANCE_ACCEL_PSD_MM2_S3 = 1.0e4
+DISTANCE_NOISE_MM = 0.5
+
+
+@dataclass(frozen=True)
+class DistanceFilterState:
+    """Per sensor: [distance mm, velocity mm/s], its covariance, the time and flags of
+    the last sample (NaN time: no sample yet)."""
+
+    x: NDArray[np.float64]  # (3, 2)
+    p: NDArray[np.float64]  # (3, 2, 2)
+    t_s: NDArray[np.float64]  # (3,)
+    last_t_s: float
+    last_flags: int
+
+    @classmethod
+    def initial(cls) -> DistanceFilterState:
+        return cls(np.zeros((3, 2)), np.zeros((3, 2, 2)), np.full(3, np.nan), -math.inf, 0)
+
+
+def filter_distances_mm(
+    state: DistanceFilterState, t_ir_s: ArrayLike, distances_mm: ArrayLike,
+    flags: ArrayLike, t_query_s: float, max_gap_s: float = 0.1,
+    accel_psd: float = DISTANCE_ACCEL_PSD_MM2_S3, noise_mm: float = DISTANCE_NOISE_MM,
+) -> tuple[NDArray[np.float64], int, DistanceFilterState]:
+    """The IR distances at ``t_query_s`` from the samples up to it, causally: a
+    constant-velocity Kalman filter per sensor (white acceleration, Bar-Shalom ch. 6)
+    updated with each new sample, then predicted to the query time.
+
+    ``t_ir_s``, ``distances_mm`` [n, 3], ``flags`` are the samples not yet given (all at or
+    before ``t_query_s``); returns (distances [3], flags, new state) as scipy's zi/zf.
+    Interpolating between the samples either side of a frame needs one taken after it
+    (up to a board period ahead); the filter also averages the sensor's noise. An
+    invalid sample (NaN) is not used, and while a sensor's latest sample is invalid its
+    distance is NaN (never bridged); no sample within ``max_gap_s`` gives ``NO_IR``.
+    """
+    x, p, ts = state.x.copy(), state.p.copy(), state.t_s.copy()
+    last_t, last_fl = state.last_t_s, state.last_flags
+    r = noise_mm**2
+    t = np.asarray(t_ir_s, np.float64).reshape(-1)
+    d = np.asarray(distances_mm, np.float64).reshape(-1, 3)
+    fl = np.asarray(flags, np.int64).reshape(-1)
+    for k in range(t.size):
+        last_t, last_fl = float(t[k]), int(fl[k])
+        for i in range(3):
+            z = d[k, i]
+            if not math.isfinite(z):
+                continue
+            if not math.isfinite(ts[i]):  # first sample: at rest, velocity unknown
+                x[i] = (z, 0.0)
+                p[i] = np.diag([r, 100.0**2])
+                ts[i] = t[k]
+                continue
+            x[i], p[i] = _cv_predict(x[i], p[i], t[k] - ts[i], accel_psd)
+            s = p[i, 0, 0] + r
+            gain = p[i, :, 0] / s
+            x[i] = x[i] + gain * (z - x[i, 0])
+            p[i] = p[i] - np.outer(gain, p[i, 0])
+            ts[i] = t[k]
+    out = x[:, 0] + (t_query_s - ts) * x[:, 1]  # NaN for a sensor never seen
+    for i in range(3):
+        if last_fl & int(_SENSOR_INVALID[i]):
+            out[i] = np.nan
+    out_fl = last_fl if t_query_s - last_t <= max_gap_s else int(IRFlag.NO_IR)
+    if out_fl & int(IRFlag.NO_IR):
+        out[:] = np.nan
+    return out, out_fl, DistanceFilterState(x, p, ts, last_t, last_fl)
+
+
+def _cv_predict(x: NDArray[np.float64], p: NDArray[np.float64], dt: float, q: float
+                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    f = np.array([[1.0, dt], [0.0, 1.0]])
+    qm = q * np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
+    return f @ x, f @ p @ f.T + qm
+
+
 def no_contact_mask(
     t_ir_s: ArrayLike, t_frames_s: ArrayLike, contact: ArrayLike, margin_s: float = 0.1,
 ) -> NDArray[np.bool_]:

@@ -15,7 +15,11 @@ import numpy as np
 
 from vision.config import IRConfig
 from vision.contact import Contact, ContactTracker
-from vision.indentation import IndentationEstimator, resample_distances_mm
+from vision.indentation import (
+    DistanceFilterState,
+    IndentationEstimator,
+    filter_distances_mm,
+)
 from vision.recording import PadRecording
 from vision.sources import Frame, VideoSource
 from vision.speed import SpeedState, speed_update
@@ -58,9 +62,11 @@ class FingerStateBuilder:
 class CausalIndentation:
     """Indentation at each frame from the IR samples up to that frame.
 
-    The rest distances are the configured or ``meta.json`` ones; otherwise they are
-    estimated, at the first contact, from the samples taken before it (less a margin),
-    and kept for the rest of the session.
+    The distances come from ``filter_distances_mm`` (a Kalman filter per sensor fed
+    every IR sample up to the frame and predicted to the frame time), so no sample taken
+    after the frame is used, as on a live station. The rest distances are the configured
+    or ``meta.json`` ones; otherwise they are estimated, at the first contact, from the
+    samples taken before it (less a margin), and kept for the rest of the session.
     """
 
     def __init__(self, estimator: IndentationEstimator, t_ir_s: np.ndarray, volts: np.ndarray):
@@ -69,8 +75,17 @@ class CausalIndentation:
         self.volts = volts
         self._dist, self._flags = estimator.distances_mm(volts)
         self._resolved = estimator.baseline_mm is not None
+        self._filter = DistanceFilterState.initial()
+        self._next = 0  # first IR sample not yet given to the filter
 
     def at(self, t_s: float, x_mm: float, y_mm: float, contact: bool) -> float:
+        # The filter follows every sample, with or without contact, so it has settled
+        # on the fabric when the finger lands.
+        end = int(np.searchsorted(self.t_ir_s, t_s, side="right"))
+        k = slice(self._next, end)
+        d, fl, self._filter = filter_distances_mm(
+            self._filter, self.t_ir_s[k], self._dist[k], self._flags[k], t_s)
+        self._next = max(end, self._next)
         if not contact:
             return 0.0
         if not self._resolved:
@@ -78,8 +93,8 @@ class CausalIndentation:
             self.estimator = self.estimator.with_baseline_from(self.volts[before],
                                                                np.ones(int(before.sum()), bool))
             self._resolved = True
-        d, fl = resample_distances_mm(self.t_ir_s, self._dist, self._flags, [t_s])
-        r = self.estimator.estimate_from_distances(d, [x_mm], [y_mm], [True], fl)
+        r = self.estimator.estimate_from_distances(d.reshape(1, 3), [x_mm], [y_mm], [True],
+                                                   [fl])
         return float(r.indentation_mm[0])
 
 
@@ -149,7 +164,8 @@ def finger_states(
         ind = math.nan
         if indentation is not None:
             ind = (indentation.at(frame.t_s, contact.x_mm, contact.y_mm, True)
-                   if contact is not None else 0.0)
+                   if contact is not None else indentation.at(frame.t_s, math.nan, math.nan,
+                                                              False))
         yield TrackedFrame(frame, contact, builder.build(frame.t_s, contact, ind, force_n))
 
 

@@ -7,13 +7,25 @@ import json
 import logging
 from pathlib import Path
 
-from fydpad.bundled import bundled_recording
+from fydpad.bundled import bundled_recording, recordings_dir
 from fydpad.cli import add_config_argument
 from fydpad.config import load_config
 from fydpad.teleop_run import format_report, recording_states, truth_rows
 from vision.recording import PadRecording
 
 DEMO_RECORDINGS = ("circle", "lissajous", "tapping")
+
+#: The bundled recordings' device configuration (its indentation calibration), made once
+#: by ``python recordings/make_recordings.py --calibration`` from sessions of its own.
+DEVICE_CONFIG = "device.toml"
+
+
+def demo_config_path(given: str | None) -> Path | None:
+    """The device configuration of the demo: the one given, else the bundled device's."""
+    if given is not None:
+        return Path(given)
+    path = recordings_dir() / DEVICE_CONFIG
+    return path if path.is_file() else None
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -25,7 +37,9 @@ def register(sub: argparse._SubParsersAction) -> None:
             "curve and tapping): track the finger in the under-fabric video, estimate the "
             "indentation from the IR sensors, stream the finger to a simulated KUKA iiwa arm "
             "(PyBullet) over a real ZeroMQ loopback socket, and print the tele-operation "
-            "report: MAE per axis against the paper's condition, and against the true finger."
+            "report: MAE per axis against the paper's condition, and against the true finger. "
+            "The device configuration is the bundled recordings' own (recordings/device.toml: "
+            "the synthetic device's indentation calibration) unless --config is given."
         ),
     )
     p.add_argument("--recordings", nargs="+", default=list(DEMO_RECORDINGS), metavar="NAME",
@@ -45,7 +59,9 @@ def run(args: argparse.Namespace) -> int:
     if not args.verbose:
         # The in-process slave holds between passes by design: not news in a demo.
         logging.getLogger("teleop").setLevel(logging.ERROR)
-    config = load_config(args.config)
+    config_path = demo_config_path(args.config)
+    config = load_config(config_path)
+    print(f"device configuration: {config_path or 'the paper defaults'}", flush=True)
     out = Path(args.out) if args.out else None
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)

@@ -13,12 +13,14 @@ from hypothesis import strategies as st
 from tests.sensing.fabric_model import MembraneFabric, random_presses, synth_ir
 from vision.config import PAPER_SENSORS_MM, IRConfig
 from vision.indentation import (
+    DistanceFilterState,
     IndentationEstimator,
     IRCalibrationError,
     IRFlag,
     PlaneCorrection,
     distance_resolution_mm,
     estimate_baseline_mm,
+    filter_distances_mm,
     fit_ir_polynomial,
     indentation_at_frames,
     no_contact_mask,
@@ -31,6 +33,7 @@ from vision.indentation import (
     sensor_distances_mm,
 )
 from vision.ir import PAPER_POLY_CM, distance_to_voltage_v, voltage_to_distance_mm
+from vision.stream import CausalIndentation
 
 BASELINE_MM = (99.0, 101.0, 100.5)  # sensors mounted a little unevenly
 
@@ -324,3 +327,78 @@ def test_the_plane_reproduces_any_affine_deflection(sensors, abc, point):
     e = a + b * s[:, 0] + c * s[:, 1]
     delta = plane_delta_mm(e[None, :], [point[0]], [point[1]], sensors)[0]
     assert delta == pytest.approx(a + b * point[0] + c * point[1], abs=1e-6)
+
+
+# --------------------------------------------------------------------------- causal filter
+
+
+def _ir_arrays(seed: int = 0, n: int = 400, noise_mm: float = 0.5):
+    """Board samples at 100 Hz of a fabric pressed down and back (distances, mm)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 0.01
+    true = 100.0 - 20.0 * np.sin(np.pi * t / t[-1])[:, None] * np.array([1.0, 0.6, 0.8])
+    return t, true, true + rng.normal(0.0, noise_mm, true.shape)
+
+
+def test_distance_filter_block_equals_per_sample():
+    t, _, d = _ir_arrays()
+    fl = np.zeros(t.size, np.int64)
+    whole, _, _ = filter_distances_mm(DistanceFilterState.initial(), t, d, fl, t[-1] + 0.004)
+    st = DistanceFilterState.initial()
+    for k in range(0, t.size, 7):  # chunks, as frames come
+        _, _, st = filter_distances_mm(st, t[k:k + 7], d[k:k + 7], fl[k:k + 7], t[k])
+    out, flags, _ = filter_distances_mm(st, t[:0], d[:0], fl[:0], t[-1] + 0.004)
+    np.testing.assert_allclose(out, whole, atol=1e-9)
+    assert flags == 0
+
+
+def test_distance_filter_averages_noise_and_follows_the_press():
+    t, _, d = _ir_arrays(noise_mm=0.5)
+    fl = np.zeros(t.size, np.int64)
+    _, _, st = filter_distances_mm(DistanceFilterState.initial(), t[:50], d[:50], fl[:50],
+                                   t[49])
+    err, raw = [], []
+    for k in range(50, t.size - 1):
+        tq = t[k] + 0.004  # a frame between two board samples: only the earlier is known
+        out, _, st = filter_distances_mm(st, t[k:k + 1], d[k:k + 1], fl[k:k + 1], tq)
+        truth_q = 100.0 - 20.0 * np.sin(np.pi * tq / t[-1]) * np.array([1.0, 0.6, 0.8])
+        err.append(out - truth_q)
+        raw.append(d[k] - truth_q)
+    err, raw = np.array(err), np.array(raw)
+    # Less noise than the latest sample alone (0.34 against 0.49 mm RMS here), and no
+    # lag-made bias on the press.
+    assert np.sqrt(np.mean(err**2)) < 0.8 * np.sqrt(np.mean(raw**2))
+    assert abs(err.mean()) < 0.1
+
+
+def test_distance_filter_never_bridges_an_invalid_or_missing_sample():
+    t, _, d = _ir_arrays()
+    fl = np.zeros(t.size, np.int64)
+    d[-1, 1] = np.nan
+    fl[-1] = int(IRFlag.INVALID_V1)
+    out, flags, st = filter_distances_mm(DistanceFilterState.initial(), t, d, fl, t[-1])
+    assert np.isnan(out[1]) and np.all(np.isfinite(out[[0, 2]]))
+    assert flags & IRFlag.INVALID_V1
+    # Nothing for longer than max_gap_s: no distance at all.
+    out, flags, _ = filter_distances_mm(st, t[:0], d[:0], fl[:0], t[-1] + 0.15)
+    assert np.all(np.isnan(out)) and flags & IRFlag.NO_IR
+    out, flags, _ = filter_distances_mm(DistanceFilterState.initial(), t[:0], d[:0], fl[:0],
+                                        0.0)
+    assert np.all(np.isnan(out)) and flags & IRFlag.NO_IR
+
+
+def test_causal_indentation_uses_no_sample_after_the_frame():
+    # The stream's indentation at a frame must be what a live station could know then:
+    # the same whether or not the samples after the frame exist (interpolating between
+    # the samples either side of the frame did not pass this).
+    rng = np.random.default_rng(3)
+    t_ir = np.arange(300) * 0.01
+    depth = 15.0 * np.clip(np.sin(np.pi * (t_ir - 1.0) / 1.5), 0, None)
+    d = BASELINE_MM - depth[:, None] * np.array([0.8, 0.5, 0.7])
+    volts = distance_to_voltage_v(d + rng.normal(0, 0.4, d.shape))
+    est = IndentationEstimator(baseline_mm=BASELINE_MM)
+    full = CausalIndentation(est, t_ir, volts)
+    for t in np.arange(1.1, 2.4, 1 / 30):
+        keep = t_ir <= t
+        cut = CausalIndentation(est, t_ir[keep], volts[keep])
+        assert cut.at(t, 3.0, 4.0, True) == pytest.approx(full.at(t, 3.0, 4.0, True), abs=1e-9)
