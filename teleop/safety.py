@@ -57,8 +57,11 @@ class SampleGate:
 class MotionLimiter:
     """Turn a target into a command that respects the box and the speed/accel limits.
 
-    Speed is also capped at sqrt(2 a d) towards the target (d: distance left), so a far
-    target is approached with braking, not overshoot.
+    Speed towards the target is also capped so that the command can stop in whole ticks
+    at half the acceleration limit (about sqrt(a d), d: distance left): the limit is on
+    the acceleration vector's norm, and the other half is left for turning the velocity
+    that lies across the error (a touch-down moves x, y and z at once), so a far target
+    is approached with braking, not overshoot.
     """
 
     def __init__(self, cfg: SafetyConfig, start_mm: np.ndarray) -> None:
