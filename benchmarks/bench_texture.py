@@ -52,6 +52,20 @@ def main() -> None:
           f"Burg baseline {t_burg * 1e3:.1f} ms ({t_burg / t_fit:.1f}x); "
           f"+ high-pass and DFT321 of the 3 axes {t_pre * 1e3:.1f} ms")
 
+    # The two-part model (fit_texture(two_part=True)): a whole texture, and its load.
+    from fydpad.texture.fit import fit_texture
+
+    sc = list(scans.values())
+    t_pooled = best(lambda: fit_texture(sc), 3)
+    t_two = best(lambda: fit_texture(sc, two_part=True), 3)
+    two, _ = fit_texture(sc, two_part=True)
+    t_load = best(lambda: TextureRenderer(two, seed=0), 3)
+    t_load_pooled = best(lambda: TextureRenderer(fit_texture(sc)[0], seed=0), 3) - t_pooled
+    print(f"  fit a whole texture (4 speeds x 11 s, incl. preprocessing): two-part "
+          f"{t_two * 1e3:.0f} ms, pooled LPC (default) {t_pooled * 1e3:.0f} ms; renderer "
+          f"start-up (121-entry table): two-part {t_load * 1e3:.0f} ms, pooled/stretch "
+          f"{t_load_pooled * 1e3:.0f} ms")
+
     h = model.h[1]
     sigma = 0.03
 
@@ -105,7 +119,7 @@ def quality(textures: list[str] | None = None) -> None:
     names = textures or list(TEXTURES)
     methods = ("stretch", "lsf", "linear")
     rows: dict[tuple[str, float], list] = {}
-    models = []
+    models, two_models = [], []
     for name in names:
         train = [generate_scan(name, s, 8.0, seed=k) for s in (10.0, 20.0, 30.0, 40.0)
                  for k in (1, 2)]
@@ -113,6 +127,8 @@ def quality(textures: list[str] | None = None) -> None:
         models.append(model)
         norm, _ = fit_texture(train, speeds_mm_s=[10.0 + 5 * k for k in range(7)],
                               speed_normalise=True)
+        two, _ = fit_texture(train, two_part=True)
+        two_models.append(two)
         for v in (10.0, 15.0, 20.0, 25.0, 30.0, 35.0, 40.0):
             held = generate_scan(name, v, 10.0, seed=100)
             second = generate_scan(name, v, 10.0, seed=200)
@@ -124,17 +140,20 @@ def quality(textures: list[str] | None = None) -> None:
                 c, _ = evaluate_scan(model, held, method=m, mask=mask)
                 res += [c.psd_correlation, c.lsd_db]
             c, _ = evaluate_scan(norm, held, method="stretch", mask=mask)
+            c2, _ = evaluate_scan(two, held, method="stretch", mask=mask)
+            res += [c2.psd_correlation, c2.lsd_db]
             rows[(name, v)] = res
             print(f"  {name:15s} {v:4.0f} mm/s  ceiling corr {res[0]:.3f} LSD {res[1]:.2f} | "
                   + " | ".join(f"{m} {res[2 + 2 * i]:.3f} {res[3 + 2 * i]:.2f}"
                                for i, m in enumerate(methods))
                   + f" | speed-normalised fit, 5 mm/s grid {c.psd_correlation:.3f} "
-                  f"{c.lsd_db:.2f}", flush=True)
+                  f"{c.lsd_db:.2f} | two-part {c2.psd_correlation:.3f} {c2.lsd_db:.2f}",
+                  flush=True)
     print("summary (mean over textures; 'ok' = corr >= 0.95 and LSD <= ceiling + 0.25 dB)")
     for v in (10.0, 15.0, 20.0, 25.0, 30.0, 35.0, 40.0):
         r = np.array([rows[(n, v)] for n in names])
         parts = [f"ceiling LSD {r[:, 1].mean():.2f}"]
-        for i, m in enumerate(methods):
+        for i, m in enumerate((*methods, "two-part")):
             corr, lsd = r[:, 2 + 2 * i], r[:, 3 + 2 * i]
             ok = np.mean((corr >= 0.95) & (lsd <= r[:, 1] + 0.25))
             parts.append(f"{m}: corr {corr.mean():.3f} (min {corr.min():.3f}) "
@@ -145,6 +164,8 @@ def quality(textures: list[str] | None = None) -> None:
         ident = identify(models, scans, method=m)
         print(f"  identification ({len(names)} textures, 15/25/35 mm/s held-out strokes), "
               f"{m}: {ident.rate:.1%}")
+    ident = identify(two_models, scans, method="stretch")
+    print(f"  identification, two-part models: {ident.rate:.1%}")
 
 
 if __name__ == "__main__":

@@ -28,6 +28,7 @@ from fydpad.texture.speed_warp import (
     log_psd,
     normalised_spectrum,
 )
+from fydpad.texture.two_part import fit_two_part
 
 Array = NDArray[np.float64]
 
@@ -80,7 +81,7 @@ def fit_texture(
     scans: Iterable[Scan], *, order: int = 200, speeds_mm_s: Sequence[float] = DEFAULT_SPEEDS_MM_S,
     tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S, highpass_hz: float = 10.0,
     min_seconds: float = 0.25, method: str = "autocorrelation", surface: str | None = None,
-    prewhiten_order: int = 8, speed_normalise: bool = False,
+    prewhiten_order: int = 8, speed_normalise: bool = False, two_part: bool = False,
     drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
     wrap: Callable[[Iterable], Iterable] = lambda it: it,
 ) -> tuple[TextureModel, list[FitReport]]:
@@ -95,18 +96,26 @@ def fit_texture(
     pooled over the +-tolerance a hand wanders; the renderer then interpolates without
     a hold band (the synthesis follows the finger's speed and smears it once, as the
     hand did). Recorded in ``provenance["speed_normalised"]``.
+
+    ``two_part``: fit the two-part spectrum S(f, v) = T(f) U(f/v) g(v) + N(f) n(v) of
+    :mod:`two_part` on every 0.5 s chunk of the scans within the modelled speeds (not
+    only the segmented runs), store it in the model, and make each speed's (h, sigma^2)
+    the all-pole fit of S at that speed; the ``"stretch"`` interpolation then renders
+    S at every speed of its table. Takes precedence over ``speed_normalise``.
     """
     scans = list(scans)
     if not scans:
         raise UserError("no scans to fit")
     fs = scans[0].fs_hz
     pooled: dict[float, list[Array]] = {float(s): [] for s in speeds_mm_s}
+    whole: list[tuple[Array, Array]] = []
     speeds_of: dict[float, list[Array]] = {float(s): [] for s in speeds_mm_s}
     for scan in wrap(scans):
         if abs(scan.fs_hz - fs) > 1e-6 * fs:
             raise UserError(f"{scan.path}: column 't_s': sample rate {scan.fs_hz:g} Hz differs "
                             f"from the first scan's {fs:g} Hz")
         x = preprocess(scan.acc, fs, highpass_hz)
+        whole.append((x, scan.speed_mm_s))
         for s, rs in segment_by_speed(scan.speed_mm_s, fs, speeds_mm_s, tolerance_mm_s,
                                       min_seconds).items():
             pooled[s].extend(x[a:b] for a, b in rs)
@@ -136,8 +145,21 @@ def fit_texture(
     if not got_speeds:
         raise UserError("no part of the scans is near any target speed (column 'speed_mm_s')")
     label = surface or scans[0].surface
-    normalised = None
-    if speed_normalise and len(got_speeds) > 1:
+    normalised = spectrum = None
+    if two_part:
+        lo = min(got_speeds) - tolerance_mm_s
+        hi = max(got_speeds) + tolerance_mm_s
+        try:
+            tp = fit_two_part([w[0] for w in whole], [w[1] for w in whole], fs,
+                              (max(lo, 0.5), hi))
+        except ValueError as exc:
+            raise UserError(f"two-part model: {exc}") from None
+        spectrum = tp.to_json()
+        polys = [tp.ar(s, order, fs) for s in got_speeds]
+        if not all(is_stable(a) for a, _ in polys):
+            raise UserError("two-part model: an all-pole fit of S(f, v) is unstable")
+        hs, sig = [h_from_poly(a) for a, _ in polys], [s2 for _, s2 in polys]
+    elif speed_normalise and len(got_speeds) > 1:
         hs, sig, normalised = _speed_normalised(got_speeds, hs, sig, pooled, speeds_of, fs,
                                                 highpass_hz, order)
     model = TextureModel(
@@ -154,6 +176,9 @@ def fit_texture(
     )
     if normalised is not None:
         model.provenance["speed_normalised"] = normalised
+    if spectrum is not None:
+        model.two_part = spectrum
+        model.provenance["spectral_model"] = "two-part"
     return model, reports
 
 

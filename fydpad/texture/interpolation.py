@@ -28,6 +28,7 @@ from fydpad.texture.lpc import is_stable, poly_to_reflection, reflection_to_poly
 from fydpad.texture.lsf import lsf_to_poly, poly_to_lsf
 from fydpad.texture.model_file import TextureModel
 from fydpad.texture.speed_warp import SpeedWarp
+from fydpad.texture.two_part import TwoPartSpectrum
 
 Array = NDArray[np.float64]
 METHODS = ("stretch", "lsf", "reflection", "linear")
@@ -56,7 +57,11 @@ class SpeedInterpolator:
         self.model = model
         self.method = method
         self.polys = np.vstack([model.poly(i) for i in range(len(model.speeds_mm_s))])
-        if method == "stretch":
+        self._two = None
+        if method == "stretch" and model.two_part is not None:
+            # The two-part model gives the spectrum at any speed itself (two_part.py).
+            self._two = TwoPartSpectrum.from_json(model.two_part)
+        elif method == "stretch":
             # Near its speed the fitted model is kept (see speed_warp): 30 % of the fit
             # tolerance, the value that scored best on the generator's strokes (docs).
             hold = HOLD_FRACTION * model.tolerance_mm_s if hold_mm_s is None else hold_mm_s
@@ -80,6 +85,8 @@ class SpeedInterpolator:
             self.params = self.polys
 
     def __call__(self, speed_mm_s: float) -> tuple[Array, float]:
+        if self._two is not None:
+            return self._two.ar(speed_mm_s, self.model.order, self.model.fs_hz)
         if self.method == "stretch":
             return self._warp(speed_mm_s)
         m = self.model

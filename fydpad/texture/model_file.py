@@ -33,6 +33,7 @@ class TextureModel:
     gain: float = 1.0
     tolerance_mm_s: float = 5.0
     provenance: dict[str, Any] = field(default_factory=dict)
+    two_part: dict[str, Any] | None = None  # two_part.TwoPartSpectrum.to_json(), if fitted
 
     @property
     def order(self) -> int:
@@ -62,6 +63,7 @@ def model_to_json(model: TextureModel) -> dict[str, Any]:
             for s, v, h in zip(model.speeds_mm_s, model.sigma2, model.h, strict=True)
         ],
         "provenance": model.provenance,
+        **({} if model.two_part is None else {"two_part": model.two_part}),
     }
 
 
@@ -123,7 +125,34 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
         gain=float(data.get("gain", 1.0)),
         tolerance_mm_s=float(data.get("speed_tolerance_mm_s", 5.0)),
         provenance=dict(data.get("provenance", {})),
+        two_part=_two_part(data.get("two_part"), where),
     )
+
+
+_TWO_PART_KEYS = ("f_hz", "k_per_mm", "tool", "surface", "floor", "v_mm_s", "g", "n")
+
+
+def _two_part(d: Any, where: str) -> dict[str, Any] | None:
+    """Check the optional two-part spectrum: every factor a finite, nonnegative list."""
+    if d is None:
+        return None
+    if not isinstance(d, dict):
+        raise UserError(f"{where}: key 'two_part' must be an object")
+    for k in _TWO_PART_KEYS:
+        try:
+            a = np.asarray(_get(d, k, f"{where}: two_part"), float)
+        except (TypeError, ValueError) as exc:
+            raise UserError(f"{where}: two_part.{k}: {exc}") from None
+        if a.ndim != 1 or a.size < 2 or not np.isfinite(a).all() or (a < 0).any():
+            raise UserError(f"{where}: two_part.{k} must be a list of at least 2 finite, "
+                            "nonnegative numbers")
+    for grid, vals in (("f_hz", ("tool", "floor")), ("k_per_mm", ("surface",)),
+                       ("v_mm_s", ("g", "n"))):
+        for k in vals:
+            if len(d[k]) != len(d[grid]):
+                raise UserError(f"{where}: two_part.{k} has {len(d[k])} values, "
+                                f"two_part.{grid} {len(d[grid])}")
+    return dict(d)
 
 
 def load_model(path: str | Path) -> TextureModel:

@@ -44,6 +44,8 @@ def figures():
             model, _ = fit_texture(train)
             # The option: every 5 mm/s, each speed fitted on runs moved to it in space.
             norm, _ = fit_texture(train, speeds_mm_s=NORMALISED_GRID, speed_normalise=True)
+            # The two-part model: fixed tool part, surface part moving with speed.
+            two, _ = fit_texture(train, two_part=True)
             for v in (20.0, 25.0):
                 held = generate_scan(name, v, 8.0, seed=100)
                 second = generate_scan(name, v, 8.0, seed=200)
@@ -55,6 +57,8 @@ def figures():
                     out[(name, v, method)] = (c.psd_correlation, c.lsd_db, ceil.lsd_db)
                 c, _ = evaluate_scan(norm, held, method="stretch", mask=mask)
                 out[(name, v, "normalised")] = (c.psd_correlation, c.lsd_db, ceil.lsd_db)
+                c, _ = evaluate_scan(two, held, method="stretch", mask=mask)
+                out[(name, v, "two_part")] = (c.psd_correlation, c.lsd_db, ceil.lsd_db)
     return out
 
 
@@ -95,6 +99,32 @@ def test_speed_normalised_fit_closes_most_of_the_gap_between_speeds(figures):
                    "glass +0.28 (the default meets 20 mm/s) (docs/texture.md)")
 def test_targets_between_modelled_speeds_speed_normalised(figures):
     _check(figures, 25.0, "normalised")
+
+
+def test_two_part_model_meets_the_correlation_target_between_speeds(figures):
+    """fit_texture(two_part=True): PSD correlation >= 0.95 at 25 mm/s on all four
+    (measured 0.972-0.981; the default: R1 0.894, R2 0.919), and the mean LSD above the
+    ceiling below a third of the default's (measured +0.26 against +1.04 dB)."""
+    for name in TARGET_TEXTURES:
+        corr = figures[(name, 25.0, "two_part")][0]
+        assert corr >= 0.95, f"{name}: correlation {corr:.3f}"
+    gap = {m: np.mean([figures[(n, 25.0, m)][1] - figures[(n, 25.0, m)][2]
+                       for n in TARGET_TEXTURES]) for m in ("stretch", "two_part")}
+    assert gap["two_part"] < gap["stretch"] / 3, gap
+
+
+@pytest.mark.xfail(strict=True, reason="measured with fit_texture(two_part=True) at 25 mm/s: "
+                   "LSD above the ceiling by 0.41 (R1), 0.49 dB (R2); felt +0.13, glass -0.01 "
+                   "meet it; corr 0.972-0.981 (docs/texture.md)")
+def test_targets_between_modelled_speeds_two_part(figures):
+    _check(figures, 25.0, "two_part")
+
+
+@pytest.mark.xfail(strict=True, reason="measured with fit_texture(two_part=True) at 20 mm/s: "
+                   "R2 LSD +0.29 dB above the ceiling (R1 -0.07, felt -0.08, glass +0.17; corr "
+                   ">= 0.971); the default meets it (R2 +0.12), so two-part is an option")
+def test_targets_at_a_modelled_speed_two_part(figures):
+    _check(figures, 20.0, "two_part")
 
 
 @pytest.mark.parametrize("method", ["stretch", "lsf"])

@@ -1,0 +1,229 @@
+"""A two-part spectral model of a scanned texture: a fixed part and a surface part.
+
+A tool scanning a surface at speed v records (docs/texture.md, "Two-part model")
+
+    S(f, v) = T(f) * U(f / v) * g(v) + N(f) * n(v)
+
+- ``U(k)``: the surface's part, a function of spatial frequency k = f / v (cycles/mm):
+  a grating's comb, a roughness band's edge. It slides along f with speed.
+- ``T(f)``: what the surface part is seen through and does not move: the tool's
+  resonance, the contact filter, the 10 Hz high-pass.
+- ``N(f)``: a fixed additive part: the sensor floor and vibration that does not follow
+  the surface (stick-slip through the tool mode), with its own level per speed n(v).
+- ``g(v)``, ``n(v)``: levels per speed (log-linear between knots every 5 mm/s, kept on
+  a 1 mm/s grid).
+
+All factors are nonnegative and each enters S linearly, so they are fitted jointly on
+every training run at its measured speed by multiplicative updates minimising the
+Itakura-Saito divergence (the maximum-likelihood fit of periodograms; Fevotte et al.
+2009, IS-NMF). Each periodogram chunk (0.5 s) is predicted as the mean of S over the
+speeds of its samples, so a hand's wander within a chunk is modelled, not smeared into
+the model. Rendering at speed v computes S(f, v) and fits an all-pole model of the
+texture's order to it (``speed_warp.ar_from_log_psd``), at start-up for every entry of
+the renderer's speed table: the 1 kHz path is unchanged.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+from fydpad.texture.speed_warp import NFFT, ar_from_log_psd
+
+Array = NDArray[np.float64]
+CHUNK = 512  # samples per periodogram (2 Hz bins at 1 kHz)
+SPEED_STEP_MM_S = 1.0  # grid of the level functions g, n and of the chunks' speed mixes
+ITERATIONS = 600
+RENDER_SMEAR_MM_S = 1.0  # see TwoPartSpectrum.ar
+FACTORS = ("f_hz", "k_per_mm", "tool", "surface", "floor", "v_mm_s", "g", "n")
+STEP = 0.5  # MU exponent: 1/2 is the IS divergence's majorisation (monotone)
+
+
+@dataclass
+class TwoPartSpectrum:
+    """The fitted factors (module equation); ``f_hz`` and ``k_per_mm`` are their grids."""
+
+    f_hz: Array
+    k_per_mm: Array
+    tool: Array  # T(f)
+    surface: Array  # U(k)
+    floor: Array  # N(f)
+    v_mm_s: Array  # speed grid of the levels
+    g: Array  # g(v)
+    n: Array  # n(v)
+
+    def psd(self, speed_mm_s: float) -> Array:
+        """S(f, v) on ``f_hz`` (power per bin, the chunk periodograms' scale: mean = power);
+        levels held outside the fitted speeds."""
+        v = float(np.clip(speed_mm_s, self.v_mm_s[0], self.v_mm_s[-1]))
+        g = np.exp(np.interp(v, self.v_mm_s, np.log(self.g)))
+        n = np.exp(np.interp(v, self.v_mm_s, np.log(self.n)))
+        u = _resample_matrix(self.f_hz, v, self.k_per_mm) @ self.surface
+        return self.tool * u * g + self.floor * n
+
+    def ar(self, speed_mm_s: float, order: int, fs_hz: float) -> tuple[Array, float]:
+        """All-pole (A, sigma^2) of ``order`` with the spectrum S(f, v) averaged over
+        v +- ``RENDER_SMEAR_MM_S``, and its power.
+
+        Why the average: at its exact speed a grating's spectrum is a comb of narrow
+        lines, and the renderer's FIR structure mixes the impulse responses of two table
+        entries 0.25 mm/s apart, whose lines sit ~1 Hz apart at 80 Hz: the mix cancels
+        part of their power (measured on R2 at 20 mm/s: -3 dB at 20-100 Hz). Lines
+        widened by f * smear / v overlap from one entry to the next.
+        """
+        vs = speed_mm_s + RENDER_SMEAR_MM_S * np.linspace(-1.0, 1.0, 5)
+        p = np.mean([self.psd(float(v)) for v in vs], axis=0)
+        f = np.arange(NFFT // 2 + 1) * fs_hz / NFFT
+        log_p = np.interp(f, self.f_hz, np.log(np.maximum(p, 1e-300)))
+        return ar_two_stage(log_p, order)
+
+    def to_json(self) -> dict:
+        return {k: [float(x) for x in getattr(self, k)] for k in FACTORS}
+
+    @classmethod
+    def from_json(cls, d: dict) -> TwoPartSpectrum:
+        return cls(**{k: np.asarray(d[k], float) for k in FACTORS})
+
+
+def ar_two_stage(log_p: Array, order: int, prewhiten_order: int = 8) -> tuple[Array, float]:
+    """All-pole fit to a log spectrum in two stages, as ``fit.fit_speed`` on signals: an
+    order-``prewhiten_order`` P flattens the tilt, the rest of the order is fitted to the
+    flattened spectrum, A = A2 * P. One stage over-fills the valleys of a 50-60 dB
+    spectrum (measured on felt's two-part spectrum: +3 dB at 350-500 Hz)."""
+    q = min(max(prewhiten_order, 0), order - 1)
+    if q == 0:
+        return ar_from_log_psd(log_p, order)
+    pre, _ = ar_from_log_psd(log_p, q)
+    flat = log_p + np.log(np.abs(np.fft.rfft(pre, 2 * (log_p.size - 1))) ** 2)
+    a2, s2 = ar_from_log_psd(flat, order - q)
+    return np.convolve(a2, pre), s2
+
+
+def chunk_periodograms(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
+                       chunk: int = CHUNK) -> tuple[Array, list[Array]]:
+    """Hann periodograms (mean = power) of 50 %-overlapping chunks, with each chunk's
+    sample speeds."""
+    w = np.hanning(chunk)
+    norm = np.dot(w, w)
+    ps, vs = [], []
+    for x, v in zip(runs, speeds, strict=True):
+        for a in range(0, x.size - chunk + 1, chunk // 2):
+            ps.append(np.abs(np.fft.rfft(x[a:a + chunk] * w)) ** 2 / norm)
+            vs.append(np.asarray(v[a:a + chunk], float))
+    return (np.vstack(ps) if ps else np.zeros((0, chunk // 2 + 1))), vs
+
+
+def _resample_matrix(f_hz: Array, v: float, k: Array, sub: int = 8) -> sp.csr_matrix:
+    """Rows: f bins; columns: k nodes; U(f / v) averaged over each bin's width.
+
+    Averaging (not point sampling) constrains every node a bin covers: at a slow speed
+    one 2 Hz bin spans several k nodes, and nodes skipped by point sampling would keep
+    their initial value and make S(f, v) flicker from one speed to the next.
+    """
+    df = f_hz[1] - f_hz[0]
+    off = (np.arange(sub) + 0.5) / sub - 0.5
+    x = ((f_hz[:, None] + df * off) / v).ravel()
+    j = np.clip(np.searchsorted(k, x) - 1, 0, k.size - 2)
+    t = np.clip((x - k[j]) / (k[j + 1] - k[j]), 0.0, 1.0)
+    rows = np.repeat(np.arange(f_hz.size), 2 * sub)
+    cols = np.stack([j, j + 1], axis=1).ravel()
+    vals = np.stack([1 - t, t], axis=1).ravel() / sub
+    return sp.csr_matrix((vals, (rows, cols)), shape=(f_hz.size, k.size))
+
+
+def _mm(a: Array, b: Array) -> Array:
+    """a @ b without BLAS: these products are tiny, and a threaded BLAS on a loaded machine
+    spends 10x their cost in thread hand-offs (measured: 14 ms against 2 ms per iteration)."""
+    return np.einsum("ij,j...->i...", a, b)
+
+
+def _hats(x: Array, nodes: Array) -> Array:
+    """Linear-interpolation weights of the points ``x`` on ``nodes``: (len(x), len(nodes))."""
+    out = np.zeros((np.size(x), nodes.size))
+    j = np.clip(np.searchsorted(nodes, x) - 1, 0, nodes.size - 2)
+    t = np.clip((x - nodes[j]) / (nodes[j + 1] - nodes[j]), 0.0, 1.0)
+    r = np.arange(np.size(x))
+    np.add.at(out, (r, j), 1 - t)
+    np.add.at(out, (r, j + 1), t)
+    return out
+
+
+def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
+                 speed_range_mm_s: tuple[float, float], iterations: int = ITERATIONS,
+                 chunk: int = CHUNK, knot_step_mm_s: float = 5.0) -> TwoPartSpectrum:
+    """Fit the module's S(f, v) to preprocessed runs ``runs`` with speed traces ``speeds``.
+
+    Chunks whose speeds leave ``speed_range_mm_s`` are not used. The levels g and n are
+    log-linear between knots every ``knot_step_mm_s`` (a hand gives few chunks at any
+    one speed: a free level per 1 mm/s would follow the noise).
+    """
+    lo, hi = speed_range_mm_s
+    p_all, v_all = chunk_periodograms(runs, speeds, fs_hz, chunk)
+    keep = [i for i, v in enumerate(v_all) if v.min() >= lo and v.max() <= hi]
+    if not keep:
+        raise ValueError("no 0.5 s chunk of the scans stays within the modelled speeds")
+    p = p_all[keep][:, 1:]  # no DC
+    f = np.fft.rfftfreq(chunk, 1.0 / fs_hz)[1:]
+    vgrid = np.arange(np.floor(lo), np.ceil(hi) + SPEED_STEP_MM_S / 2, SPEED_STEP_MM_S)
+    # Mixing weights: chunk c's share of samples at each speed node.
+    w = np.vstack([_hats(v_all[i], vgrid).mean(axis=0) for i in keep])
+    rho = w.sum(axis=0)  # data at each speed node
+    knots = np.arange(vgrid[0], vgrid[-1] + knot_step_mm_s, knot_step_mm_s)
+    phi = _hats(vgrid, knots)  # speed node <- knots (log-linear levels)
+    kw = _mm(phi.T, rho)
+    kw_ok = kw > 1e-2 * kw.max()
+    dk = (f[1] - f[0]) / vgrid[-1]  # the finest k spacing the data resolve
+    k = np.arange(0.0, f[-1] / vgrid[0] + 2 * dk, dk)
+    bbig = sp.vstack([_resample_matrix(f, v, k) for v in vgrid]).tocsr()
+    bbig_t = bbig.T.tocsr()
+    nv, nf = vgrid.size, f.size
+    wt = w.T
+
+    mean_p = p.mean(axis=0)
+    tool = np.ones(nf)
+    surface = np.ones(k.size)
+    floor = np.full(nf, 0.05 * mean_p.min() + 1e-30)
+    lg = np.full(knots.size, np.log(float(np.median(mean_p))))
+    ln = np.zeros(knots.size)
+    eps = 1e-300
+
+    def knot_step(ratio: Array) -> Array:
+        # The speed nodes' MU ratios pooled onto the knots (weighted geometric mean).
+        wgt = phi * rho[:, None]
+        return _mm(wgt.T, np.log(np.maximum(ratio, eps))) / np.maximum(wgt.sum(0), eps)
+
+    for _ in range(iterations):
+        g, n = np.exp(_mm(phi, lg)), np.exp(_mm(phi, ln))
+        x = (bbig @ surface).reshape(nv, nf)
+        m = tool * x * g[:, None] + floor * n[:, None]
+        s = np.maximum(_mm(w, m), eps)
+        gn, gp = _mm(wt, p / s**2), _mm(wt, 1.0 / s)  # IS-divergence gradient parts per node
+        # Multiplicative updates (exponent 1/2: the IS divergence's majorisation).
+        num = bbig_t @ (gn * tool * g[:, None]).ravel()
+        den = bbig_t @ (gp * tool * g[:, None]).ravel()
+        surface *= np.where(den > 0, num / np.maximum(den, eps), 1.0) ** STEP
+        x = (bbig @ surface).reshape(nv, nf)
+        xg = x * g[:, None]
+        tool *= ((gn * xg).sum(0) / np.maximum((gp * xg).sum(0), eps)) ** STEP
+        floor *= ((gn * n[:, None]).sum(0) / np.maximum((gp * n[:, None]).sum(0), eps)) ** STEP
+        lg += STEP * knot_step((gn * x * tool).sum(1) / np.maximum((gp * x * tool).sum(1), eps))
+        ln += STEP * knot_step((gn * floor).sum(1) / np.maximum((gp * floor).sum(1), eps))
+        # Scale ambiguities (T*U*g, N*n): T and N at unit peak, U at unit mean.
+        c = tool.max()
+        tool /= c
+        lg += np.log(c)
+        c = surface.mean()
+        surface /= c
+        lg += np.log(c)
+        c = floor.max()
+        floor /= c
+        ln += np.log(c)
+    # Knots without data take their neighbours' log-linear level.
+    lg = np.interp(knots, knots[kw_ok], lg[kw_ok])
+    ln = np.interp(knots, knots[kw_ok], ln[kw_ok])
+    return TwoPartSpectrum(f, k, tool, surface, floor, vgrid, np.exp(_mm(phi, lg)),
+                           np.exp(_mm(phi, ln)))

@@ -1,0 +1,153 @@
+"""The two-part spectral model (fydpad/texture/two_part.py) against ground truth.
+
+Data: Gaussian noise shaped to a known S(f, v) = T(f) U(f/v) g(v) + N(f), so the right
+answer at a speed the fit never saw is known exactly.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from fydpad.commands import texture
+from fydpad.errors import UserError
+from fydpad.texture.fit import fit_texture
+from fydpad.texture.interpolation import build_table
+from fydpad.texture.lpc import is_stable
+from fydpad.texture.model_file import load_model, model_to_json, parse_model, save_model
+from fydpad.texture.scan_generator import generate_scan
+from fydpad.texture.two_part import TwoPartSpectrum, fit_two_part
+
+FS = 1000.0
+
+
+def true_psd(f_hz, v_mm_s):
+    """A spatial band at 4 /mm (80 Hz at 20 mm/s) seen through a fixed 200 Hz mode, plus a
+    fixed floor."""
+    tool = 1.0 / (1.0 + ((f_hz - 200.0) / 40.0) ** 2) + 0.05
+    surface = 0.2 + 30.0 * np.exp(-(((f_hz / v_mm_s) - 4.0) / 0.4) ** 2)
+    return tool * surface * (v_mm_s / 20.0) ** 2 + 1e-3
+
+
+def shaped_noise(v_mm_s, seconds, rng):
+    n = int(seconds * FS)
+    f = np.fft.rfftfreq(n, 1 / FS)
+    spec = (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size)) / np.sqrt(2)
+    return np.fft.irfft(spec * np.sqrt(true_psd(f, v_mm_s) * n), n)
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    rng = np.random.default_rng(3)
+    speeds = (10.0, 20.0, 30.0, 40.0)
+    runs = [shaped_noise(v, 10.0, rng) for v in speeds]
+    traces = [np.full(r.size, v) for r, v in zip(runs, speeds, strict=True)]
+    return fit_two_part(runs, traces, FS, (5.0, 45.0))
+
+
+def _db(x):
+    return 10 * np.log10(x)
+
+
+def _smooth(p):
+    """Mean over 5 bins (10 Hz): the fit's per-bin scatter (0.75 dB rms at a fitted speed,
+    the periodograms' own) averaged down, its bias kept."""
+    return np.convolve(p, np.ones(5) / 5, mode="same")
+
+
+def test_spectrum_between_fitted_speeds_matches_the_truth(fitted):
+    """At 25 mm/s (no data there) the band sits at 100 Hz, between the fitted 80 and 120."""
+    f = fitted.f_hz
+    sel = (f >= 20) & (f <= 480)
+    fit_db, truth_db = _db(_smooth(fitted.psd(25.0))[sel]), _db(_smooth(true_psd(f, 25.0))[sel])
+    lsd = np.sqrt(np.mean((fit_db - truth_db) ** 2))
+    # The neighbours mixed in log (what a cross-fade of the 20 and 30 mm/s spectra gives).
+    mix_db = 0.5 * (_db(_smooth(true_psd(f, 20.0))) + _db(_smooth(true_psd(f, 30.0))))[sel]
+    lsd_mix = np.sqrt(np.mean((mix_db - truth_db) ** 2))
+    assert lsd < 1.0 and lsd < 0.5 * lsd_mix, (lsd, lsd_mix)
+    band = (f >= 60) & (f <= 150)
+    assert abs(f[band][np.argmax(fitted.psd(25.0)[band])] - 100.0) <= 4.0
+
+
+def test_fixed_part_stays_put(fitted):
+    """The 200 Hz mode is in T (it does not move with speed), the band is in U."""
+    f = fitted.f_hz
+    hi = (f >= 150) & (f <= 300)
+    assert abs(f[hi][np.argmax(fitted.tool[hi])] - 200.0) <= 10.0
+    assert abs(fitted.k_per_mm[np.argmax(fitted.surface)] - 4.0) <= 0.2
+
+
+def test_all_pole_fit_of_the_spectrum_is_stable_and_close(fitted):
+    a, s2 = fitted.ar(25.0, 60, FS)
+    assert is_stable(a)
+    f = fitted.f_hz
+    model = s2 / np.abs(np.exp(-2j * np.pi * np.outer(f / FS, np.arange(a.size))) @ a) ** 2
+    sel = (f >= 20) & (f <= 480)
+    # ar() renders S averaged over v +- 1 mm/s (see its docstring): compare with that.
+    truth = np.mean([true_psd(f, v) for v in np.linspace(24.0, 26.0, 5)], axis=0)
+    assert np.sqrt(np.mean((_db(model[sel]) - _db(truth[sel])) ** 2)) < 1.5
+
+
+@pytest.fixture(scope="module")
+def scan_model():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scans = [generate_scan("R1", v, 4.0, seed=1) for v in (10.0, 20.0, 30.0)]
+        model, _ = fit_texture(scans, speeds_mm_s=(10.0, 20.0, 30.0), order=60, two_part=True)
+    return model
+
+
+def test_fit_texture_stores_the_spectrum_and_every_table_filter_is_stable(scan_model):
+    assert scan_model.two_part is not None
+    assert scan_model.provenance["spectral_model"] == "two-part"
+    table = build_table(scan_model, "stretch", step_mm_s=1.0)
+    assert table.stable.all()
+    # At a fitted speed the stored h is the table's filter (one model, two views).
+    k = table.index(20.0)
+    assert np.allclose(table.h[k], scan_model.h[1])
+
+
+def test_model_file_round_trip(scan_model, tmp_path):
+    back = load_model(save_model(scan_model, tmp_path / "m.json"))
+    a = TwoPartSpectrum.from_json(back.two_part)
+    b = TwoPartSpectrum.from_json(scan_model.two_part)
+    assert np.allclose(a.psd(23.0), b.psd(23.0))
+
+
+def test_bad_two_part_block_names_the_key(scan_model):
+    data = json.loads(json.dumps(model_to_json(scan_model)))
+    data["two_part"]["g"] = data["two_part"]["g"][:-1]
+    with pytest.raises(UserError, match=r"m.json: two_part.g has"):
+        parse_model(data, "m.json")
+    data["two_part"]["tool"][3] = -1.0
+    with pytest.raises(UserError, match=r"two_part.tool must be"):
+        parse_model(data, "m.json")
+
+
+def test_cli_fit_two_part_and_speed_normalise_flags(tmp_path, capsys):
+    parser = argparse.ArgumentParser(prog="fydpad")
+    texture.register(parser.add_subparsers(dest="command"))
+    with pytest.raises(SystemExit):
+        parser.parse_args(["texture", "fit", "--help"])
+    helptext = capsys.readouterr().out
+    assert "--two-part" in helptext and "--speed-normalise" in helptext
+    args = parser.parse_args(["texture", "generate-scans", "--out-dir", str(tmp_path),
+                              "--textures", "felt", "--speeds", "10,30", "--strokes", "1",
+                              "--seconds", "4"])
+    assert args.func(args) == 0
+    scans = [str(tmp_path / f"felt_{v}mms_s1.csv") for v in (10, 30)]
+    for flag, key in (("--two-part", "two_part"), ("--speed-normalise", "speed_normalised"),
+                      ("", "")):
+        out = tmp_path / f"{key}.json"
+        args = parser.parse_args(["texture", "fit", *scans, "--out", str(out), "--speeds",
+                                  "10,30", "--order", "60", *([flag] if flag else [])])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            assert args.func(args) == 0
+        m = json.loads(out.read_text())
+        assert ("two_part" in m) == (key == "two_part")
+        assert ("speed_normalised" in m["provenance"]) == (key == "speed_normalised")
