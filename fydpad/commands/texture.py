@@ -14,8 +14,13 @@ import numpy as np
 
 from fydpad.errors import UserError
 from fydpad.progress import progress
+from fydpad.texture.interpolation import METHODS
 from vision.recording import CsvRowWriter, RecordingError
 
+#: The interpolation between modelled speeds (fydpad.texture.interpolation, docs/texture.md).
+INTERPOLATION_HELP = ("interpolation between modelled speeds: stretch (default: the nearest "
+                      "models' spectra stretched to the speed, and a two-part model's own "
+                      "spectrum), lsf, reflection, or linear (the paper's)")
 
 def _floats(text: str) -> list[float]:
     try:
@@ -94,6 +99,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     f.add_argument("--prewhiten-order", type=int, default=8, metavar="Q",
                    help="order of the first, spectrum-flattening LPC stage (default 8; 0 for "
                    "a one-stage fit); the model's total order stays --order")
+    f.add_argument("--speed-normalise", action="store_true",
+                   help="fit each speed on its runs resampled to that exact speed (not pooled "
+                   "over the +-tolerance a hand wanders); best with --speeds every 5 mm/s. "
+                   "Option, not default: better between speeds, 0.1-0.2 dB worse at them "
+                   "(docs/texture.md)")
+    f.add_argument("--two-part", action="store_true",
+                   help="fit S(f,v) = T(f) U(f/v) g(v) + N(f) n(v) on every chunk of the "
+                   "scans: a fixed tool/floor part and a surface part that moves with speed; "
+                   "rendered at every speed by the 'stretch' method. Option, not default: "
+                   "better between speeds, R2 0.2 dB worse at 20 mm/s (docs/texture.md)")
     f.add_argument("--surface", help="surface label (default: the scans' # surface= or name)")
     f.add_argument("--drive-band", type=_floats, default=[165.0, 220.0], metavar="LO,HI",
                    help="output drive filter band stored in the model (default 165,220 Hz)")
@@ -126,8 +141,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="rate of the audio channel (default 48000)")
     s.add_argument("--x0-mm", type=float,
                    help="position-indexed kinds: start of the stroke (default: the model's)")
-    s.add_argument("--method", choices=("lsf", "reflection", "linear"), default="lsf",
-                   help="interpolation between speeds (lsf default; linear is the paper's)")
+    s.add_argument("--method", choices=METHODS, default="stretch",
+                   help=INTERPOLATION_HELP)
     s.add_argument("--drive-filter", action="store_true",
                    help="apply the model's drive band filter (e.g. 165-220 Hz) to the output")
     s.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
@@ -147,8 +162,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     e.add_argument("scan", metavar="SCAN.csv", help="a texture scan recording to compare with")
     e.add_argument("--json", metavar="OUT.json", help="write the figures as JSON")
     e.add_argument("--plot", metavar="FIG.png", help="recorded against synthesized spectra")
-    e.add_argument("--method", choices=("lsf", "reflection", "linear"), default="lsf",
-                   help="interpolation between speeds (lsf default; linear is the paper's)")
+    e.add_argument("--method", choices=METHODS, default="stretch",
+                   help=INTERPOLATION_HELP)
     e.add_argument("--seed", type=int, default=0, help="noise seed of the synthesis (default 0)")
     e.set_defaults(func=run_evaluate)
 
@@ -167,8 +182,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     i.add_argument("--json", metavar="OUT.json",
                    help="write {rate, labels, confusion, assignments}")
     i.add_argument("--plot", metavar="FIG.png", help="the confusion matrix")
-    i.add_argument("--method", choices=("lsf", "reflection", "linear"), default="lsf",
-                   help="interpolation between speeds (lsf default; linear is the paper's)")
+    i.add_argument("--method", choices=METHODS, default="stretch",
+                   help=INTERPOLATION_HELP)
     i.set_defaults(func=run_identify)
 
     c = tsub.add_parser(
@@ -342,7 +357,8 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
         scans, order=args.order, speeds_mm_s=args.speeds, tolerance_mm_s=args.tolerance,
         highpass_hz=args.highpass_hz, min_seconds=args.min_seconds, method=args.method,
         surface=args.surface, drive_band_hz=tuple(args.drive_band),
-        prewhiten_order=args.prewhiten_order,
+        prewhiten_order=args.prewhiten_order, speed_normalise=args.speed_normalise,
+        two_part=args.two_part,
         wrap=lambda it: progress(it, total=len(scans), desc="fit"))
     save_model(model, args.out)
     g2 = 9.80665**2
