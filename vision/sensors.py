@@ -272,23 +272,39 @@ def take_line(buf: bytearray, max_bytes: int = MAX_LINE_BYTES) -> tuple[bytes | 
 class DeviceClock:
     """A device's 32-bit tick counter -> seconds from the first sample: unwraps the
     counter and keeps time going forward across a device reset (its counter restarts).
-    ``ticks_per_s`` is 1000 for the sensor board's milliseconds, 1e6 for microseconds."""
+    ``ticks_per_s`` is 1000 for the sensor board's milliseconds, 1e6 for microseconds.
 
-    def __init__(self, ticks_per_s: float = 1000.0) -> None:
+    A count that goes back is a wrap only when it is a plausible one: the step forward
+    across 2^32 is at most ``max_gap_s`` (a few dropped samples, never minutes). Any
+    other step back is a restart, as is the next sample after ``restart()`` (the reader
+    saw the device's hello line mid-stream): time then goes on one period after the last
+    sample, whatever the new count."""
+
+    def __init__(self, ticks_per_s: float = 1000.0, max_gap_s: float = 1.0) -> None:
         self.ticks_per_s = float(ticks_per_s)
+        self.max_gap_s = float(max_gap_s)
         self._last: int | None = None
         self._offset = 0
         self._t0: int | None = None
+        self._restarted = False
         self.resets = 0
 
+    def restart(self) -> None:
+        """The device restarted (its hello line): its next count starts a new epoch."""
+        self._restarted = self._last is not None
+
     def seconds(self, ticks: int, period_ticks: float) -> float:
-        if self._last is not None and ticks < self._last:
-            if self._last - ticks > 2**31:
+        last = self._last
+        if last is not None and (self._restarted or ticks < last):
+            step = ticks + 2**32 - last  # forward across a wrap of the counter
+            if not self._restarted and step <= max(self.max_gap_s * self.ticks_per_s,
+                                                   2 * period_ticks):
                 self._offset += 2**32  # the counter wrapped (ms: 49.7 days; us: 71.6 min)
             else:
                 # The device restarted its counter: continue one period after the last.
-                self._offset += self._last - ticks + round(period_ticks)
+                self._offset += last - ticks + round(period_ticks)
                 self.resets += 1
+            self._restarted = False
         self._last = ticks
         t = ticks + self._offset
         if self._t0 is None:

@@ -65,6 +65,13 @@ class AccelEmulator(BoardEmulator):
         super().start(streaming)
         return self
 
+    def sample_time_s(self, k: int) -> float:
+        """The monotonic time at which sample k is due on the device's clock (``clocked``,
+        after ``start``): when a real part latches it, however late it is sent."""
+        if self._t0_s is None:
+            raise RuntimeError("sample_time_s before start()")
+        return self._t0_s + k / self.rate_hz
+
     def send_sample(self, k: int | None = None) -> None:
         if k is None and self.clocked and self._t0_s is not None:
             with self._lock:  # the sample due now on the device's clock; the rest are lost

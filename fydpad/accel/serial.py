@@ -177,7 +177,11 @@ class SerialAccelerometer:
         self._clock = DeviceClock(1e6)
         self._last_n = None
         self.info = None
-        self._wait_for_hello()
+        try:
+            self._wait_for_hello()
+        except AccelError:
+            self.disconnect()  # the port was opened here: a failed connect leaves it closed
+            raise
 
     def _wait_for_hello(self) -> None:
         deadline = time.monotonic() + self.timeout_s
@@ -270,7 +274,11 @@ class SerialAccelerometer:
             self.info = parsed
             self.rate_hz = parsed.rate_hz
             self.stats.hello += 1
-            self._last_n = None  # a hello mid-stream: the device may have restarted
+            # A hello mid-stream: the device restarted (counter and clock from zero),
+            # whatever its next time stamp says (after 35.8 min of uptime a restart can
+            # look like a wrap of the microsecond counter).
+            self._last_n = None
+            self._clock.restart()
             return
         if rows is None or self.info is None:
             return

@@ -6,7 +6,7 @@ The plain ratio blows up where |TF| is small or where TF was not measured well, 
 - **Tikhonov** on the bins where the coherence exceeds ``coh_min``:
   ``inv = conj(TF) / (|TF|^2 + (eps * ref)^2)`` with ``ref`` the median |TF| there;
   where |TF| >> eps ref it is 1/TF, and it never boosts beyond ``1 / (2 eps ref)``
-  (eps = 0.1: at most +14 dB over the chain's typical gain);
+  (``EPS`` = 0.05: at most +20 dB over the chain's typical gain);
 - **no boost elsewhere**: on the other bins (below, above or in holes of the coherent
   band) the log-magnitude and the unwrapped phase are interpolated between coherent
   bins and held flat beyond the first and last one.
@@ -45,10 +45,7 @@ def regularised_inverse(est: TfEstimate, band_hz: tuple[float, float], eps: floa
     ref = reference_gain(est, band_hz, coh_min)
     tf = est.tf[good]
     inv = np.conj(tf) / (np.abs(tf) ** 2 + (eps * ref) ** 2)
-    f = est.freqs_hz
-    logmag = np.interp(f, f[good], np.log(np.abs(inv)))
-    phase = np.interp(f, f[good], np.unwrap(np.angle(inv)))
-    return np.exp(logmag + 1j * phase)
+    return resample_response(est.freqs_hz[good], inv, est.freqs_hz)
 
 
 def resample_response(freqs_hz: Array, response: NDArray[np.complex128],

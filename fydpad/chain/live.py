@@ -54,8 +54,9 @@ class LiveCompensator:
         if self._selected and (k == self._k or (k != k and self._k != self._k)):
             return
         self._k, self._selected = k, True
-        entry = self.tfs.nearest(k)
-        i = self.tfs.entries.index(entry)
+        # An index, never entries.index(entry): entries hold arrays, and comparing two
+        # equal-looking ones would raise inside the 1 kHz loop.
+        i = self.tfs.nearest_index(k)
         if i != self.index:
             self.index = i
             self.filter.set_taps(self._taps[i])  # the input history carries over

@@ -36,6 +36,20 @@ class TfEntry:
     estimate: TfEstimate
 
 
+def nearest_stiffness_index(ks: tuple[float, ...], stiffness_n_per_mm: float) -> int:
+    """Index of the stiffness in ``ks`` nearest ``stiffness_n_per_mm``, the first of a
+    tie; NaN asks for the softest. NaN entries are never chosen (ChainError if all are)."""
+    want = stiffness_n_per_mm
+    best, best_d = -1, math.inf
+    for i, k in enumerate(ks):
+        d = k if want != want else abs(k - want)  # NaN request: the smallest stiffness
+        if d < best_d:  # a NaN distance never compares less
+            best, best_d = i, d
+    if best < 0:
+        raise ChainError("TF set: no entry has a stiffness")
+    return best
+
+
 @dataclass
 class TfSet:
     """TFs of one chain (channel, rate) over several stiffness settings."""
@@ -48,14 +62,19 @@ class TfSet:
     output_unit: str = "m/s^2"
     excitation: dict = field(default_factory=dict)
     provenance: dict = field(default_factory=dict)
+    _ks: tuple[float, ...] | None = field(default=None, init=False, repr=False, compare=False)
 
     def nearest(self, stiffness_n_per_mm: float) -> TfEntry:
         """The entry identified at the stiffness nearest ``stiffness_n_per_mm`` (NaN:
         the softest, the fabric nearest its rest)."""
-        ks = np.array([e.stiffness_n_per_mm for e in self.entries])
-        if math.isnan(stiffness_n_per_mm):
-            return self.entries[int(np.nanargmin(ks))]
-        return self.entries[int(np.nanargmin(np.abs(ks - stiffness_n_per_mm)))]
+        return self.entries[self.nearest_index(stiffness_n_per_mm)]
+
+    def nearest_index(self, stiffness_n_per_mm: float) -> int:
+        """Index of :meth:`nearest`'s entry, from the stiffnesses cached at the first call
+        (nothing allocated per call: the 1 kHz loop asks on every stiffness change)."""
+        if self._ks is None or len(self._ks) != len(self.entries):
+            self._ks = tuple(float(e.stiffness_n_per_mm) for e in self.entries)
+        return nearest_stiffness_index(self._ks, stiffness_n_per_mm)
 
     def check(self, rate_hz: float, channel: str, path: str | Path = "TF file") -> None:
         """ChainError unless this set was identified on ``channel`` at ``rate_hz``."""

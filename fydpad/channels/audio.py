@@ -118,7 +118,11 @@ class AudioChannel:
         self._label = label
         self._closed = False
         if start:
-            self.start()
+            try:
+                self.start()
+            except ChannelError:
+                self._stream.close()  # opened above: a failed open leaves nothing open
+                raise
 
     def start(self) -> None:
         """Start the stream (``start=False`` at open: write a first block, then start)."""
@@ -170,6 +174,7 @@ class AudioChannel:
         f = self.feed
         return {"written": f.n_written, "played_frames": f.n_played,
                 "dropped_frames": f.n_dropped, "clipped_frames": f.n_clipped,
+                "nonfinite_samples": f.n_nonfinite,
                 "underruns": f.n_underruns, "underrun_frames": f.n_underrun_frames,
                 "device_underflows": self.n_device_underflows,
                 "buffered_frames": f.ring.level}

@@ -27,6 +27,15 @@ TENSION = "tension"
 AUDIO = "audio"
 
 
+def zero_nonfinite(block: NDArray[np.floating]) -> tuple[NDArray[np.float64], int]:
+    """(the block as float64 with NaN and +-inf set to 0, how many were). A non-finite
+    sample passes a clip test (``abs(NaN) > 1`` is False) and would reach the output."""
+    x = np.asarray(block, dtype=np.float64)
+    bad = ~np.isfinite(x)
+    n = int(np.count_nonzero(bad))
+    return (np.where(bad, 0.0, x) if n else x), n
+
+
 class ChannelError(RuntimeError):
     """A channel that cannot be opened or written; the message says what to check."""
 

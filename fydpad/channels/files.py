@@ -11,7 +11,7 @@ from types import TracebackType
 import numpy as np
 from numpy.typing import NDArray
 
-from fydpad.channels.base import ChannelError
+from fydpad.channels.base import ChannelError, zero_nonfinite
 
 
 class WavChannel:
@@ -21,6 +21,8 @@ class WavChannel:
                  full_scale: float = 1.0) -> None:
         self.name, self.rate_hz, self.full_scale = name, float(rate_hz), float(full_scale)
         self.n_clipped = 0
+        #: NaN or infinite samples, written as 0.
+        self.n_nonfinite = 0
         self.n_written = 0
         try:
             self._fh = open(path, "wb")
@@ -34,7 +36,9 @@ class WavChannel:
         self._closed = False
 
     def write(self, block: NDArray[np.float64]) -> None:
-        v = np.asarray(block, dtype=np.float64) / self.full_scale
+        x, bad = zero_nonfinite(block)  # NaN would become an arbitrary int16
+        self.n_nonfinite += bad
+        v = x / self.full_scale
         over = np.abs(v) > 1.0
         self.n_clipped += int(np.count_nonzero(over))
         pcm = np.round(np.clip(v, -1.0, 1.0) * 32767).astype("<i2")

@@ -6,8 +6,9 @@ waits for the other (CPython's GIL makes each index update atomic and ordered; n
 that the 1 kHz loop could block on).
 
 :class:`RingFeed` puts the rest of an audio channel around it, free of I/O: the writer's
-end scales, resamples (:class:`fydpad.channels.resample.Resampler`, state carried across
-blocks), clips and pushes; a full ring drops the samples that do not fit and counts them.
+end zeroes NaN and infinite samples (counted), scales, resamples
+(:class:`fydpad.channels.resample.Resampler`, state carried across blocks), clips and
+pushes; a full ring drops the samples that do not fit and counts them.
 The reader's end (the card's callback) plays what is there; when the ring runs dry it
 outputs zeros, counts an underrun and waits until ``prefill_frames`` are buffered again
 before it plays on (so one late block costs one gap, not a gap per callback).
@@ -18,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from fydpad.channels.base import zero_nonfinite
 from fydpad.channels.resample import Resampler
 
 
@@ -83,6 +85,8 @@ class RingFeed:
         self.draining = False
         # writer's counters
         self.n_written = 0
+        #: Input samples that were NaN or infinite, played as 0.
+        self.n_nonfinite = 0
         self.n_clipped = 0
         self.n_dropped = 0
         # reader's counters
@@ -93,9 +97,12 @@ class RingFeed:
         self._started = False
 
     def write(self, block: NDArray[np.floating]) -> None:
-        """Scale, resample, clip at full scale, push; never blocks (a full ring drops)."""
-        x = np.asarray(block, dtype=np.float64)
+        """Zero what is not finite, scale, resample, clip at full scale, push; never blocks
+        (a full ring drops)."""
+        # Before the resampler: a NaN in its state would poison every later block.
+        x, bad = zero_nonfinite(block)
         self.n_written += len(x)
+        self.n_nonfinite += bad
         y = x if self.resampler is None else self.resampler.process(x)
         y = y / self.full_scale
         over = np.abs(y) > 1.0

@@ -9,6 +9,7 @@ machine does not fail a test that expects data).
 
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
 
@@ -28,7 +29,7 @@ from fydpad.accel.serial import (
     parse_accel_line,
 )
 from vision.board_emulator import BoardEmulator
-from vision.sensors import frame_line
+from vision.sensors import DeviceClock, frame_line
 
 ERROR_TIMEOUT_S = 0.2
 DATA_TIMEOUT_S = 5.0
@@ -154,6 +155,69 @@ def test_a_device_reset_keeps_time_going_and_is_not_a_gap():
         a = read_n(acc, 53)
     assert acc.stats.device_resets == 1 and acc.stats.dropped == 0
     np.testing.assert_allclose(a[:, 0], np.arange(53) * 1e-3)
+
+
+def test_a_reset_after_35_min_of_uptime_is_not_a_wrap():
+    # The device ran 40 min (its microsecond count is past 2^31), then restarted: its
+    # count falls by more than 2^31, as a wrap's does, but it is a restart (hello line).
+    with scripted(start_us=40 * 60 * 10**6) as emu, \
+            SerialAccelerometer(emu.port, timeout_s=DATA_TIMEOUT_S) as acc:
+        for _ in range(50):
+            emu.send_sample()
+        emu.restart()
+        for _ in range(3):
+            emu.send_sample()
+        a = read_n(acc, 53)
+    assert acc.stats.device_resets == 1 and acc.stats.dropped == 0
+    np.testing.assert_allclose(a[:, 0], np.arange(53) * 1e-3)
+
+
+def test_a_restart_whose_hello_was_lost_is_not_a_wrap():
+    # The same restart with its hello line lost on the link: the count falls from 50 min
+    # of uptime to 0.4 s, a 'wrap' that would skip 21.6 min. Only a step of at most
+    # max_gap_s across 2^32 is a wrap; a wrap with samples lost on it still is one.
+    clock = DeviceClock(1e6)
+    t = [clock.seconds(v, 1000) for v in (3_000_000_000, 3_000_001_000, 400_000, 401_000)]
+    np.testing.assert_allclose(t, [0, 0.001, 0.002, 0.003])
+    assert clock.resets == 1
+    clock = DeviceClock(1e6)
+    t = [clock.seconds(v, 1000) for v in (2**32 - 2000, 2**32 - 1000, 4000)]  # 4 lost
+    np.testing.assert_allclose(t, [0, 0.001, 0.006])
+    assert clock.resets == 0
+    ms = DeviceClock(1000.0)  # the sensor board's milliseconds, 100 Hz
+    np.testing.assert_allclose([ms.seconds(v, 10) for v in (2**32 - 10, 0, 2**31, 10)],
+                               [0, 0.01, 0.01 + 2**31 / 1000, 0.01 + 2**31 / 1000 + 0.01])
+    assert ms.resets == 1  # 2^31 -> 10 ms is a restart, not a wrap 24.9 days long
+
+
+def test_a_device_that_dies_during_connect_leaves_the_port_closed():
+    # The device goes away as the reader asks for its hello (the cable pulled then): the
+    # reader's port must not stay open behind the error.
+    opened = []
+
+    def serial_factory(*args, **kw):
+        import serial
+
+        opened.append(serial.Serial(*args, **kw))
+        return opened[-1]
+
+    class DiesOnHello(AccelEmulator):
+        def _on_command(self, cmd: bytes) -> None:
+            if cmd == b"?":
+                with self._lock:  # unplug() would join this very thread
+                    self._unplugged = True
+                    os.close(self._master)
+
+    emu = DiesOnHello(counting, hello_on_start=False).start(streaming=False)
+    try:
+        acc = SerialAccelerometer(emu.port, timeout_s=DATA_TIMEOUT_S,
+                                  serial_factory=serial_factory)
+        with pytest.raises(AccelError, match="accelerometer disconnected") as ei:
+            acc.connect()
+    finally:
+        emu.stop()
+    assert emu.port in str(ei.value)
+    assert len(opened) == 1 and not opened[0].is_open
 
 
 def test_saturated_counts_are_counted():

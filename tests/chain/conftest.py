@@ -28,6 +28,26 @@ def session():
     s.close()
 
 
+@pytest.fixture(scope="session")
+def chain_at():
+    """One simulated chain for the identification and compensation tests: ``at(k)`` is
+    (session, the entry identified at k over 30 s, seed 2), each k identified once (the
+    30 s runs are most of these tests' time). Tests that use the session after another
+    may have moved it: they ``hold`` their stiffness again first."""
+    from fydpad.chain.identify import identify_entry
+
+    s = open_session(sim_config(), "sim", "sim")
+    cache = {}
+
+    def at(k: float):
+        if k not in cache:
+            cache[k] = identify_entry(s, k, 30.0, BAND_HZ, seed=2)
+        return s, cache[k]
+
+    yield at
+    s.close()
+
+
 def lock_in(session, f_hz: float, amp_duty: float = 0.1, settle: int = 256,
             measure: int = 1024) -> complex:
     """Ground truth, point by point: a sine at f_hz through the same drive, ``settle`` ticks

@@ -8,27 +8,9 @@ import numpy as np
 import pytest
 
 from fydpad.chain.check import band_target, check_compensation, scan_target
-from fydpad.chain.identify import identify_entry
 from tests.chain.conftest import BAND_HZ
 
 SECONDS = 20.0
-
-
-@pytest.fixture(scope="module")
-def chain_at():
-    from fydpad.chain.session import open_session
-    from tests.chain.conftest import sim_config
-
-    s = open_session(sim_config(), "sim", "sim")
-    cache = {}
-
-    def at(k: float):
-        if k not in cache:
-            cache[k] = identify_entry(s, k, 30.0, BAND_HZ, seed=2)
-        return s, cache[k]
-
-    yield at
-    s.close()
 
 
 def test_band_target_within_3_db_uncompensated_misses_10_db(chain_at):

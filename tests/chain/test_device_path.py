@@ -1,19 +1,18 @@
-"""``fydpad chain identify --motors qb --accel serial:PORT``: the device path end to end,
-over two pseudo-terminals.
+"""``fydpad chain identify --motors qb --accel serial:PORT --sensors serial:PORT``: the
+device path end to end, over three pseudo-terminals.
 
-What is emulated: the QB board (:class:`fydpad.motors.qb_emulator.QbEmulator`, the real
-packet protocol, read and written by the real ``QbMotors``) drives the simulated fabric
-and motor plant; the fabric accelerometer (:class:`fydpad.accel.emulator.AccelEmulator`,
-the line protocol of docs/accel_protocol.md, read by the real ``SerialAccelerometer``)
-samples that same plant on its own clock. The plant runs on the wall clock (the duty a
-packet sets is held until the next, as a motor driver does), so the accelerometer sees the
-fabric move as the command's paced 1 kHz loop drives it, through both serial links.
-Nothing else is emulated: the command, its pacing, the clock alignment and the estimate
-are the device path's own. There is no load cell (--sensors): the force is not monitored.
+What is emulated (``tests/chain/device_emulation.py``, in a process of its own): the QB
+board (the real packet protocol, read and written by the real ``QbMotors``) driving the
+simulated fabric and motor plant on the wall clock; the fabric accelerometer (the line
+protocol of docs/accel_protocol.md, read by the real ``SerialAccelerometer``) latching
+that plant's acceleration on its own clock; the sensor board's load cell (read by the
+real ``SerialBoard`` in the session's load-cell thread). Nothing else is emulated: the
+command, its pacing, the clock alignment and the estimate are the device path's own.
 """
 
 from __future__ import annotations
 
+import re
 import threading
 import time
 from pathlib import Path
@@ -21,127 +20,166 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fydpad.accel.emulator import AccelEmulator
-from fydpad.accel.serial import G_M_S2
 from fydpad.cli import main
 from fydpad.motors import qb_protocol as qp
-from fydpad.motors.qb_emulator import QbEmulator
-from fydpad.motors.sim import FabricMotorPlant, characterise_plant
+from fydpad.motors.sim import characterise_plant
 from fydpad.softness import save_table
+from tests.chain.device_emulation import FORCE_N, EmulatedDevice
 
 SECONDS = 4.2  # Welch's minimum at nperseg 512 is 4.096 s
+STIFFNESS = 0.6
+#: |TF| of the device path against the plant's own response where coherent, dB.
+MAG_TOL_DB = 2.0
 
 
-class WallClockPlant:
-    """The simulated plant advanced to the wall clock whenever it is touched: by a
-    packet's new duty (after holding the old one up to now) or by an accelerometer
-    sample. One lock: the two emulators' threads share it."""
-
-    def __init__(self, plant: FabricMotorPlant) -> None:
-        object.__setattr__(self, "_p", plant)
-        object.__setattr__(self, "_lock", threading.RLock())
-        object.__setattr__(self, "_t0", time.monotonic())
-        object.__setattr__(self, "_n", 0)
-
-    def __getattr__(self, name: str):
-        return getattr(self._p, name)
-
-    def __setattr__(self, name: str, value) -> None:
-        setattr(self._p, name, value)
-
-    def _advance(self) -> None:
-        n = int((time.monotonic() - self._t0) / self._p.config.dt_s)
-        if n > self._n:
-            self._p.step(n - self._n)
-            object.__setattr__(self, "_n", n)
-
-    def set_duty(self, d0: float, d1: float) -> None:
-        with self._lock:
-            self._advance()
-            self._p.set_duty(d0, d1)
-
-    def step(self, n: int = 1) -> None:
-        with self._lock:
-            self._advance()
-
-    def fabric_accel(self, k: int) -> tuple[float, float, float]:
-        with self._lock:
-            self._advance()
-            return self._p.fabric_accel_m_s2, 0.0, G_M_S2
+@pytest.fixture(scope="module")
+def table(tmp_path_factory) -> Path:
+    return save_table(characterise_plant(), tmp_path_factory.mktemp("soft") / "table.csv")
 
 
 @pytest.fixture()
-def device(tmp_path: Path):
-    """The QB board and the accelerometer on ptys, and a config naming the board's port."""
-    table = save_table(characterise_plant(), tmp_path / "table.csv")
-    plant = WallClockPlant(FabricMotorPlant())
-    qb = QbEmulator(plant=plant).start()
-    acc = AccelEmulator(plant.fabric_accel, clocked=True).start()
+def device(table: Path, tmp_path: Path):
+    """The emulated device and a config naming the board's port."""
+    dev = EmulatedDevice()
     cfg = tmp_path / "station.toml"
     # A stall timeout other than the default 0.5 s: the stall test sees it reach the reader.
-    cfg.write_text(f'[qb]\nport = "{qb.port}"\n[softness]\ntable = "{table}"\n'
-                   "[accel]\nserial_timeout_s = 0.3\n")
-    yield qb, acc, cfg
-    acc.stop()
-    qb.stop()
+    cfg.write_text(f'[qb]\nport = "{dev.qb_port}"\n[softness]\ntable = "{table}"\n'
+                   "[accel]\nserial_timeout_s = 0.3\n[ir]\nserial_timeout_s = 0.3\n")
+    yield dev, cfg
+    dev.stop()
 
 
-def left_safe(qb: QbEmulator) -> bool:
-    """The board deactivated: ACTIVATE 0 is fire-and-forget, so give the emulator's thread
-    the moment it needs to read it."""
+def left_safe(dev: EmulatedDevice) -> bool:
+    """The board deactivated: ACTIVATE 0 is fire-and-forget, so give the emulator the
+    moment it needs to read it."""
     deadline = time.monotonic() + 5.0
-    while qb.activation != 0 and time.monotonic() < deadline:
+    while dev.state()["activation"] != 0 and time.monotonic() < deadline:
         time.sleep(0.01)
-    return qb.activation == 0 and not qb.plant.powered
+    st = dev.state()
+    return st["activation"] == 0 and not st["powered"]
 
 
-def identify(acc, cfg: Path, out: Path) -> int:
+def identify(dev: EmulatedDevice, cfg: Path, out: Path, sensors: bool = True) -> int:
+    argv = ["chain", "identify", "--config", str(cfg), "--motors", "qb", "--accel",
+            f"serial:{dev.accel_port}", "--stiffness", str(STIFFNESS), "--seconds",
+            str(SECONDS), "--yes", "--out", str(out)]
+    if sensors:
+        return main([*argv, "--sensors", f"serial:{dev.board_port}"])
     with pytest.warns(UserWarning, match="no load cell"):
-        return main(["chain", "identify", "--config", str(cfg), "--motors", "qb", "--accel",
-                     f"serial:{acc.port}", "--stiffness", "0.6", "--seconds", str(SECONDS),
-                     "--yes", "--out", str(out)])
+        return main(argv)
 
 
-def test_identify_over_the_board_and_accelerometer_ptys(device, tmp_path: Path, capsys):
-    qb, acc, cfg = device
+def plant_response(freqs_hz: np.ndarray) -> np.ndarray:
+    """The emulated plant's own TF (duty -> fabric m/s^2) at the device path's working
+    point: stiffness STIFFNESS, no finger on the fabric (the emulated device has none),
+    by lock-in through the simulated drive on its virtual clock (no timing at all)."""
+    from fydpad.chain.measure import settle
+    from fydpad.chain.session import open_session
+    from tests.chain.conftest import lock_in, sim_config
+
+    s = open_session(sim_config(noise_m_s2=0.0), "sim", "sim")
+    try:
+        s.drive.set_stiffness(STIFFNESS, strict=True)
+        settle(s.drive, 1000)
+        return np.array([lock_in(s, f) for f in freqs_hz])
+    finally:
+        s.close()
+
+
+class CoherenceShortfall(AssertionError):
+    """The device path refused its own measurement for too little coherence."""
+
+
+@pytest.mark.xfail(strict=False, raises=CoherenceShortfall, reason=(
+    "on this 2-core machine shared with other jobs the device path's coherence stays "
+    "below 0.9 over most of 10-450 Hz (median 0.69-0.78, 0-7 % of the bins above 0.9 in "
+    "4 runs with the emulators in their own process; 0.28-0.82 in 4 with them in the "
+    "test's): the paced 1 kHz loop is late by 0.23-0.37 ms rms with stalls of 5-9 ms, "
+    "and the plant gets each command when it arrives, not at its tick. Only that refusal "
+    "is forgiven (not strict: on a quiet machine the run identifies, and must then match "
+    "the plant within MAG_TOL_DB); any other error or a wrong TF fails"))
+def test_identify_over_the_board_accelerometer_and_load_cell_ptys(device, tmp_path: Path,
+                                                                   capsys):
+    dev, cfg = device
     out = tmp_path / "tf.npz"
-    rc = identify(acc, cfg, out)
-    captured = capsys.readouterr()
+    rc = identify(dev, cfg, out)
+    err = capsys.readouterr().err
+    st = dev.state()
     # The command drove the board in PWM mode through the settle and the whole excitation,
     # then left it safe (deactivated), and read the accelerometer's stream.
-    ticks = qb.received.count(qp.CMD_SET_INPUTS)
-    assert ticks >= SECONDS * 1000
-    assert qb.control_mode == qp.CONTROL_PWM and left_safe(qb)
-    assert b"?" in acc.commands  # the reader asked for the hello
-    if rc == 0:
-        from fydpad.chain.tf_file import load_tf_set
+    assert st["set_inputs"] >= SECONDS * 1000
+    assert st["control_mode"] == qp.CONTROL_PWM and left_safe(dev)
+    assert b"?" in st["accel_commands"]  # the reader asked for the hello
+    if rc != 0:
+        last = err.strip().splitlines()[-1]
+        assert rc == 2 and "too little coherence to identify" in last, err
+        raise CoherenceShortfall(last)
+    from fydpad.chain.tf_file import load_tf_set
 
-        tfs = load_tf_set(out, 1000.0, "vibration")
-        assert tfs.provenance["motors"] == "qb"
-        assert tfs.provenance["accel"] == f"serial:{acc.port}"
-        assert np.isnan(tfs.entries[0].force_mean_n)  # no load cell
-    else:
-        # The paced loop shares this 2-core machine with other jobs: its tick jitter can
-        # cost the coherence, which the command then refuses, in one line, naming it.
-        err = captured.err.strip().splitlines()[-1]
-        assert rc == 2 and "too little coherence to identify" in err, captured.err
-        pytest.xfail(f"the paced 1 kHz loop was too irregular on this machine: {err}")
+    tfs = load_tf_set(out, 1000.0, "vibration")
+    assert tfs.provenance["motors"] == "qb"
+    assert tfs.provenance["accel"] == f"serial:{dev.accel_port}"
+    e = tfs.entries[0]
+    assert e.force_mean_n == pytest.approx(FORCE_N, abs=1e-3)  # the load cell's reading
+    est = e.estimate
+    good = np.flatnonzero(est.coherent(tfs.band_hz))
+    idx = good[:: max(1, good.size // 20)]
+    truth = plant_response(est.freqs_hz[idx])
+    mag_db = 20 * np.log10(np.abs(est.tf[idx]) / np.abs(truth))
+    assert np.max(np.abs(mag_db)) < MAG_TOL_DB, dict(zip(est.freqs_hz[idx], mag_db, strict=True))
+
+
+def test_the_plant_response_the_device_path_is_checked_against():
+    # The reference of the test above, checked where the chain has no timing: the
+    # simulated path's own identification at the same working point agrees with it.
+    from fydpad.chain.identify import identify_entry
+    from fydpad.chain.measure import settle
+    from fydpad.chain.session import open_session
+    from tests.chain.conftest import BAND_HZ, sim_config
+
+    s = open_session(sim_config(), "sim", "sim")
+    s.hold = lambda k, force_n: (s.drive.set_stiffness(k, strict=True),
+                                 settle(s.drive, 1000), 0.0)[2]  # no finger, as the device
+    try:
+        est = identify_entry(s, STIFFNESS, SECONDS, BAND_HZ, seed=1, force_n=0.0).estimate
+    finally:
+        s.close()
+    good = np.flatnonzero(est.coherent(BAND_HZ))
+    assert good.size > 100
+    idx = good[:: good.size // 20]
+    mag_db = 20 * np.log10(np.abs(est.tf[idx]) / np.abs(plant_response(est.freqs_hz[idx])))
+    assert np.max(np.abs(mag_db)) < 1.0
+
+
+def stop_when(dev: EmulatedDevice, ticks: int, action) -> None:
+    """In a thread: ``action`` once the board got ``ticks`` SET_INPUTS (mid-excitation)."""
+    def run() -> None:
+        deadline = time.monotonic() + 30
+        while dev.state()["set_inputs"] < ticks and time.monotonic() < deadline:
+            time.sleep(0.05)
+        action()
+
+    threading.Thread(target=run, daemon=True).start()
 
 
 def test_accelerometer_that_stalls_mid_run_is_one_line(device, tmp_path: Path, capsys):
-    qb, acc, cfg = device
-
-    def stall_in_the_excitation() -> None:
-        deadline = time.monotonic() + 30
-        while qb.received.count(qp.CMD_SET_INPUTS) < 1200 and time.monotonic() < deadline:
-            time.sleep(0.05)
-        acc.pause()  # the part stops streaming; the cable stays
-
-    threading.Thread(target=stall_in_the_excitation, daemon=True).start()
-    assert identify(acc, cfg, tmp_path / "tf.npz") == 2
+    dev, cfg = device
+    stop_when(dev, 1200, dev.pause_accel)  # the part stops streaming; the cable stays
+    assert identify(dev, cfg, tmp_path / "tf.npz", sensors=False) == 2
     err = capsys.readouterr().err.strip().splitlines()[-1]
     # [accel] serial_timeout_s = 0.3 of the config reached the serial reader
     assert err.startswith("fydpad chain: error:")
-    assert f"{acc.port}: no valid samples from the accelerometer for 0.3 s" in err
-    assert left_safe(qb)
+    assert f"{dev.accel_port}: no valid samples from the accelerometer for 0.3 s" in err
+    assert left_safe(dev)
+    assert not (tmp_path / "tf.npz").exists()
+
+
+def test_load_cell_that_stops_mid_run_is_one_line(device, tmp_path: Path, capsys):
+    dev, cfg = device
+    stop_when(dev, 1200, dev.pause_board)  # the sensor board hangs mid-excitation
+    assert identify(dev, cfg, tmp_path / "tf.npz") == 2
+    err = capsys.readouterr().err.strip()
+    last = err.splitlines()[-1]
+    assert re.match(rf"fydpad chain: error: load cell on {re.escape(dev.board_port)}: ", last), err
+    assert left_safe(dev)
     assert not (tmp_path / "tf.npz").exists()

@@ -84,3 +84,21 @@ def test_regularisation_caps_the_boost_where_tf_is_small():
     assert np.max(np.abs(inv)) <= 1.0 / (2 * 0.05) + 1e-9
     # Above the coherent band: the last coherent bin's value, no boost.
     assert np.allclose(np.abs(inv[200:]), np.abs(inv[199]))
+
+
+def test_the_documented_boost_cap_is_the_default_eps():
+    # The cap 1 / (2 eps) over the typical gain, as the module and docs/chain.md state it.
+    from pathlib import Path
+
+    from fydpad.chain import compensate
+
+    cap_db = 20 * np.log10(1 / (2 * compensate.EPS))
+    text = f"``EPS`` = {compensate.EPS:g}: at most +{cap_db:.0f} dB"
+    assert text in " ".join(compensate.__doc__.split())
+    doc = " ".join((Path(__file__).parents[2] / "docs" / "chain.md").read_text().split())
+    assert f"eps = {compensate.EPS:g}" in doc and f"= +{cap_db:.0f} dB" in doc
+    f = np.linspace(0, 500, 257)
+    tf = np.ones(257, complex)
+    tf[100:110] = compensate.EPS  # |TF| = eps ref: where the regularised inverse peaks
+    inv = regularised_inverse(TfEstimate(f, tf, np.ones(257)), (10.0, 450.0))
+    assert 20 * np.log10(np.max(np.abs(inv))) == pytest.approx(cap_db, abs=0.01)

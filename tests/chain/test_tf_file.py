@@ -64,3 +64,39 @@ def test_wrong_format_or_version(tmp_path):
         np.savez(fh, **z)
     with pytest.raises(ChainError, match="field 'version' is 99"):
         load_tf_set(tmp_path / "v99.npz")
+
+
+class Uncomparable(TfEntry):
+    """An entry that fails when compared, as two equal-looking entries do (their arrays
+    make ``==`` ambiguous): selecting by index must never compare entries."""
+
+    def __eq__(self, other):
+        raise AssertionError("TF entries compared")
+
+    __hash__ = None
+
+
+def test_nearest_is_an_index_and_never_compares_entries():
+    from fydpad.chain.live import LiveCompensator
+
+    f = np.linspace(0, 500, 65)
+    coh = np.full(65, 0.95)
+
+    def entry(k, gain, cls=TfEntry):
+        return cls(k, 0.5, 0.3, 0.01, TfEstimate(f, gain * np.exp(-1j * f / 100), coh))
+
+    # Duplicate-looking entries: the same scalar fields, other arrays.
+    a, b = entry(0.6, 1.0), entry(0.6, 2.0)
+    with pytest.raises(ValueError, match="truth value of an array"):
+        _ = a == b
+    tfs = TfSet(1000.0, "vibration", (10.0, 450.0),
+                [entry(0.6, 1.0, Uncomparable), entry(0.6, 2.0, Uncomparable),
+                 entry(1.0, 3.0, Uncomparable), entry(0.45, 4.0, Uncomparable)])
+    assert [tfs.nearest_index(k) for k in (0.6, 0.65, 0.9, 5.0, 0.0, float("nan"))] == \
+        [0, 0, 2, 2, 3, 3]  # a tie: the first; NaN: the softest
+    assert tfs.nearest(0.9) is tfs.entries[2]
+    comp = LiveCompensator(tfs)
+    for k, i in ((1.0, 2), (0.6, 0), (0.5, 3), (float("nan"), 3), (0.85, 2)):
+        comp.select(k)
+        assert comp.index == i
+    assert comp.switches == 4

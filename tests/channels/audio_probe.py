@@ -8,7 +8,10 @@ For each SPEC (the renderer at 1 kHz, N samples) it writes OUT_DIR/<i>/: played.
 written.npy, stats.json; or error.txt with the ChannelError when the channel cannot be
 opened. A SPEC ``cli:MODEL.json`` instead runs ``fydpad texture synth MODEL.json
 --speed-mm-s 20 --seconds 0.3 --out audio`` and saves its exit code and output in
-cli.json. One process for all: starting Python with scipy costs seconds here.
+cli.json. A SPEC ``start-fails:SPEC`` opens SPEC with PortAudio's stream start failing
+(injected: the null device always starts) and saves the error and whether the stream was
+closed in start_failure.json. One process for all: starting Python with scipy costs
+seconds here.
 
 The ALSA null device takes samples as fast as the callback gives them (it has no clock),
 so after the signal has played the stream runs dry: underruns must then be counted.
@@ -61,6 +64,35 @@ def probe(spec: str, n: int, out: Path) -> None:
          "device_name": ch.device_name}))
 
 
+def probe_start_failure(spec: str, out: Path) -> None:
+    import sounddevice as sd
+
+    out.mkdir(parents=True, exist_ok=True)
+    streams: list = []
+    real = sd.OutputStream
+
+    class StartFails(real):  # the real stream, opened on the device; only start fails
+        def __init__(self, *args, **kw) -> None:
+            super().__init__(*args, **kw)
+            streams.append(self)
+
+        def start(self) -> None:
+            raise sd.PortAudioError("injected: Device unavailable")
+
+    sd.OutputStream = StartFails
+    error = ""
+    try:
+        device, card_hz = parse_audio_spec(spec, 1000.0)
+        AudioChannel(device, 1000.0, card_hz).close()
+    except ChannelError as exc:
+        error = str(exc)
+    finally:
+        sd.OutputStream = real
+    (out / "start_failure.json").write_text(json.dumps(
+        {"error": error, "streams": len(streams),
+         "closed": bool(streams) and bool(streams[0].closed)}))
+
+
 def run_cli(model: str, out: Path) -> None:
     import contextlib
     import io
@@ -81,6 +113,8 @@ def main() -> int:
     for i, spec in enumerate(sys.argv[3:]):
         if spec.startswith("cli:"):
             run_cli(spec[4:], out_dir / str(i))
+        elif spec.startswith("start-fails:"):
+            probe_start_failure(spec[len("start-fails:"):], out_dir / str(i))
         else:
             probe(spec, n, out_dir / str(i))
     return 0

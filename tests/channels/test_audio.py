@@ -99,6 +99,26 @@ def test_feed_drops_when_full_and_clips_at_full_scale():
         RingFeed(1000, 48000, 10, 20)
 
 
+@pytest.mark.parametrize("rate_in_hz", [48000.0, 1000.0])
+def test_nan_and_inf_play_as_silence_and_are_counted(rate_in_hz):
+    # abs(NaN) > 1 is False: without its own check NaN would pass the clip to the card,
+    # and through the resampler's state it would spoil every block after it.
+    feed = RingFeed(rate_in_hz, 48000, capacity_frames=48000, prefill_frames=1)
+    x = np.sin(np.arange(200) * 0.3) * 0.5
+    bad = x.copy()
+    bad[[10, 50, 51]] = [np.nan, np.inf, -np.inf]
+    for k in range(0, len(bad), 10):
+        feed.write(bad[k:k + 10])
+    out = np.empty(feed.ring.level, np.float32)
+    feed.fill(out)
+    assert feed.n_nonfinite == 3 and feed.n_written == 200 and feed.n_clipped == 0
+    assert np.isfinite(out).all()
+    clean = x.copy()
+    clean[[10, 50, 51]] = 0.0
+    ref = clean if feed.resampler is None else resample_oneshot(clean, rate_in_hz, 48000)
+    np.testing.assert_allclose(out, ref[:len(out)], atol=1e-6)
+
+
 def test_audio_specs():
     assert parse_audio_spec("audio", 1000) == (None, 48000.0)
     assert parse_audio_spec("audio", 44100) == (None, 44100.0)  # already an audio rate
@@ -147,7 +167,8 @@ def test_no_output_device_is_a_clear_error():
 
 
 MODEL = Path(__file__).resolve().parents[2] / "fydpad" / "texture" / "data" / "thesis_mlp.json"
-PROBED = ("audio", "audio:default@44100", "audio:no-such-card", f"cli:{MODEL}")
+PROBED = ("audio", "audio:default@44100", "audio:no-such-card", f"cli:{MODEL}",
+          "start-fails:audio")
 
 
 @pytest.fixture(scope="module")
@@ -195,6 +216,15 @@ def test_texture_synth_plays_on_the_sound_card(probed):
     assert r["rc"] == 0, r["stderr"]
     # 0.3 s at the model's 1 kHz, resampled to 48 kHz
     assert "audio: played 14400 frames at 48000 Hz on default" in r["stdout"]
+
+
+def test_a_stream_that_cannot_start_is_closed_again(probed):
+    # PortAudio's start failing (a device taken by another program between open and
+    # start) is injected in the probe: the null device always starts.
+    r = json.loads((probed / "4" / "start_failure.json").read_text())
+    assert r["error"].startswith("audio channel: cannot start device") and "injected" in \
+        r["error"]
+    assert r["streams"] == 1 and r["closed"] is True
 
 
 def test_texture_synth_to_a_missing_card_is_a_one_line_error(capsys):

@@ -23,6 +23,16 @@ def test_wav_blockwise_valid_and_clipping_counted(tmp_path):
     np.testing.assert_allclose(pcm, np.clip(x, -1, 1), atol=1 / 32767)
 
 
+def test_wav_writes_nan_and_inf_as_zero_and_counts_them(tmp_path):
+    p = tmp_path / "v.wav"
+    with open_channel(f"wav:{p}", 1000) as ch:
+        ch.write(np.array([0.5, np.nan, np.inf, -np.inf, -0.5]))
+    assert ch.n_nonfinite == 3 and ch.n_clipped == 0
+    with wave.open(str(p)) as r:
+        pcm = np.frombuffer(r.readframes(r.getnframes()), "<i2")
+    assert list(pcm) == [16384, 0, 0, 0, -16384]
+
+
 def test_csv_channel(tmp_path):
     p = tmp_path / "v.csv"
     with open_channel(f"csv:{p}", 1000) as ch:
