@@ -30,6 +30,12 @@ class DriveChain:
         self.texture = self.models[0]
         self.switches = 0
         self.friction_b_v = math.nan
+        #: Each friction model's b as its file gives it (None: not a friction model), for
+        #: ``friction_b_v`` = NaN after a live b.
+        self._file_b = [float(m.family.b) if m is not None and hasattr(m.family, "b")
+                        else None for m in self.models]
+        #: Failures of ``safe_stop`` (it never raises), one line each.
+        self.faults: list[str] = []
         table = self.drive.table
         self._k_lo, self._k_hi = (table.k_range_n_per_mm if table is not None
                                   else (0.0, math.inf))
@@ -49,7 +55,7 @@ class DriveChain:
 
     def apply_control(self, texture_index: float, friction_b_v: float) -> None:
         """Select the texture model (-1 or out of range: none) and set friction models'
-        b (NaN: keep the files'); called by the render loop when the control changes."""
+        b (NaN: each file's own b); called by the render loop when the control changes."""
         i = int(texture_index) if texture_index == texture_index else 0
         i = i if 0 <= i < len(self.models) else -1
         if i != self.index:
@@ -58,13 +64,14 @@ class DriveChain:
             if self.texture is not None:
                 self.texture.reset()  # a fresh start: no filter state of its last use
             self.switches += 1
-        if friction_b_v == friction_b_v and friction_b_v != self.friction_b_v:
-            self.friction_b_v = friction_b_v
-            for m in self.models:
-                if m is not None and hasattr(m.family, "b"):
-                    m.family.b = float(friction_b_v)
+        b_v = float(friction_b_v)
+        if not _same(b_v, self.friction_b_v):  # NaN to NaN is no change
+            self.friction_b_v = b_v
+            for m, file_b in zip(self.models, self._file_b, strict=True):
+                if file_b is not None:  # a friction model: b, or NaN: its file's again
+                    m.family.b = b_v if b_v == b_v else file_b
             if self.channels is not None:
-                self.channels.set_friction_b(float(friction_b_v))
+                self.channels.set_friction_b(b_v)
 
     def live_stats(self) -> dict:
         """The texture in use, for the station's live figures and the web view."""
@@ -106,11 +113,14 @@ class DriveChain:
         return (vib, d[0], d[1], drive.theta_ref_rad)
 
     def safe_stop(self) -> None:
+        """Motors to rest, then the channels closed, each whatever the other did; what
+        failed goes to ``faults`` (one line each) for the render process to report."""
         try:
             self.drive.safe_stop()
-        finally:
-            if self.channels is not None:  # files keep what was rendered; the card: silence
-                self.channels.close()
+        except Exception as exc:
+            self.faults.append(f"motors safe stop: {exc}".splitlines()[0])
+        if self.channels is not None:  # files keep what was rendered; the card: silence
+            self.faults.extend(self.channels.close())
 
     def stats(self) -> dict:
         """Clipping counts of eq. (3), the softness request and texture limiter resets."""
@@ -125,6 +135,10 @@ class DriveChain:
         if self.channels is not None:
             out["channels"] = self.channels.stats()
         return out
+
+
+def _same(a: float, b: float) -> bool:
+    return a == b or (a != a and b != b)
 
 
 class _TickModel:

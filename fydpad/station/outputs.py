@@ -134,42 +134,84 @@ def check_channel(text: str, families: list[Any], rate_hz: float = 1000.0) -> st
 
 
 class FileWriter:
-    """A file channel written by its own thread: ``write`` queues a copy and returns."""
+    """A file channel written by its own thread: ``write`` queues a copy and returns.
+
+    The thread owns the channel: it writes the blocks in order and closes the channel
+    after the last one, so a close never lands in the middle of a write (a slow disk).
+    """
 
     def __init__(self, channel: Any) -> None:
         self.channel = channel
         self.name, self.rate_hz = channel.name, channel.rate_hz
         self._q: queue.SimpleQueue = queue.SimpleQueue()
+        #: The first failed write (the thread stops writing then), and a failed close.
         self.error: BaseException | None = None
+        self.close_error: BaseException | None = None
+        self._reported = False  # ``error`` already raised by ``write``
+        self._discard = False  # close(drain=False): drop the blocks still queued
+        self._closing = False
+        self.dropped = 0
         self._thread = threading.Thread(target=self._run, name=f"channel-{self.name}",
                                         daemon=True)
         self._thread.start()
 
     def _run(self) -> None:
         while (block := self._q.get()) is not None:
-            if self.error is None:
+            if self._discard:
+                self.dropped += 1
+            elif self.error is None:
                 try:
                     self.channel.write(block)
                 except BaseException as exc:  # reported by ``write``/``close``
                     self.error = exc
+        try:
+            self.channel.close()  # here, after the last write: never during one
+        except BaseException as exc:
+            self.close_error = exc
 
     def write(self, block: np.ndarray) -> None:
         if self.error is not None:
-            raise ChannelError(f"channel {self.name}: {self.error}")
+            self._reported = True
+            raise ChannelError(f"write failed: {self.error}")
         self._q.put(np.array(block, dtype=np.float64))
 
-    def close(self, drain: bool = True) -> None:
-        self._q.put(None)
-        self._thread.join(timeout=10.0)
-        self.channel.close()
+    def close(self, drain: bool = True, timeout_s: float = 10.0) -> None:
+        """``drain``: write the blocks still queued first (a file keeps what was rendered);
+        else drop them (counted in ``dropped``). The thread closes the channel after its
+        last write. ChannelError (one line) for a write failure not yet raised by
+        ``write``, a failed close (a WAV header not finalised), or a write still running
+        after ``timeout_s`` (the channel is then closed when it returns)."""
+        if not drain:
+            self._discard = True
+        if not self._closing:
+            self._closing = True
+            self._q.put(None)
+        self._thread.join(timeout=timeout_s)
+        if self._thread.is_alive():
+            raise ChannelError(f"still writing after {timeout_s:g} s; closed once that "
+                               "write returns")
+        problems = []
+        if self.error is not None and not self._reported:
+            self._reported = True
+            problems.append(f"write failed: {self.error}")
+        if self.close_error is not None:
+            problems.append(f"close failed: {self.close_error}")
+        if problems:
+            raise ChannelError("; ".join(problems))
 
     @property
     def stats(self) -> dict:
         out = {"written": int(getattr(self.channel, "n_written", 0))}
         if hasattr(self.channel, "n_clipped"):
             out["clipped"] = int(self.channel.n_clipped)
+        if getattr(self.channel, "n_nonfinite", 0):
+            out["nonfinite"] = int(self.channel.n_nonfinite)
+        if self.dropped:
+            out["dropped_blocks"] = self.dropped
         if self.error is not None:
             out["error"] = str(self.error)
+        if self.close_error is not None:
+            out["close_error"] = str(self.close_error)
         return out
 
 
@@ -217,20 +259,25 @@ class _Route:
             for r in self.renderers:
                 if r is not None:
                     r.reset()
+        #: Each renderer's b as its file gives it (None: no b), for a live b set back.
+        self.file_b = [float(r.b) if r is not None and hasattr(r, "b") else None
+                       for r in self.renderers]
         self.out: Any = None
         self.n_samples = 0  # samples handed to the channel
+        #: Why this channel stopped taking blocks (one line naming it), or None.
+        self.failed: str | None = None
 
 
 class ChannelOutputs:
     """The render loop's output channels: ``tick`` once per tick, ``close`` at the end."""
 
     def set_friction_b(self, b_v: float) -> None:
-        """A new electrostatic gain b (the staircase's) for the block renderers' copies
-        of friction models too: the audio channel is where b is felt."""
+        """A new electrostatic gain b (the staircase's; NaN: each file's own) for the block
+        renderers' copies of friction models too: the audio channel is where b is felt."""
         for route in self.routes:
-            for r in route.renderers:
-                if r is not None and hasattr(r, "b"):
-                    r.b = b_v
+            for r, file_b in zip(route.renderers, route.file_b, strict=True):
+                if file_b is not None:
+                    r.b = b_v if b_v == b_v else file_b
 
     def __init__(self, specs: list[str], models: list[Any], rate_hz: float,
                  block_ticks: int = 10) -> None:
@@ -240,6 +287,7 @@ class ChannelOutputs:
         self.block_ticks = int(block_ticks)
         fams = [None if m is None else m.family for m in models]
         self.routes: list[_Route] = []
+        self.close_errors: list[str] = []
         try:
             for text in specs:
                 spec = parse_channel_spec(text)
@@ -295,15 +343,26 @@ class ChannelOutputs:
             self.flush()
 
     def flush(self) -> None:
-        """Render and hand on the ticks stored since the last flush."""
+        """Render and hand on the ticks stored since the last flush. A channel that fails
+        (its file's disk, its model's render) is reported once, in one line naming it, and
+        takes no more blocks; the others get theirs; then ChannelError."""
         n = self._i - 1
         if n <= 0 or self.closed:
             return
         if self._ticks == 0:
             self._t_start = float(self._t[1])
+        failed = []
         for r, route in enumerate(self.routes):
-            block = (self._vals[r, 1:n + 1] if route.from_tick else self._render(route, n))
-            route.out.write(block)
+            if route.failed is not None:
+                continue
+            try:
+                block = (self._vals[r, 1:n + 1] if route.from_tick
+                         else self._render(route, n))
+                route.out.write(block)
+            except Exception as exc:
+                route.failed = f"channel {route.spec.text}: {exc}".splitlines()[0]
+                failed.append(route.failed)
+                continue
             route.n_samples += len(block)
         self._ticks += n
         for a in (self._t, self._contact, self._x, self._y, self._speed, self._force,
@@ -311,6 +370,8 @@ class ChannelOutputs:
             a[0] = a[n]
         self._vals[:, 0] = self._vals[:, n]
         self._i = 1
+        if failed:
+            raise ChannelError("; ".join(failed))
 
     def _render(self, route: _Route, n: int) -> np.ndarray:
         """The block at the route's rate: sample j (since start) sits at tick u = j r / R;
@@ -350,20 +411,32 @@ class ChannelOutputs:
             st = dict(route.out.stats) if route.out is not None else {}
             out[route.spec.text] = {"signal": route.signal, "rate_hz": route.rate_hz,
                                     "samples": route.n_samples, **st}
+            if route.failed is not None:
+                out[route.spec.text]["failed"] = route.failed
         return out
 
-    def close(self) -> None:
-        """Stop or fault: files get what was rendered, a sound card goes silent now."""
+    def close(self) -> list[str]:
+        """Stop or fault: files get what was rendered, a sound card goes silent now. Every
+        channel is closed whatever the others do; returns the failures seen here (also
+        kept in ``close_errors``), one line each naming the channel. Never raises."""
         if getattr(self, "closed", False):
-            return
-        try:
-            if hasattr(self, "_i"):
+            return []
+        errors: list[str] = []
+        if hasattr(self, "_i"):
+            try:
                 self.flush()
-        finally:
-            self.closed = True
-            for route in self.routes:
-                if route.out is not None:
-                    try:
-                        route.out.close(drain=False)
-                    except Exception:  # closing the others matters more
-                        pass
+            except Exception as exc:  # each failed channel, named once, in one line
+                errors.append(str(exc))
+        self.closed = True
+        for route in getattr(self, "routes", ()):
+            if route.out is None:
+                continue
+            try:
+                # A file is drained (it keeps what was rendered); a card stops at once.
+                route.out.close(drain=not route.spec.is_audio)
+            except Exception as exc:
+                line = f"channel {route.spec.text}: {exc}".splitlines()[0]
+                route.failed = route.failed or line
+                errors.append(line)
+        self.close_errors = errors
+        return errors

@@ -147,17 +147,20 @@ def render_main(
         timer.start()
         if ready_event is not None:
             ready_event.set()  # the chain is built: the station may start its sources
+        # A read never holds up the tick: a writer stuck mid-write (killed there) gives
+        # the last consistent values after a quarter tick, and the loop still sees a stop.
+        read_timeout_s = 0.25 / spec.rate_hz
         while not stop_event.is_set():
             tick_time = timer.wait()
-            seq, v = state.read()
-            ctl_seq, ctl = control.read()
-            if ctl_seq != last_ctl_seq:  # only when the station wrote something new
+            seq, v = state.read(read_timeout_s)
+            ctl_seq, ctl = control.read(read_timeout_s)
+            if ctl_seq and ctl_seq != last_ctl_seq:  # only when the station wrote anew
                 last_ctl_seq = ctl_seq
                 if apply_control is not None:
                     apply_control(ctl[4], ctl[5])
             t0 = ctl[3]  # the station's epoch: t_s = 0 at its first frame
             gain = ctl[0] if ctl[2] > 0.5 else 0.0
-            if seq:
+            if seq and ctl_seq:
                 out = chain.tick(tick_time - t0, v[1] > 0.5, v[2], v[3], v[5], v[6], gain,
                                  ctl[1])
                 if seq != last_seq:
@@ -179,13 +182,31 @@ def render_main(
     except BaseException as exc:
         results.put(("fault", f"render loop: {exc!r}\n{traceback.format_exc()}"))
     finally:
+        # Every step runs whatever the one before did, and the stats always go out: the
+        # station waits for them.
+        faults: list[str] = []
         if chain is not None:
-            chain.safe_stop()
+            try:
+                chain.safe_stop()
+            except BaseException as exc:
+                faults.append(f"safe stop: {exc!r}")
+            faults += list(getattr(chain, "faults", ()))
         if log is not None:
-            log.close()
+            try:
+                log.close()
+            except BaseException as exc:
+                faults.append(f"commands log {spec.commands_csv}: {exc}")
+        for fault in faults:
+            results.put(("fault", f"render process: {fault}"))
         stats = timer.stats().as_dict()
         stats["scheduling"] = scheduling
+        stale = state.stale_reads + control.stale_reads
+        if stale:
+            stats["stale_reads"] = stale
         if chain is not None and hasattr(chain, "stats"):
-            stats["chain"] = chain.stats()
+            try:
+                stats["chain"] = chain.stats()
+            except BaseException as exc:
+                stats["chain"] = {"error": repr(exc)}
         results.put(("stats", {"render": stats,
                                "frame_to_command_ms": latency.percentiles_ms()}))

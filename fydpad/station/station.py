@@ -71,10 +71,13 @@ class LatestSensors:
 class SensorFeed:
     """Sensor samples replayed at their own time stamps (``ir.csv``/``force.csv``).
 
-    In real time, :meth:`run` sleeps until each sample is due on the station's clock. As
-    fast as possible (``--no-realtime``) the frames' own times are the clock: the vision
-    loop calls :meth:`advance_to` with each frame's time, so every frame sees the samples
-    up to it however fast or slow the machine is.
+    In real time, :meth:`run` sleeps until each sample is due on the station's clock; on
+    a stop it still applies those that fell due before it (a late thread on a loaded
+    machine loses none, as a serial port's buffer would keep them). As fast as possible
+    (``--as-fast-as-possible``) the frames' own times are the clock: the vision loop calls
+    :meth:`advance_to` with each frame's time (dropped frames too), and at the end of the
+    source :meth:`finish`, so every frame sees the samples up to it however fast or slow
+    the machine is, and a recording keeps every sample.
     """
 
     def __init__(self, ir=None, force=None):
@@ -105,10 +108,16 @@ class SensorFeed:
             self._apply(events[self._next], latest)
             self._next += 1
 
+    def finish(self, latest: LatestSensors) -> None:
+        """Apply every sample left (the source has ended)."""
+        self.advance_to(math.inf, latest)
+
     def run(self, latest: LatestSensors, clock_t0: float, stop: threading.Event) -> None:
         events = self._events
         while self._next < len(events):
             if stop.is_set():
+                # Those due before the stop was seen arrived before it: keep them.
+                self.advance_to(time.perf_counter() - clock_t0, latest)
                 return
             event = events[self._next]
             delay = clock_t0 + event[0] - time.perf_counter()
@@ -235,6 +244,7 @@ class Station:
         self.control = SharedRecord(CONTROL_FIELDS)
         self._control = [options.render.vibration_gain, options.render.stiffness_n_per_mm, 1.0,
                          math.nan, 0.0, math.nan]  # texture 0 (--texture), b of the file
+        self._control_lock = threading.Lock()
         self.control.write(self._control)
         self.stop_event = threading.Event()
         self.faults: list[str] = []
@@ -257,6 +267,27 @@ class Station:
         self._sensors_by_frame = (not options.real_time
                                   and hasattr(self.sensors, "advance_to"))
 
+    # -- control ----------------------------------------------------------------
+
+    def set_control(self, **values: float) -> None:
+        """Change some of the render process's control fields (``CONTROL_FIELDS``, by name),
+        keep the others. The control record's one writer: the web view's changes and the
+        station's epoch all come here, under a lock, so none is lost and the seqlock never
+        has two writers."""
+        unknown = set(values) - set(CONTROL_FIELDS)
+        if unknown:
+            raise KeyError(f"unknown control field {sorted(unknown)[0]!r} "
+                           f"(known: {', '.join(CONTROL_FIELDS)})")
+        with self._control_lock:
+            for name, v in values.items():
+                self._control[CONTROL_FIELDS.index(name)] = float(v)
+            self.control.write(self._control)
+
+    def control_values(self) -> dict[str, float]:
+        """The control fields as last set (by name)."""
+        with self._control_lock:
+            return dict(zip(CONTROL_FIELDS, self._control, strict=True))
+
     # -- loops ------------------------------------------------------------------
 
     def _vision_rate_hz(self) -> float:
@@ -273,12 +304,15 @@ class Station:
         period_s = 1.0 / rate_hz
         slack_s = 0.5 / self.source.fps
         due_s = -math.inf
+        by_frame = self.sensors if self._sensors_by_frame else None
         try:
             builder = FingerStateBuilder()
             timer.start(at=t0)
             for frame in self.source.frames():
                 if self.stop_event.is_set():
                     break
+                if by_frame is not None:  # every frame read, dropped ones too
+                    by_frame.advance_to(frame.t_s, self.latest)
                 if frame.t_s < due_s - slack_s:
                     self.frames_dropped += 1
                     if writer is not None:  # the video keeps every frame: it replays as shot
@@ -290,8 +324,6 @@ class Station:
                     arrival = timer.wait_until(t0 + frame.t_s)
                 else:
                     arrival = timer.mark()
-                    if self._sensors_by_frame:
-                        self.sensors.advance_to(frame.t_s, self.latest)
                 contact = self.tracker.process(frame.image)
                 s = self.latest
                 ind = (self.indentation.update(s.volts, contact)
@@ -319,6 +351,9 @@ class Station:
                 elapsed_s = time.perf_counter() - t0 if opts.real_time else frame.t_s
                 if opts.duration_s is not None and elapsed_s >= opts.duration_s:
                     break
+            else:
+                if by_frame is not None and not self.stop_event.is_set():
+                    by_frame.finish(self.latest)  # the source ended: the samples after it
         except Exception as exc:
             self.faults.append(f"vision loop: {exc}")
         finally:
@@ -385,9 +420,7 @@ class Station:
         t0 = time.perf_counter() + 0.05
         self.t0 = t0
         # Only the epoch: the web view may have set other fields while the chain was built.
-        control = [float(v) for v in self.control.read()[1]]
-        control[3] = t0
-        self.control.write(control)
+        self.set_control(epoch_s=t0)
         threads = [threading.Thread(target=self._vision_loop, args=(t0,), name="vision")]
         if self.sensors is not None and not self._sensors_by_frame:
             threads.append(threading.Thread(target=self._sensor_loop, args=(t0,),

@@ -60,38 +60,63 @@ def is_loopback(host: str) -> bool:
         return False
 
 
-def write_control(station, **values: float) -> None:
-    """Change some of the render process's control fields (by name), keep the others."""
-    from fydpad.station.render import CONTROL_FIELDS
+def friction_slot(render) -> tuple[int | None, str]:
+    """The render process's slot (``[texture, *textures]``) of the friction model the
+    staircase applies b to: ``--texture`` when it is one (the model compared with the
+    real sample), else the first among the stimuli's; (None, why not) when none is."""
+    from fydpad.errors import UserError
+    from fydpad.texture.families import model_kind, read_model_json, split_spec
 
-    control = [float(v) for v in station.control.read()[1]]
-    for name, v in values.items():
-        control[CONTROL_FIELDS.index(name)] = float(v)
-    station.control.write(control)
+    if render is None or (render.motors == "none" and render.chain is None):
+        return None, ("the staircase sets b of a rendered friction model, but this station "
+                      "drives no motors: start it with --motors sim|qb --texture "
+                      "friction:MODEL.json")
+    specs = [render.texture, *render.textures]
+    for i, spec in enumerate(specs):
+        if spec is None:
+            continue
+        kind, path = split_spec(spec)
+        if kind is None:
+            try:
+                kind = model_kind(read_model_json(path))
+            except UserError:  # the render process reports an unreadable model itself
+                continue
+        if kind == "friction":
+            return i, spec
+    given = render.texture or "none"
+    return None, (f"the staircase sets b of a rendered friction model, but the station "
+                  f"renders none (--texture: {given}): start it with --texture "
+                  "friction:MODEL.json")
 
 
 class StationStimulus:
     """Presents an experiment stimulus on the station through the render process's
     control record: its stiffness, and its texture model selected by index among those
-    the render process loaded at start (``RenderSpec.textures``; not loaded: texture
-    off). ``texture_hook(stimulus)``, if given, is called too."""
+    the render process loaded at start (``RenderSpec.texture``, slot 0, and
+    ``RenderSpec.textures``; not loaded: texture off). ``texture_hook(stimulus)``, if
+    given, is called too."""
 
     def __init__(self, station, texture_hook=None):
         self.station = station
         self.texture_hook = texture_hook
         self.current: Stimulus | None = None
         render = getattr(station.options, "render", None)
-        #: Model spec -> its index in the render process ([texture, *textures]).
-        self.texture_index = {t: i + 1 for i, t in enumerate(getattr(render, "textures", ()))}
+        #: Model spec -> its index in the render process ([texture, *textures]); a model
+        #: loaded twice keeps its first slot (--texture: 0).
+        specs = [getattr(render, "texture", None), *getattr(render, "textures", ())]
+        self.texture_index: dict[str, int] = {}
+        for i, t in enumerate(specs):
+            if t is not None:
+                self.texture_index.setdefault(t, i)
 
     def __call__(self, stim: Stimulus | None) -> None:
         self.current = stim
         if stim is None:  # session complete: vibration and texture off
-            write_control(self.station, vibration_enabled=0.0, texture_index=-1.0)
+            self.station.set_control(vibration_enabled=0.0, texture_index=-1.0)
         else:
-            write_control(self.station, stiffness_n_per_mm=stim.stiffness_n_per_mm,
-                          vibration_enabled=1.0,
-                          texture_index=self.texture_index.get(stim.texture, -1))
+            self.station.set_control(stiffness_n_per_mm=stim.stiffness_n_per_mm,
+                                     vibration_enabled=1.0,
+                                     texture_index=self.texture_index.get(stim.texture, -1))
         if self.texture_hook is not None:
             self.texture_hook(stim)
 
@@ -118,6 +143,10 @@ class WebView:
         self.session: ExperimentSession | None = None
         self.stimulus = StationStimulus(station, texture_hook)
         self.texture_name = getattr(getattr(station.options, "render", None), "texture", None)
+        #: The render slot of the friction model the staircase sets b of; else None and
+        #: ``friction_model`` says why.
+        self.friction_slot, self.friction_model = friction_slot(
+            getattr(station.options, "render", None))
         self.staircase: StaircaseSession | None = None
         self.calibration: PressCollector | None = None
         self._calibration_fit: dict | None = None
@@ -262,19 +291,20 @@ class WebView:
             self.config.camera.roi_px = roi
             self.config.camera.image_flip = flip
             self.config.tracker.threshold = threshold
-        control = [float(v) for v in self.station.control.read()[1]]
+        control: dict[str, float] = {}  # only the fields asked for: the others stay as set
         if "vibration_gain" in body:
-            control[0] = float(body["vibration_gain"])
-            if control[0] < 0:
+            control["vibration_gain"] = float(body["vibration_gain"])
+            if not control["vibration_gain"] >= 0:
                 raise ValueError("vibration_gain must be >= 0")
         if "stiffness_n_per_mm" in body:
             k = float(body["stiffness_n_per_mm"])
             if not k > 0:
                 raise ValueError("stiffness_n_per_mm must be > 0")
-            control[1] = k
+            control["stiffness_n_per_mm"] = k
         if "vibration_enabled" in body:
-            control[2] = 1.0 if body["vibration_enabled"] else 0.0
-        self.station.control.write(control)
+            control["vibration_enabled"] = 1.0 if body["vibration_enabled"] else 0.0
+        if control:
+            self.station.set_control(**control)
         return "applied"
 
     async def save(self, request):
@@ -341,16 +371,24 @@ class WebView:
     # -- the friction-gain staircase -----------------------------------------------------
 
     def _apply_b(self, b_v: float) -> None:
-        """The staircase's b to the station's own texture model (--texture, slot 0): the
-        friction model the participant compares with the real sample."""
-        write_control(self.station, friction_b_v=b_v, texture_index=0.0,
-                      vibration_enabled=1.0)
+        """The staircase's b to the friction model the station renders (``friction_slot``:
+        --texture when it is one), selected: the model the participant compares with the
+        real sample."""
+        if self.friction_slot is None:
+            raise ExperimentError(self.friction_model)
+        self.station.set_control(friction_b_v=b_v, texture_index=float(self.friction_slot),
+                                 vibration_enabled=1.0)
 
     async def stairs_status(self, request):
-        return web.json_response({"staircase": self.staircase.status()
-                                  if self.staircase is not None else None})
+        return web.json_response({
+            "staircase": self.staircase.status() if self.staircase is not None else None,
+            # The friction model b goes to, or (unavailable) why the staircase cannot run.
+            "friction_model": self.friction_model if self.friction_slot is not None else None,
+            "unavailable": self.friction_model if self.friction_slot is None else None})
 
     async def stairs_start(self, request):
+        if self.friction_slot is None:
+            return web.json_response({"error": self.friction_model}, status=400)
         try:
             body = await request.json()
             self.staircase = StaircaseSession.open(

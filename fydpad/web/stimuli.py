@@ -2,15 +2,19 @@
 
 By default each stimulus renders a rectangular grating model (paper 002 4.2, the
 FYD-pad's specimens: 90 % ridge, the default 8:2 vibrotactile/friction ratio) of its
-period, written once to ``RESULTS/textures/grating-<period>mm.json`` so the plan and the
-render process name a real file. ``--web-stimuli FILE.json`` replaces them: a JSON list
-of ``{"name", "stiffness_n_per_mm", "grating_mm", "texture", "description"}`` (docs/
-experiment.md).
+period, written to ``RESULTS/textures/grating-<period>mm.json`` so the plan and the
+render process name a real file (rewritten, atomically, whenever its content would
+differ: a file of an older fit or a torn write is never used). ``--web-stimuli
+FILE.json`` replaces them: a JSON list of ``{"name", "stiffness_n_per_mm",
+"grating_mm", "texture", "description"}`` (docs/experiment.md).
 """
 
 from __future__ import annotations
 
+import json
 import math
+import os
+import tempfile
 from dataclasses import replace
 from pathlib import Path
 
@@ -21,18 +25,36 @@ from fydpad.web.experiment import PAPER_STIMULI, Stimulus
 def grating_textures(stimuli: tuple[Stimulus, ...] | list[Stimulus], texture_dir: Path
                      ) -> list[Stimulus]:
     """``stimuli`` with ``texture`` set to a grating model of each ``grating_mm``."""
-    from fydpad.texture.families import save_model_json
     from fydpad.texture.grating import fit_grating
 
     texture_dir.mkdir(parents=True, exist_ok=True)
     out = []
     for s in stimuli:
         path = texture_dir / f"grating-{s.grating_mm:g}mm.json"
-        if not path.exists():
-            save_model_json(fit_grating(wavelength_mm=s.grating_mm, profile="rect",
-                                        ridge_fraction=0.9), path)
+        model = fit_grating(wavelength_mm=s.grating_mm, profile="rect", ridge_fraction=0.9)
+        # As fydpad.texture.families.save_model_json writes it.
+        _write_if_changed(path, json.dumps(model, indent=1) + "\n")
         out.append(replace(s, texture=f"grating:{path}"))
     return out
+
+
+def _write_if_changed(path: Path, text: str) -> None:
+    """Write ``text`` unless the file already holds it, atomically (a temporary file in
+    the same folder, then ``os.replace``): a reader sees the old file or the new one,
+    never a part of it; two stations starting at once both end with a whole file."""
+    try:
+        if path.read_text(encoding="utf-8") == text:
+            return
+    except (OSError, UnicodeDecodeError):
+        pass  # missing or unreadable: (re)write it
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
 
 
 def load_stimuli(path: str | Path) -> list[Stimulus]:

@@ -185,6 +185,37 @@ def test_a_live_b_reaches_the_electrostatic_channel(friction_model: Path, tmp_pa
     assert on.max() <= 250.0 * mu.max() + 1e-9 and on.min() >= 250.0 * mu.min() - 1e-9
 
 
+def test_nan_b_gives_each_friction_model_its_files_b_again(friction_model: Path,
+                                                          tmp_path: Path):
+    """CONTROL_FIELDS: friction_b_v NaN means the file's b, also after a live b was set (the
+    staircase done): each friction model, and the audio channel's copy, get their own."""
+    from fydpad.config import StationConfig
+    from fydpad.station.render import RenderSpec, build_chain
+
+    data = json.loads(friction_model.read_text())
+    other = tmp_path / "friction-300.json"
+    other.write_text(json.dumps({**data, "electrostatic": {"b_v": 300.0}}))
+    chain = build_chain(RenderSpec(motors="sim", texture=str(friction_model),
+                                   textures=(str(other),),
+                                   channels=(f"audio=csv:{tmp_path / 'V.csv'}",),
+                                   config=StationConfig(), realtime=False))
+    copies = chain.channels.routes[0].renderers
+
+    def bs() -> list[float]:
+        return [m.family.b for m in chain.models] + [r.b for r in copies]
+
+    assert bs() == [B_V, 300.0, B_V, 300.0]  # as the files say
+    chain.apply_control(0, 250.0)
+    assert bs() == [250.0] * 4
+    chain.apply_control(1, math.nan)
+    assert bs() == [B_V, 300.0, B_V, 300.0]
+    assert chain.live_stats()["friction_b_v"] == 300.0  # slot 1's own
+    chain.apply_control(1, 250.0)  # the same b again after NaN: applied again
+    assert bs() == [250.0] * 4
+    chain.safe_stop()
+    assert chain.faults == []
+
+
 @pytest.mark.parametrize("text, signal, target, fs", [
     ("wav:out.wav", None, "wav:out.wav", 1.0),
     ("audio=wav:V.wav,fs=500", "audio", "wav:V.wav", 500.0),

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 import threading
-import time
 from pathlib import Path
 
 import numpy as np
@@ -142,17 +141,22 @@ def test_board_that_stops_mid_session_stops_the_station_safely(tmp_path: Path):
         held = []
         station = make_station(pad, SerialSensorFeed(board), tmp_path, "stops",
                                teleop_hold=lambda: held.append(True))
-        timer = threading.Timer(1.0, emu.pause)
+        paused_after = []
+
+        def pause() -> None:
+            paused_after.append(station.frames)
+            emu.pause()
+
+        timer = threading.Timer(1.0, pause)
         timer.start()
-        t = time.monotonic()
         with pytest.raises(StationFault, match=f"sensor loop: {emu.port}: no valid data"):
             station.run()
-        took = time.monotonic() - t
         timer.cancel()
+    assert paused_after, "the station stopped before the board was paused"
     assert "safe_stop" in (tmp_path / "stops.txt").read_text()  # vibration off, at rest
     assert held == [True]  # the robot told to hold
-    assert station.frames < pad.frame_count  # stopped, not run to the end
-    assert took < SECONDS + 5.0  # no hang past the session (render start included)
+    # Stopped by the silent board, not run to the end of the session.
+    assert paused_after[0] <= station.frames < pad.frame_count
 
 
 def test_run_sensors_flag_missing_port_is_one_line(capsys):

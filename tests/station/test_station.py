@@ -188,10 +188,14 @@ def test_texture_vibration_only_while_the_finger_moves(circle_rec: Path, tmp_pat
 
 
 def test_run_on_the_synthetic_pad_measures_stiffness(tmp_path: Path, capsys):
-    """--synthetic: the simulated pad as camera, IR board and load cell, live; the session
-    it records has contacts and indentations, and the station measures F / delta."""
+    """--synthetic: the simulated pad as camera, IR board and load cell; the session it
+    records has contacts and indentations, and the station measures F / delta. As fast as
+    possible, the frames' times are the sensors' clock too: in real time a loaded machine
+    tracks each frame late while the sensors run on by the wall clock, and the pairing
+    of force and indentation then measures the machine (HEAD failed 2 of 3 under load)."""
     rc = main(["run", "--synthetic", "tapping", "--duration", "4", "--record",
-               str(tmp_path / "s"), "--stats", str(tmp_path / "st.json"), "--no-realtime"])
+               str(tmp_path / "s"), "--stats", str(tmp_path / "st.json"), "--no-realtime",
+               "--as-fast-as-possible"])
     assert rc == 0
     track = read_track(tmp_path / "s" / "track.csv")
     pressed = track["contact"] != 0
@@ -279,20 +283,29 @@ def test_link_reports_a_slave_that_went_silent():
     with SlaveThread(TeleopConfig(), bind="tcp://127.0.0.1:*") as slave:
         link = StationLink(slave.endpoint, TeleopConfig())
         assert link.answer_age_s() == float("inf")
-        deadline = time.monotonic() + 10
+        deadline = time.monotonic() + 30
         while link.slave is None and time.monotonic() < deadline:
             link.send(state)
             time.sleep(0.05)
-        assert link.answer_age_s() < 0.5
+        assert link.slave is not None
+        # While the slave answers, each answer starts the age again from its arrival.
+        first = link._answered_at
+        while link._answered_at == first and time.monotonic() < deadline:
+            link.send(state)
+            time.sleep(0.05)
+        assert link._answered_at > first
+        live_age = link.answer_age_s()
+    # The slave is gone: no answer comes any more, and the age grows past any wait.
     time.sleep(1.2)
     link.send(state)
-    assert link.answer_age_s() > 1.0
+    gone_age = link.answer_age_s()
+    assert gone_age > 1.0 and gone_age > live_age
     link.close()
 
 
 def test_record_is_flushed_while_running_and_second_ctrl_c_forces_exit(tmp_path: Path):
-    """A real `fydpad run` process: its recording is on disk within a second of the
-    first frames, while it runs; two Ctrl-C at once exit at once (status 130)."""
+    """A real `fydpad run` process: its recording (track and commands) reaches the disk
+    while it runs, not only at the end; two Ctrl-C at once exit at once (status 130)."""
     import os
     import signal
     import subprocess
@@ -302,22 +315,21 @@ def test_record_is_flushed_while_running_and_second_ctrl_c_forces_exit(tmp_path:
     rec = tmp_path / "live"
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
     proc = subprocess.Popen(
-        [sys.executable, "-m", "fydpad.cli", "run", "--synthetic", "walk", "--duration", "60",
+        [sys.executable, "-m", "fydpad.cli", "run", "--synthetic", "walk", "--duration", "300",
          "--no-realtime", "--record", str(rec)], env=env, stderr=subprocess.PIPE)
     try:
         track = rec / "track.csv"
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and not (track.exists() and len(
-                track.read_text().splitlines()) > 1):
+        cmds = rec / "commands.csv"  # the render process's, flushed as it goes too
+
+        def rows(path: Path) -> int:
+            return len(path.read_text().splitlines()) if path.exists() else 0
+
+        # Generous bounds (a loaded machine): the session runs far longer than this wait.
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and (rows(track) < 2 or rows(cmds) < 2):
             time.sleep(0.1)
-        first_rows = time.monotonic()
-        assert len(track.read_text().splitlines()) > 1, "no track row flushed while running"
-        # commands.csv (the render process's) flushed too, within a second.
-        cmds = rec / "commands.csv"
-        while time.monotonic() < first_rows + 1.5 and not (
-                cmds.exists() and len(cmds.read_text().splitlines()) > 1):
-            time.sleep(0.1)
-        assert len(cmds.read_text().splitlines()) > 1
+        assert rows(track) > 1, "no track row flushed while running"
+        assert rows(cmds) > 1, "no commands row flushed while running"
         assert proc.poll() is None  # still running: these rows were flushed as it went
         proc.send_signal(signal.SIGINT)
         # Python runs a handler once for signals that arrive together: send the second

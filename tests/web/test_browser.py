@@ -237,3 +237,26 @@ def test_whole_experiment_session(station, page):
     # A reload resumes the finished session's page from the server's state.
     page.reload()
     page.wait_for_selector("#donecard:not([hidden])")
+
+
+def test_staircase_says_why_it_cannot_run_without_a_friction_model(station, page):
+    """This station drives no motors and renders no texture: the page says so, offers no
+    session, and the API refuses one in one line (a staircase would change nothing)."""
+    import json
+
+    page.goto(f"{station['base']}/experiment?token={station['token']}")
+    page.wait_for_function("() => document.getElementById('st-msg').textContent"
+                           ".includes('drives no motors')")
+    assert page.locator("#st-start").is_disabled()
+    assert page.locator("#st-model").text_content() == "none"
+    page.shot("staircase-unavailable")
+    req = urllib.request.Request(
+        f"{station['base']}/api/staircase/start?token={station['token']}",
+        data=json.dumps({"participant": "S9"}).encode(), method="POST",
+        headers={"Content-Type": "application/json"})
+    with pytest.raises(urllib.error.HTTPError) as exc:
+        _opener().open(req, timeout=10)
+    assert exc.value.code == 400
+    error = json.loads(exc.value.read())["error"]
+    assert "friction:MODEL.json" in error and "\n" not in error
+    assert not (station["results"] / "staircase" / "S9.csv").exists()

@@ -149,6 +149,9 @@ def test_experiment_stimulus_switches_the_rendered_texture(render_station, page)
 def test_staircase_session_through_the_page(render_station, page):  # noqa: F811
     base = render_station["base"]
     page.goto(f"{base}/experiment")
+    # The page names the model b goes to: the station's --texture, a friction model.
+    page.wait_for_function("() => document.getElementById('st-model').textContent"
+                           f" === {json.dumps(render_station['friction'])}")
     page.fill("#st-participant", "S01")
     page.click("#st-start")
     page.wait_for_selector("#st-trialcard:not([hidden])")

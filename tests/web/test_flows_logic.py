@@ -177,3 +177,93 @@ def test_drive_chain_switches_textures_live(tmp_path: Path):
     assert chain.live_stats()["kind"] == "friction"
     assert chain.live_stats()["friction_b_v"] == 333.0
     chain.safe_stop()
+
+
+def _friction_file(path: Path) -> Path:
+    path.write_text(json.dumps({
+        "format": "fydpad-texture-model", "kind": "friction", "format_version": 1,
+        "mu": [0.5, 0.6, 0.7], "dx_mm": 0.05, "x0_mm": 0.0}))
+    return path
+
+
+def _view(tmp_path: Path, **render):
+    """The web view of a station that was given ``render`` (no loops run: the control
+    record and its writer are what the staircase and the stimuli change)."""
+    from fydpad.config import StationConfig
+    from fydpad.station.render import RenderSpec
+    from fydpad.station.station import Station, StationOptions
+    from fydpad.web.server import WebView
+
+    station = Station(None, None, None, StationOptions(render=RenderSpec(**render)))
+    return WebView(station, StationConfig(), None, tmp_path / "results", None)
+
+
+def test_staircase_applies_b_to_the_friction_model_it_renders(tmp_path: Path):
+    friction = str(_friction_file(tmp_path / "friction.json"))
+    grating = experiment_stimuli(None, tmp_path)[0].texture
+    # --texture is the friction model: slot 0.
+    view = _view(tmp_path, motors="sim", texture=friction, textures=(grating,))
+    view._apply_b(350.0)
+    c = view.station.control_values()
+    assert (c["texture_index"], c["friction_b_v"], c["vibration_enabled"]) == (0, 350, 1)
+    # A grating as --texture, the friction model among the loaded ones: that one.
+    view = _view(tmp_path, motors="sim", texture=grating, textures=(grating, friction))
+    assert view.friction_model == friction
+    view._apply_b(420.0)
+    c = view.station.control_values()
+    assert (c["texture_index"], c["friction_b_v"]) == (2, 420)
+
+
+@pytest.mark.parametrize("render, reason", [
+    ({"motors": "none"}, "drives no motors"),
+    ({"motors": "sim"}, "renders none (--texture: none)"),
+    ({"motors": "sim", "texture": "GRATING"}, "renders none (--texture: grating:"),
+])
+def test_staircase_without_a_friction_model_says_why_in_one_line(tmp_path: Path, render,
+                                                                  reason):
+    grating = experiment_stimuli(None, tmp_path)[0].texture
+    render = {k: grating if v == "GRATING" else v for k, v in render.items()}
+    view = _view(tmp_path, **render)
+    assert view.friction_slot is None
+    assert reason in view.friction_model and "\n" not in view.friction_model
+    before = view.station.control_values()
+    with pytest.raises(ExperimentError, match=r"friction:MODEL\.json"):
+        StaircaseSession.open(tmp_path, "P9", present=view._apply_b)
+    assert view.station.control_values() == before  # nothing changed
+
+
+def test_a_stimulus_with_the_stations_own_texture_renders_slot_0(tmp_path: Path):
+    from fydpad.web.experiment import Stimulus
+
+    grating = experiment_stimuli(None, tmp_path)
+    own, other = grating[0].texture, grating[1].texture
+    view = _view(tmp_path, motors="sim", texture=own, textures=(own, other))
+    present = view.stimulus
+    for stim, slot in ((Stimulus("A", 0.5, 3.9, "", own), 0),
+                       (Stimulus("B", 0.6, 2.15, "", other), 2),
+                       (Stimulus("C", 0.7, 0.0, "", "lpc:not-loaded.json"), -1)):
+        present(stim)
+        c = view.station.control_values()
+        assert (c["texture_index"], c["stiffness_n_per_mm"]) == (slot, stim.stiffness_n_per_mm)
+        assert present.rendered(stim) == (slot >= 0)
+    present(None)
+    assert view.station.control_values()["texture_index"] == -1
+
+
+def test_grating_models_are_rewritten_whole_when_their_content_differs(tmp_path: Path):
+    import os
+
+    from fydpad.texture.families import load_family
+
+    first = experiment_stimuli(None, tmp_path)
+    path = Path(first[0].texture.partition(":")[2])
+    good = path.read_text()
+    inode = os.stat(path).st_ino
+    experiment_stimuli(None, tmp_path)
+    assert os.stat(path).st_ino == inode  # the same content: left alone
+    path.write_text(good[: len(good) // 2])  # a torn write of an earlier run
+    again = experiment_stimuli(None, tmp_path)
+    assert [s.texture for s in again] == [s.texture for s in first]
+    assert path.read_text() == good
+    load_family(again[0].texture)  # a whole model again
+    assert not [p for p in path.parent.iterdir() if p.suffix == ".tmp"]  # no leftovers

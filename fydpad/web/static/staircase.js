@@ -28,4 +28,9 @@ $("st-start").onclick = async () => {
     stShow(j.staircase); stMsg(`staircase of ${j.staircase.participant}, ${j.staircase.history.length} answers so far`);
   } catch (e) { stMsg(e.message, true); }
 };
-call("api/staircase").then((j) => stShow(j.staircase)).catch(() => {});
+call("api/staircase").then((j) => {
+  stShow(j.staircase);
+  // No friction model rendered: say so, and no session that would change nothing.
+  if (j.unavailable) { stMsg(j.unavailable, true); $("st-start").disabled = true; }
+  $("st-model").textContent = j.friction_model || "none";
+}).catch(() => {});
