@@ -20,6 +20,7 @@ import multiprocessing as mp
 import queue
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -128,6 +129,33 @@ class SensorFeed:
             self._next += 1
 
 
+class ClockOffset:
+    """A device clock onto the host's: host time = device time + offset, the offset being
+    the smallest (arrival - device time) over the last ``window_s`` of device time, i.e.
+    the least delayed line's (USB delivers lines late and in bursts). A window, not the
+    whole session: a device clock that runs fast or slow against the host's drifts the
+    offset, and the session-long minimum would hold an early value for good (a 1 s
+    window errs by the drift over 1 s: 2 ms at 0.2 %, an RC-clocked microcontroller's
+    worst; 100 lines a second still hold a barely delayed one). Mapped times never go
+    backwards. Amortised O(1) per sample (a monotonic queue)."""
+
+    def __init__(self, window_s: float = 1.0) -> None:
+        self.window_s = float(window_s)
+        self._q: deque[tuple[float, float]] = deque()  # (device t, delay), delays rising
+        self._last = -math.inf
+
+    def map(self, device_t_s: float, arrival_s: float) -> float:
+        delay = arrival_s - device_t_s
+        q = self._q
+        while q and q[-1][1] >= delay:
+            q.pop()
+        q.append((device_t_s, delay))
+        while q[0][0] < device_t_s - self.window_s:
+            q.popleft()
+        self._last = max(self._last, device_t_s + q[0][1])
+        return self._last
+
+
 class SerialSensorFeed:
     """The serial IR + load-cell board (docs/sensor_board_protocol.md), live.
 
@@ -146,14 +174,11 @@ class SerialSensorFeed:
     def run(self, latest: LatestSensors, clock_t0: float, stop: threading.Event) -> None:
         # Lines queued before the station started are stale: start from the newest.
         self.board.flush_input()
-        # The board's clock to the station's: the smallest (arrival - board time) seen,
-        # i.e. the least delayed line's, since USB delivers lines late and in bursts.
-        offset_s = math.inf
+        clock = ClockOffset()  # the board's clock onto the station's
         try:
             while not stop.is_set():
                 ir, force = self.board.read()
-                offset_s = min(offset_s, time.perf_counter() - clock_t0 - ir.t_s)
-                t_s = ir.t_s + offset_s
+                t_s = clock.map(ir.t_s, time.perf_counter() - clock_t0)
                 # An out-of-range voltage is no distance: NaN, so no indentation is made up.
                 latest.set_ir(t_s, tuple(v if ok else math.nan
                                          for v, ok in zip(ir.volts, ir.valid, strict=True)),
