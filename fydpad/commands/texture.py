@@ -503,45 +503,31 @@ def _write_wav(path: str, y: np.ndarray, rate: float) -> None:
 
 
 def run_staircase(args: argparse.Namespace) -> int:
-    import csv
+    from fydpad.web.experiment import ExperimentError
+    from fydpad.web.staircase import StaircaseSession
 
-    from fydpad.texture.staircase import LOG_COLUMNS, Staircase, replay_log
-
-    if not args.step > 0:
-        raise UserError("--step must be positive")
-    stairs = Staircase(start=args.start, step=args.step)
-    done = replay_log(args.log, stairs)
-    if done:
-        print(f"{args.log}: resumed after {done} trials, {len(stairs.reversals)} reversals")
-    new = not Path(args.log).exists() or Path(args.log).stat().st_size == 0
     try:
-        fh = Path(args.log).open("a", newline="", encoding="utf-8")
-    except OSError as exc:
-        raise UserError(f"{args.log}: cannot be written ({exc.strerror})") from None
-    with fh:
-        w = csv.writer(fh)
-        if new:
-            w.writerow(LOG_COLUMNS)
-            fh.flush()
-        while not stairs.done:
-            print(f"trial {stairs.trials + 1}: b = {stairs.b:g}. Which felt rougher, the real "
-                  "or the virtual sample? [r/v, q to stop] ", end="", flush=True)
-            line = sys.stdin.readline()
-            if not sys.stdin.isatty():  # piped answers: echo them, so the log reads well
-                print(line.strip())
-            if not line or line.strip().lower() in ("q", "quit"):
-                print(f"\nstopped after {stairs.trials} trials; run again to resume")
-                return 0
-            b = stairs.b
-            try:
-                rev = stairs.answer(line)
-            except ValueError:
-                print("please answer r (real rougher) or v (virtual rougher)")
-                continue
-            w.writerow((stairs.trials, f"{b:g}", "real" if stairs.b > b else "virtual",
-                        int(rev)))
-            fh.flush()  # logged as it comes: a crash loses nothing
-    used = stairs.reversals[2:6]
+        session = StaircaseSession.from_log(args.log, args.start, args.step)
+    except ExperimentError as exc:
+        raise UserError(str(exc)) from None
+    stairs = session.stairs
+    if stairs.trials:
+        print(f"{args.log}: resumed after {stairs.trials} trials, "
+              f"{len(stairs.reversals)} reversals")
+    while not stairs.done:
+        print(f"trial {stairs.trials + 1}: b = {stairs.b:g}. Which felt rougher, the real "
+              "or the virtual sample? [r/v, q to stop] ", end="", flush=True)
+        line = sys.stdin.readline()
+        if not sys.stdin.isatty():  # piped answers: echo them, so the log reads well
+            print(line.strip())
+        if not line or line.strip().lower() in ("q", "quit"):
+            print(f"\nstopped after {stairs.trials} trials; run again to resume")
+            return 0
+        try:
+            session.answer(line)  # logged (fsync'ed) as it comes: a crash loses nothing
+        except ExperimentError:
+            print("please answer r (real rougher) or v (virtual rougher)")
+    used = stairs.reversals[stairs.skip_reversals:stairs.skip_reversals + stairs.use_reversals]
     print(f"b = {stairs.result:g} (mean of reversals {', '.join(f'{v:g}' for v in used)}; "
           f"{stairs.trials} trials)")
     if args.model:

@@ -36,11 +36,22 @@ class StaircaseSession:
              ) -> StaircaseSession:
         """Start a participant's staircase, or resume it from its log."""
         check_participant(participant)
-        if not step > 0:
-            raise ExperimentError(f"step must be positive, got {step:g}")
         log_path = Path(results_dir) / "staircase" / f"{participant}.csv"
         log_path.parent.mkdir(parents=True, exist_ok=True)
-        drop_torn_line(log_path, LOG_COLUMNS)
+        return cls.from_log(log_path, start, step, present)
+
+    @classmethod
+    def from_log(cls, log_path: str | Path, start: float = 400.0, step: float = 10.0,
+                 present: Callable[[float], None] | None = None) -> StaircaseSession:
+        """A staircase logged to ``log_path`` (``fydpad texture staircase --log``, or a
+        participant's in the web view), resumed from it when it exists."""
+        if not step > 0:
+            raise ExperimentError(f"step must be positive, got {step:g}")
+        log_path = Path(log_path)
+        try:
+            drop_torn_line(log_path, LOG_COLUMNS)
+        except OSError as exc:
+            raise ExperimentError(f"{log_path}: cannot be written ({exc.strerror})") from None
         stairs = Staircase(start=start, step=step)
         try:
             replay_log(log_path, stairs)
