@@ -115,8 +115,10 @@ def load_tf_set(path: str | Path, rate_hz: float | None = None,
         z = np.load(path, allow_pickle=False)
     except FileNotFoundError:
         raise ChainError(f"{path}: no such file") from None
-    except (OSError, ValueError) as exc:
-        raise ChainError(f"{path}: not a TF file (NPZ): {exc}") from None
+    except (OSError, ValueError, EOFError) as exc:
+        raise ChainError(f"{path}: not a TF file (NPZ): {exc or 'empty'}") from None
+    if not isinstance(z, np.lib.npyio.NpzFile):
+        raise ChainError(f"{path}: not a TF file: a single array (.npy), not an NPZ archive")
     with z:
         missing = [k for k in ("header", *_ARRAYS) if k not in z.files]
         if missing:

@@ -52,6 +52,14 @@ def test_not_a_tf_file(tmp_path):
     np.savez(other, a=np.zeros(3))
     with pytest.raises(ChainError, match="missing 'header'"):
         load_tf_set(other)
+    empty = tmp_path / "empty.npz"
+    empty.write_bytes(b"")
+    with pytest.raises(ChainError, match=r"empty\.npz: not a TF file"):
+        load_tf_set(empty)
+    single = tmp_path / "single.npy"
+    np.save(single, np.zeros(3))
+    with pytest.raises(ChainError, match=r"single\.npy: not a TF file: a single array"):
+        load_tf_set(single)
 
 
 def test_wrong_format_or_version(tmp_path):
