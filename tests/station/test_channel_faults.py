@@ -11,7 +11,6 @@ boundary (a disk stalling mid-write) cannot be produced on demand here.
 
 from __future__ import annotations
 
-import json
 import threading
 import wave
 from pathlib import Path
@@ -83,16 +82,6 @@ def test_file_writer_drains_every_queued_block_into_the_wav(tmp_path: Path):
         pcm = np.frombuffer(w.readframes(w.getnframes()), "<i2")
     assert pcm.size == 2000
     np.testing.assert_array_equal(pcm[::10], np.round(np.arange(200) % 7 / 10 * 32767))
-
-
-@pytest.fixture(scope="module")
-def friction_model(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("model") / "friction.json"
-    path.write_text(json.dumps({
-        "format": "fydpad-texture-model", "kind": "friction", "format_version": 1,
-        "mu": list(0.5 + 0.2 * np.sin(np.linspace(0, 2 * np.pi, 200, endpoint=False))),
-        "dx_mm": 0.05, "x0_mm": 0.0}))
-    return path
 
 
 @needs_dev_full

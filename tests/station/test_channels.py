@@ -42,16 +42,6 @@ def read_wav(path: Path) -> tuple[int, np.ndarray]:
 
 
 @pytest.fixture(scope="module")
-def friction_model(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("model") / "friction.json"
-    path.write_text(json.dumps({
-        "format": "fydpad-texture-model", "kind": "friction", "format_version": 1,
-        "mu": list(0.5 + 0.2 * np.sin(np.linspace(0, 2 * np.pi, 200, endpoint=False))),
-        "dx_mm": 0.05, "x0_mm": 0.0}))
-    return path
-
-
-@pytest.fixture(scope="module")
 def circle_rec(tmp_path_factory) -> Path:
     rec = tmp_path_factory.mktemp("rec") / "circle"
     pos = ([None] * 6 + [(20 * np.cos(k / 8), 15 * np.sin(k / 8)) for k in range(30)]
