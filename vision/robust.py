@@ -150,12 +150,15 @@ class RobustTracker:
         # Gain-field design matrix on a grid: 1, u, v, u^2, uv, v^2 (normalised coordinates).
         step = p.gain_grid_step
         gv, gu = np.mgrid[step // 2 : sh : step, step // 2 : sw : step]
-        self._grid = (gv.ravel(), gu.ravel())
         uu = (np.arange(sw, dtype=np.float32) / sw - 0.5) * 2
         vv = (np.arange(sh, dtype=np.float32) / sh - 0.5) * 2
         U, V = np.meshgrid(uu, vv)
         self._basis_full = np.stack([np.ones_like(U), U, V, U * U, U * V, V * V]).reshape(6, -1)
         self._basis_grid = self._basis_full[:, gv.ravel() * sw + gu.ravel()].T.astype(np.float64)
+        # Transposed and contiguous for the weighted normal equations; flat grid indices.
+        self._basis_grid_t = np.ascontiguousarray(self._basis_grid.T)
+        self._grid_flat = (gv.ravel() * sw + gu.ravel()).astype(np.intp)
+        self._ridge = 1e-9 * np.eye(6)
         self._gain = np.empty((sh, sw), np.float32)
         # Top-hat structuring element: an ellipse of prominence_size_mm across.
         kw = 2 * round(p.prominence_size_mm / self._cell_w_mm / 2) + 1
@@ -201,13 +204,14 @@ class RobustTracker:
 
     def _fit_gain(self, ratio: NDArray[np.float32]) -> NDArray[np.float32]:
         """A smooth gain field fitted to ``I / B`` over pixels that are not dark."""
-        samples = ratio[self._grid].astype(np.float64)
-        keep = samples > np.median(samples) * 0.85
-        basis = self._basis_grid
+        samples = ratio.ravel().take(self._grid_flat).astype(np.float64)
+        keep = samples > _median(samples) * 0.85
+        basis, basis_t = self._basis_grid, self._basis_grid_t
         for _ in range(2):
-            # Least squares by the 6x6 normal equations: far cheaper than lstsq here.
-            a = basis[keep]
-            coef = np.linalg.solve(a.T @ a + 1e-9 * np.eye(6), a.T @ samples[keep])
+            # Least squares by the 6x6 normal equations, the kept samples weighted 1 and
+            # the rest 0 (cheaper than copying the kept rows out).
+            bw = basis_t * keep
+            coef = np.linalg.solve(bw @ basis + self._ridge, bw @ samples)
             fit = basis @ coef
             # Drop samples well below the fit (a finger, a shadow) and refit.
             keep = samples > fit * 0.9
@@ -282,7 +286,7 @@ class RobustTracker:
                 ring &= inside & ~cut
                 if not ring.any():
                     break
-                level = float(np.median(region[ring]))
+                level = _median(region[ring])
                 if level <= shadow + 0.01:
                     break
                 shadow = level
@@ -349,6 +353,16 @@ class RobustTracker:
         np.subtract(target, self._bg, out=target)
         target *= rate
         self._bg += target
+
+
+def _median(a: NDArray) -> float:
+    """The median of a non-empty 1-D array by partition (np.median's generality costs
+    more than the partition itself on the per-frame path)."""
+    mid = a.size // 2
+    if a.size % 2:
+        return float(np.partition(a, mid)[mid])
+    part = np.partition(a, (mid - 1, mid))
+    return 0.5 * float(part[mid - 1] + part[mid])
 
 
 def _elongation(w: NDArray[np.float64], cu: float, cv_: float, total: float) -> float:
