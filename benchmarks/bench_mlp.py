@@ -18,6 +18,7 @@ import tracemalloc
 import warnings
 
 import numpy as np
+from timing import best
 
 from fydpad.texture.families import constant_stroke
 from fydpad.texture.fit import fit_texture
@@ -26,15 +27,6 @@ from fydpad.texture.mlp_family import MlpTexture
 from fydpad.texture.mlp_lsf import fit_spectrum_net
 from fydpad.texture.mlp_train import TrainConfig, _batch_epoch, _online_epoch, init_net
 from fydpad.texture.scan_generator import generate_scan
-
-
-def best(fn, repeat: int = 7) -> float:
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return min(times)
 
 
 def naive_tick(model, state, x_mm, y_mm, speed, force):

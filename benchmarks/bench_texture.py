@@ -10,10 +10,10 @@ Each figure is printed beside a baseline measured in the same run:
 
 from __future__ import annotations
 
-import time
 import warnings
 
 import numpy as np
+from timing import best
 
 from fydpad.texture.dft321 import preprocess
 from fydpad.texture.fit import fit_speed
@@ -21,15 +21,6 @@ from fydpad.texture.lpc import h_from_poly
 from fydpad.texture.model_file import TextureModel
 from fydpad.texture.scan_generator import generate_scan
 from fydpad.texture.synthesis import TextureRenderer
-
-
-def best(fn, repeat: int = 7) -> float:
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return min(times)
 
 
 def main() -> None:
