@@ -7,6 +7,11 @@ figures. Targets: p99 <= 2 ms, no sample lost at 1 kHz for 60 s.
     python benchmarks/bench_link.py                  # 60 s at 1 kHz
     python benchmarks/bench_link.py --duration 10 --curve   # with CurveZMQ
     python benchmarks/bench_link.py --raw            # the link alone: a bare echo slave
+    python benchmarks/bench_link.py --rt-priority 0  # both processes at normal priority
+
+Both processes ask for SCHED_FIFO (--rt-priority, default 50, as `teleop slave` does by
+default; teleop/realtime.py): on a shared machine, at normal priority, a process waits for
+a CPU for 100 ms and more and the master's queue refuses samples meanwhile.
 
 --raw replaces the robot slave by a process that only decodes each sample and
 acknowledges it: the link's own latency, without the slave loop's physics and IK.
@@ -38,6 +43,7 @@ sys.path.insert(0, str(REPO))
 from teleop.config import LinkConfig  # noqa: E402
 from teleop.link import MasterSocket  # noqa: E402
 from teleop.master import stream  # noqa: E402
+from teleop.realtime import request_realtime  # noqa: E402
 from teleop.trajectories import circle, finger_stream  # noqa: E402
 
 
@@ -94,13 +100,18 @@ def main() -> int:
     ap.add_argument("--rate", type=float, default=1000.0)
     ap.add_argument("--curve", action="store_true", help="CurveZMQ on (keys in a temp dir)")
     ap.add_argument("--raw", action="store_true", help="bare echo slave: the link alone")
+    ap.add_argument("--rt-priority", type=int, default=50,
+                    help="SCHED_FIFO priority of master and slave, 0 = normal (default 50)")
     args = ap.parse_args()
     load_before = os.getloadavg()
+    # Before any ZeroMQ context exists (its I/O threads inherit it; so does --raw's child).
+    print(f"master scheduling: {request_realtime(args.rt_priority)}")
     if args.raw:
         return run_raw(args, load_before)
     tmp = Path(tempfile.mkdtemp())
     cmd = [sys.executable, "-m", "teleop.cli", "slave", "--robot", "sim",
-           "--bind", "tcp://127.0.0.1:*", "--report", str(tmp / "slave.json")]
+           "--bind", "tcp://127.0.0.1:*", "--report", str(tmp / "slave.json"),
+           "--rt-priority", str(args.rt_priority)]
     link = LinkConfig()
     if args.curve:
         from teleop.keys import generate
@@ -130,7 +141,7 @@ def main() -> int:
     rep = json.loads((tmp / "slave.json").read_text())
     lost = log.sent + log.send_failed - rep["received"]
     print(f"rate {args.rate:.0f} Hz, {args.duration:.0f} s ({wall:.1f} s wall), "
-          f"curve {'on' if args.curve else 'off'}")
+          f"curve {'on' if args.curve else 'off'}, slave scheduling {rep.get('scheduling')}")
     print(f"sent {log.sent}, send refused {log.send_failed}, slave received {rep['received']}"
           f" (seen by acks {delivered}), accepted {rep['accepted']}, lost {lost}, "
           f"dropped by slave {rep['dropped']}")

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import multiprocessing as mp
-import os
 import queue
 import threading
 import time
@@ -18,16 +17,13 @@ import time
 import numpy as np
 
 from fydpad.pacing import LoopTimer
+from teleop.realtime import request_realtime
 from vision.contact import ContactTracker
 
 
 def render_loop(results, seconds: float, realtime: bool) -> None:
     if realtime:
-        try:
-            os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[-1]})
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
-        except (PermissionError, OSError):
-            pass
+        request_realtime(50, cpu=-1)
     timer = LoopTimer(1000.0, "render")
     timer.start()
     end = time.perf_counter() + seconds

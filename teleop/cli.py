@@ -46,10 +46,7 @@ def load_config(path: str | None) -> TeleopConfig:
 
 
 def _cmd_slave(args: argparse.Namespace) -> int:
-    from teleop.link import SlaveSocket
-    from teleop.mapping import Mapping
-    from teleop.slave import SlaveLoop, make_arm
-    from teleop.slaves import ArmFault
+    from teleop.realtime import request_realtime
 
     cfg = load_config(args.config)
     cfg.slave.robot = args.robot
@@ -59,6 +56,20 @@ def _cmd_slave(args: argparse.Namespace) -> int:
         cfg.link.curve = args.curve
     if args.keys:
         cfg.link.keys_dir = args.keys
+    if args.rt_priority is not None:
+        cfg.slave.rt_priority = args.rt_priority
+    try:
+        # Before NumPy's thread pool, the socket and the arm start their threads (imported
+        # below for that reason): threads inherit the policy, earlier ones keep theirs.
+        scheduling = request_realtime(cfg.slave.rt_priority)
+    except ValueError as e:
+        print(f"teleop slave: --rt-priority: {e}", file=sys.stderr)
+        return 2
+    from teleop.link import SlaveSocket
+    from teleop.mapping import Mapping
+    from teleop.slave import SlaveLoop, make_arm
+    from teleop.slaves import ArmFault
+
     stop = threading.Event()
 
     def on_signal(signum: int, _frame: object) -> None:
@@ -73,12 +84,13 @@ def _cmd_slave(args: argparse.Namespace) -> int:
             arm.start(Mapping(cfg.mapping).to_robot([0.0, 0.0, 0.0]))
             loop = SlaveLoop(arm, sock, cfg)
             print(f"teleop slave ({args.robot}) listening on {sock.endpoint}"
-                  f"{' (CurveZMQ)' if sock.curve else ''}", flush=True)
+                  f"{' (CurveZMQ)' if sock.curve else ''} [scheduling: {scheduling}]", flush=True)
             try:
                 loop.run(stop, duration_s=args.duration)
             finally:
                 arm.close()
                 rep = loop.report()
+                rep["scheduling"] = scheduling
                 if args.report:
                     Path(args.report).write_text(json.dumps(rep, indent=2) + "\n")
                 print(json.dumps(rep), flush=True)
@@ -129,6 +141,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--curve", choices=("auto", "on", "off"),
                    help="CurveZMQ: auto = on unless the endpoint is loopback")
     s.add_argument("--keys", metavar="DIR", help="CurveZMQ key directory")
+    s.add_argument("--rt-priority", type=int, metavar="N",
+                   help="SCHED_FIFO priority 1-99 for the slave's loop and link threads, 0 for "
+                        "normal scheduling (default: slave.rt_priority = 50). Refused without "
+                        "the right to it (root, CAP_SYS_NICE or an rtprio limit): the slave "
+                        "then runs at normal priority and says so")
     s.add_argument("--duration", type=float, help=argparse.SUPPRESS)  # tests
     s.set_defaults(func=_cmd_slave)
     k = sub.add_parser("keys", help="CurveZMQ key files")

@@ -77,6 +77,9 @@ class SlaveConfig:
     ur_gain: float = 600.0  # servoL gain, ur-rtde range 100-2000
     ur_frequency_hz: float = 500.0  # e-Series controller rate
     sim_joint_speed_rad_s: float = 1.7  # LBR iiwa 7 R800 joint speed limits ~1.7-2.3 rad/s
+    # SCHED_FIFO priority asked for by `teleop slave` (0: normal scheduling). Refused
+    # without the right to it; the slave then runs on and says so (teleop/realtime.py).
+    rt_priority: int = 50
 
 
 @dataclass

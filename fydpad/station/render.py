@@ -25,6 +25,7 @@ from typing import Any, Protocol
 
 from fydpad.pacing import LatencyHistogram, LoopTimer
 from fydpad.station.shared import SharedFingerState, SharedRecord
+from teleop.realtime import request_realtime
 from vision.recording import CsvRowWriter
 
 #: Control values the station may change while the render process runs. ``texture_index``
@@ -106,17 +107,6 @@ def build_chain(spec: RenderSpec) -> RenderChain:
     return build_render_chain(spec)
 
 
-def _try_realtime() -> str:
-    try:
-        cpus = sorted(os.sched_getaffinity(0))
-        if len(cpus) > 1:
-            os.sched_setaffinity(0, {cpus[-1]})
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
-        return "SCHED_FIFO"
-    except (PermissionError, OSError, AttributeError):
-        return "normal"
-
-
 def render_main(
     spec: RenderSpec,
     state: SharedFingerState,
@@ -126,7 +116,7 @@ def render_main(
     ready_event=None,
 ) -> None:
     """Entry point of the render process; posts ("stats", dict) and maybe ("fault", text)."""
-    scheduling = _try_realtime() if spec.realtime else "normal"
+    scheduling = request_realtime(50, cpu=-1) if spec.realtime else "normal"
     timer = LoopTimer(spec.rate_hz, "render")
     latency = LatencyHistogram()
     chain: RenderChain | None = None

@@ -1,0 +1,52 @@
+"""Real-time scheduling for the processes of a control loop (the slave, the link, the render loop).
+
+On a shared or busy machine a process at normal priority waits for a CPU for tens to
+hundreds of milliseconds; at 1 kHz that is a hundred samples refused by a full queue or
+dropped as stale. Under SCHED_FIFO the loop runs as soon as it is ready, ahead of every
+normal process (docs/teleop.md has the figures). Like ur-rtde's ``rt_priority``, this is a
+request: without the permission it is refused and the process runs on at normal priority,
+saying so once.
+
+Call it before the process starts its threads (ZeroMQ's context, PyBullet): Linux applies
+the policy to the calling thread, and threads started later inherit it.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+
+log = logging.getLogger(__name__)
+
+HOW_TO_PERMIT = ("run as root, grant CAP_SYS_NICE (setcap cap_sys_nice+ep on the Python "
+                 "binary) or allow it in /etc/security/limits.conf (@group - rtprio 99)")
+
+
+def request_realtime(priority: int, cpu: int | None = None) -> str:
+    """Ask for SCHED_FIFO at ``priority`` (1-99; 0 leaves scheduling alone).
+
+    ``cpu`` pins the process to that CPU (negative counts from the last one) as the render
+    loop does, so it never migrates. Returns what the process got, e.g. ``"SCHED_FIFO 50"``
+    or ``"normal (...why...)"``; never raises for a refused request.
+    """
+    if priority == 0:
+        return "normal"
+    if not 1 <= priority <= 99:
+        raise ValueError(f"real-time priority must be 0 (off) or 1-99, got {priority}")
+    if not hasattr(os, "sched_setscheduler"):
+        return "normal (SCHED_FIFO is not available on this system)"
+    try:
+        if cpu is not None:
+            cpus = sorted(os.sched_getaffinity(0))
+            if len(cpus) > 1:
+                os.sched_setaffinity(0, {cpus[cpu]})
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except PermissionError:
+        why = f"normal (SCHED_FIFO {priority} not permitted: {HOW_TO_PERMIT})"
+        log.warning("real-time priority refused, running at %s", why)
+        return why
+    except OSError as e:
+        why = f"normal (SCHED_FIFO {priority} refused: {e})"
+        log.warning("real-time priority refused, running at %s", why)
+        return why
+    return f"SCHED_FIFO {priority}"
