@@ -46,7 +46,7 @@ def load_config(path: str | None) -> TeleopConfig:
 
 
 def _cmd_slave(args: argparse.Namespace) -> int:
-    from teleop.realtime import request_realtime
+    from teleop.realtime import realtime_scheduling
 
     cfg = load_config(args.config)
     cfg.slave.robot = args.robot
@@ -58,13 +58,17 @@ def _cmd_slave(args: argparse.Namespace) -> int:
         cfg.link.keys_dir = args.keys
     if args.rt_priority is not None:
         cfg.slave.rt_priority = args.rt_priority
-    try:
-        # Before NumPy's thread pool, the socket and the arm start their threads (imported
-        # below for that reason): threads inherit the policy, earlier ones keep theirs.
-        scheduling = request_realtime(cfg.slave.rt_priority)
-    except ValueError as e:
-        print(f"teleop slave: --rt-priority: {e}", file=sys.stderr)
+    if not 0 <= cfg.slave.rt_priority <= 99:
+        print("teleop slave: --rt-priority: real-time priority must be 0 (off) or 1-99, got "
+              f"{cfg.slave.rt_priority}", file=sys.stderr)
         return 2
+    # Before NumPy's thread pool, the socket and the arm start their threads (imported in
+    # _run_slave for that reason): threads inherit the policy, earlier ones keep theirs.
+    with realtime_scheduling(cfg.slave.rt_priority) as scheduling:
+        return _run_slave(args, cfg, scheduling)
+
+
+def _run_slave(args: argparse.Namespace, cfg: TeleopConfig, scheduling: str) -> int:
     from teleop.link import SlaveSocket
     from teleop.mapping import Mapping
     from teleop.slave import SlaveLoop, make_arm

@@ -30,9 +30,10 @@ class SafetyConfig:
     resume_speed_mm_s: float = 60.0  # after clutch or watchdog, glide back at this speed
     resume_done_mm: float = 0.2  # until within this distance of the target (then no speed step)
     reengage_jump_mm: float = 2.0  # a touch this far from the held x, y glides there,
-    # at this speed (the acceleration limit applies): fast, since the finger put itself
-    # there (60 mm/s costs 1-6 mm MAE on taps at random places; 300 overshoots, docs/teleop.md)
-    reengage_speed_mm_s: float = 150.0
+    # at this speed (the acceleration limit and no-overshoot braking apply): the speed
+    # limit, since the finger put itself there (on taps at random places 60 mm/s cost
+    # 1-6 mm of x, y MAE, 150 mm/s 0.15-2.5 mm more than 300; docs/teleop.md)
+    reengage_speed_mm_s: float = 300.0
     max_age_s: float = 0.2  # samples older than this (capture to arrival) are dropped
     watchdog_s: float = 0.25  # no valid sample this long -> hold
 
@@ -62,8 +63,12 @@ class PredictionConfig:
     # "poly" (the quadratic over window_z samples, as x and y).
     method_z: str = "imm"
     noise_z_mm: float = 0.5  # IR indentation noise per frame (bundled recordings: 0.3-0.5)
-    jerk_psd_z: tuple[float, float] = (3e4, 3e8)  # calm and quick model, mm^2/s^5
-    mode_stay: float = 0.98  # probability the motion keeps its model from frame to frame
+    # Models, calm to quick (jerk PSD, mm^2/s^5); per model the probability that the
+    # motion keeps it from frame to frame (the calm one sticky: the IR noise is not a
+    # press), and at the lifted sample each contact starts from (a touch-down is a press).
+    jerk_psd_z: tuple[float, ...] = (3e3, 3e5, 3e8)
+    mode_stay: tuple[float, ...] = (0.998, 0.98, 0.95)
+    mode_start: tuple[float, ...] = (0.02, 0.08, 0.9)
 
 
 @dataclass

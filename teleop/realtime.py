@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import logging
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 log = logging.getLogger(__name__)
 
@@ -50,3 +52,23 @@ def request_realtime(priority: int, cpu: int | None = None) -> str:
         log.warning("real-time priority refused, running at %s", why)
         return why
     return f"SCHED_FIFO {priority}"
+
+
+@contextmanager
+def realtime_scheduling(priority: int, cpu: int | None = None) -> Iterator[str]:
+    """``request_realtime`` for a block, then the calling thread's policy, priority and
+    CPUs as they were: a command run inside another program (a test, a notebook) must not
+    leave it, and every process it starts later, on SCHED_FIFO."""
+    if priority == 0 or not hasattr(os, "sched_getscheduler"):
+        yield request_realtime(priority, cpu)
+        return
+    policy = os.sched_getscheduler(0)
+    param = os.sched_getparam(0)
+    cpus = os.sched_getaffinity(0)
+    got = request_realtime(priority, cpu)
+    try:
+        yield got
+    finally:
+        if got.startswith("SCHED_FIFO"):
+            os.sched_setscheduler(0, policy, param)
+            os.sched_setaffinity(0, cpus)

@@ -47,7 +47,7 @@ class SlaveLoop:
         self.predictor_z: Predictor | IMMPredictor
         if pc.method_z == "imm":
             self.predictor_z = IMMPredictor(pc.noise_z_mm, tuple(pc.jerk_psd_z), pc.mode_stay,
-                                            pc.max_horizon_s)
+                                            pc.max_horizon_s, pc.mode_start)
         elif pc.method_z == "poly":
             self.predictor_z = Predictor(pc.window_z, pc.degree, pc.max_horizon_s)
         else:
@@ -179,6 +179,10 @@ class SlaveLoop:
                     > self.cfg.safety.reengage_jump_mm):
                 self._gliding = True
                 self._glide_speed_mm_s = self.cfg.safety.reengage_speed_mm_s
+        if self._gliding:
+            # In transit the arm is behind the finger anyway: never press deeper than the
+            # finger was measured (the touch-down ramp's extrapolation would dive first).
+            tgt[2] = min(tgt[2], max(s.z_mm, 0.0))
         return tgt
 
     def tick(self, now_s: float, dt_s: float) -> None:

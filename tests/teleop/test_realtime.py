@@ -103,3 +103,17 @@ def test_stream_pauses_the_collector_and_restores_it() -> None:
             assert len(seen) == len(states) and log.t_s
             assert not any(seen), "the collector ran during the stream"
             assert after is enabled_before
+
+
+def test_slave_run_in_process_leaves_the_caller_on_its_own_scheduling() -> None:
+    """Proves a caller (here pytest) is not left on SCHED_FIFO by an in-process slave: it
+    would pass it on to every process it starts afterwards."""
+    from teleop.cli import main
+
+    before = (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority,
+              os.sched_getaffinity(0))
+    assert main(["slave", "--bind", "tcp://256.0.0.1:1", "--curve", "off",
+                 "--rt-priority", "20"]) == 2  # fails to bind, after asking for SCHED_FIFO
+    after = (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority,
+             os.sched_getaffinity(0))
+    assert after == before

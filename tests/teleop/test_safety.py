@@ -90,3 +90,21 @@ def test_watchdog():
     assert w.alive(1.2)
     assert not w.alive(1.26)
     assert w.trips == 1
+
+
+def test_an_axis_brakes_onto_its_target_while_another_swings():
+    """A re-engage 5 mm away in x while the depth target swings by 8 mm at the frame rate
+    (a touch-down's prediction): x lands without passing its target and the acceleration
+    vector stays within the limit. Scaling the whole velocity change to the limit let the
+    depth take the budget x needed to brake (x overshot by 0.6 mm)."""
+    cfg = SafetyConfig(box_min_mm=(-1e3,) * 3, box_max_mm=(1e3,) * 3)
+    dt = 0.002
+    lim = MotionLimiter(cfg, np.zeros(3))
+    targets = [[5.0, 0.0, -8.0 if (k // 17) % 2 == 0 else 0.0] for k in range(300)]
+    out = run_limiter(lim, targets, dt)
+    v = np.diff(out, axis=0) / dt
+    a = np.linalg.norm(np.diff(v, axis=0), axis=1) / dt
+    assert a.max() <= cfg.max_accel_mm_s2 * (1 + 1e-6)
+    assert np.linalg.norm(v, axis=1).max() <= cfg.max_speed_mm_s + 1e-6
+    assert out[:, 0].max() <= 5.0 + 0.01
+    assert out[-1, 0] == pytest.approx(5.0, abs=0.01)
