@@ -152,11 +152,13 @@ def quality(textures: list[str] | None = None) -> None:
         print(f"  {v:4.0f} mm/s  " + "; ".join(parts))
     scans = [generate_scan(n, v, 6.0, seed=300) for n in names for v in (15.0, 25.0, 35.0)]
     for m in methods:
-        ident = identify(models, scans, method=m)
-        print(f"  identification ({len(names)} textures, 15/25/35 mm/s held-out strokes), "
-              f"{m}: {ident.rate:.1%}")
-    ident = identify(two_models, scans, method="stretch")
-    print(f"  identification, two-part models: {ident.rate:.1%}")
+        for d in ("bands", "lsd"):  # third-octave levels (default), 4 Hz-bin LSD (before)
+            ident = identify(models, scans, method=m, distance=d)
+            print(f"  identification ({len(names)} textures, 15/25/35 mm/s held-out "
+                  f"strokes), {m}, distance {d}: {ident.rate:.1%}")
+    for d in ("bands", "lsd"):
+        ident = identify(two_models, scans, method="stretch", distance=d)
+        print(f"  identification, two-part models, distance {d}: {ident.rate:.1%}")
 
 
 if __name__ == "__main__":

@@ -172,9 +172,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=(
             "An objective analogue of the paper's Table I: synthesize every model along each "
             "scan's speed trace and assign the scan to the model with the nearest spectrum "
-            "(log-spectral distance, 20-500 Hz). A scan's label is its '# surface=' metadata, "
-            "else its file name; a model's label is the surface it was fitted on. Prints "
-            "the rate; --json writes {rate, labels, confusion, assignments}."),
+            "(levels in third-octave bands, 20-500 Hz; --distance lsd: 4 Hz bins). A scan's "
+            "label is its '# surface=' metadata, else its file name; a model's label is the "
+            "surface it was fitted on. Prints the rate; --json writes {rate, labels, "
+            "confusion, assignments}."),
     )
     i.add_argument("models", nargs="+", metavar="MODEL.json", help="one model file per surface")
     i.add_argument("--scans", nargs="+", required=True, metavar="SCAN.csv",
@@ -184,6 +185,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     i.add_argument("--plot", metavar="FIG.png", help="the confusion matrix")
     i.add_argument("--method", choices=METHODS, default="stretch",
                    help=INTERPOLATION_HELP)
+    i.add_argument("--distance", choices=("bands", "lsd"), default="bands",
+                   help="between the spectra: bands (default: RMS dB difference of the "
+                   "third-octave band levels) or lsd (log-spectral distance on 4 Hz bins, "
+                   "as before)")
     i.set_defaults(func=run_identify)
 
     c = tsub.add_parser(
@@ -624,7 +629,7 @@ def run_identify(args: argparse.Namespace) -> int:
     scans = _load_scans(args.scans)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        ident = identify(models, scans, method=args.method,
+        ident = identify(models, scans, method=args.method, distance=args.distance,
                          wrap=lambda it: progress(it, total=len(scans), desc="identify"))
     print(f"identification rate {ident.rate:.1%} ({len(scans)} scans, {len(models)} models)")
     if args.json:

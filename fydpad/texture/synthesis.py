@@ -142,6 +142,12 @@ class TextureRenderer:
             t.sigma[k] = math.sqrt(self.model.sigma2[j])
 
     # -------------------------------------------------------------- shared pieces
+    def reseed(self, seed: int | None) -> None:
+        """Restart the noise e(k) from ``seed``, dropping the pre-drawn chunk (so the
+        next samples depend on the seed only, not on what was rendered before)."""
+        self._rng = np.random.default_rng(seed)
+        self._noise_pos = _NOISE_CHUNK
+
     def reset(self) -> None:
         """Zero the filter history, the gain and the drive filter."""
         self._buf[:] = 0.0
