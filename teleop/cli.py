@@ -57,14 +57,14 @@ def _cmd_slave(args: argparse.Namespace) -> int:
     if args.keys:
         cfg.link.keys_dir = args.keys
     if args.rt_priority is not None:
-        cfg.slave.rt_priority = args.rt_priority
-    if not 0 <= cfg.slave.rt_priority <= 99:
+        cfg.link.rt_priority = args.rt_priority
+    if not 0 <= cfg.link.rt_priority <= 99:
         print("teleop slave: --rt-priority: real-time priority must be 0 (off) or 1-99, got "
-              f"{cfg.slave.rt_priority}", file=sys.stderr)
+              f"{cfg.link.rt_priority}", file=sys.stderr)
         return 2
     # Before NumPy's thread pool, the socket and the arm start their threads (imported in
     # _run_slave for that reason): threads inherit the policy, earlier ones keep theirs.
-    with realtime_scheduling(cfg.slave.rt_priority) as scheduling:
+    with realtime_scheduling(cfg.link.rt_priority) as scheduling:
         return _run_slave(args, cfg, scheduling)
 
 
@@ -147,7 +147,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--keys", metavar="DIR", help="CurveZMQ key directory")
     s.add_argument("--rt-priority", type=int, metavar="N",
                    help="SCHED_FIFO priority 1-99 for the slave's loop and link threads, 0 for "
-                        "normal scheduling (default: slave.rt_priority = 50). Refused without "
+                        "normal scheduling (default: link.rt_priority = 50). Refused without "
                         "the right to it (root, CAP_SYS_NICE or an rtprio limit): the slave "
                         "then runs at normal priority and says so")
     s.add_argument("--duration", type=float, help=argparse.SUPPRESS)  # tests

@@ -17,6 +17,10 @@ class LinkConfig:
     curve: str = "auto"  # "auto": on unless the endpoint is loopback; "on"; "off"
     keys_dir: str = "teleop_keys"  # written by `teleop keys generate DIR`
     send_hwm: int = 100  # 0.1 s at 1 kHz: rides out a scheduler stall; the slave drops stale ones
+    # SCHED_FIFO priority each end asks for while it runs (`teleop slave`, the master's
+    # session, the demo; 0: normal scheduling). Refused without the right to it: the
+    # process then runs on at normal priority and says so (teleop/realtime.py).
+    rt_priority: int = 50
 
 
 @dataclass
@@ -82,9 +86,6 @@ class SlaveConfig:
     ur_gain: float = 600.0  # servoL gain, ur-rtde range 100-2000
     ur_frequency_hz: float = 500.0  # e-Series controller rate
     sim_joint_speed_rad_s: float = 1.7  # LBR iiwa 7 R800 joint speed limits ~1.7-2.3 rad/s
-    # SCHED_FIFO priority asked for by `teleop slave` (0: normal scheduling). Refused
-    # without the right to it; the slave then runs on and says so (teleop/realtime.py).
-    rt_priority: int = 50
 
 
 @dataclass

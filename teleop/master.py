@@ -20,6 +20,7 @@ import zmq
 from teleop import protocol as P
 from teleop.config import TeleopConfig
 from teleop.link import MasterSocket, wait_readable
+from teleop.realtime import realtime_scheduling
 from teleop.report import axes_dict, best_lag_s, latency_ms, mae_per_axis, plot_tracking
 from vision.state import FingerState
 
@@ -213,7 +214,7 @@ def run_session(states: Sequence[FingerState], endpoint: str, cfg: TeleopConfig 
     cfg = cfg or TeleopConfig()
     # Pre-roll on the first touch: the arm starts where the finger first lands.
     pre = next((s for s in states if s.contact), None)
-    with MasterSocket(endpoint, cfg.link) as sock:
+    with realtime_scheduling(cfg.link.rt_priority), MasterSocket(endpoint, cfg.link) as sock:
         _wait_for_slave(sock, endpoint)
         main = stream(states, sock, preroll_state=pre)
         base = None
@@ -270,7 +271,9 @@ def run_local_sim(states: Sequence[FingerState], cfg: TeleopConfig | None = None
     from teleop.slave import SlaveThread
 
     cfg = cfg or TeleopConfig()
-    with SlaveThread(cfg, bind="tcp://127.0.0.1:*") as slave:
+    # The slave's thread (and ZeroMQ's, if this makes the first socket) inherit it.
+    with (realtime_scheduling(cfg.link.rt_priority),
+          SlaveThread(cfg, bind="tcp://127.0.0.1:*") as slave):
         session = run_session(states, slave.endpoint, cfg, truth=truth, baseline=baseline)
     if plot_path is not None:
         session.plot(plot_path)

@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-from teleop.realtime import request_realtime
+from teleop.realtime import realtime_scheduling, request_realtime
 from tests.teleop.helpers import ENV, REPO, start_slave, stop
 
 IS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0
@@ -117,3 +117,20 @@ def test_slave_run_in_process_leaves_the_caller_on_its_own_scheduling() -> None:
     after = (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority,
              os.sched_getaffinity(0))
     assert after == before
+
+
+@pytest.mark.skipif(not IS_ROOT, reason="SCHED_FIFO needs root or CAP_SYS_NICE here")
+def test_scheduling_block_is_inherited_by_its_threads_and_undone_after() -> None:
+    """Proves what the demo relies on: the in-process slave's thread, started inside the
+    block, runs SCHED_FIFO; the caller is back on its own policy after the block."""
+    import threading
+
+    seen: list[int] = []
+    with realtime_scheduling(11) as got:
+        t = threading.Thread(target=lambda: seen.append(os.sched_getscheduler(0)))
+        t.start()
+        t.join()
+        inside = os.sched_getscheduler(0)
+    assert got == "SCHED_FIFO 11"
+    assert inside == os.SCHED_FIFO and seen == [os.SCHED_FIFO]
+    assert os.sched_getscheduler(0) == os.SCHED_OTHER
