@@ -154,10 +154,16 @@ class RobustTracker:
         vv = (np.arange(sh, dtype=np.float32) / sh - 0.5) * 2
         U, V = np.meshgrid(uu, vv)
         self._basis_full = np.stack([np.ones_like(U), U, V, U * U, U * V, V * V]).reshape(6, -1)
-        self._basis_grid = self._basis_full[:, gv.ravel() * sw + gu.ravel()].T.astype(np.float64)
-        # Transposed and contiguous for the weighted normal equations; flat grid indices.
-        self._basis_grid_t = np.ascontiguousarray(self._basis_grid.T)
         self._grid_flat = (gv.ravel() * sw + gu.ravel()).astype(np.intp)
+        basis_t = self._basis_full[:, self._grid_flat].astype(np.float64)  # 6 x samples
+        self._basis_grid_t = basis_t
+        # Each sample's outer product b b^T (its 21 distinct entries) as a column: the
+        # normal matrix of the kept samples is then one matrix-vector product with their
+        # 0/1 weights.
+        self._upper = np.triu_indices(6)
+        self._lower = self._upper[::-1]
+        self._outer_t = basis_t[self._upper[0]] * basis_t[self._upper[1]]
+        self._normal = np.empty((6, 6))
         self._ridge = 1e-9 * np.eye(6)
         self._gain = np.empty((sh, sw), np.float32)
         # Top-hat structuring element: an ellipse of prominence_size_mm across.
@@ -166,15 +172,21 @@ class RobustTracker:
         self._tophat_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (kw, kh))
         self._ring_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
         self._contrast = np.empty((sh, sw), np.float32)
-        # Per-frame buffers (the per-frame path allocates no full-frame arrays).
+        self._ratio = np.empty((sh, sw), np.float32)
+        self._img = np.empty((sh, sw), np.float32)
+        self._cols = np.arange(sw, dtype=np.float64)
+        self._rows = np.arange(sh, dtype=np.float64)
+        # Per-frame buffers, allocated once.
         self._dark = np.zeros((sh, sw), bool)
-        self._dark_grown = np.zeros((sh, sw), np.uint8)
-        self._brighter = np.zeros((sh, sw), bool)
+        self._fast = np.empty((sh, sw), np.float32)
+        self._brighter = np.empty((sh, sw), np.uint8)
         self._target = np.empty((sh, sw), np.float32)
         self._rate = np.empty((sh, sw), np.float32)
         gw = 2 * int(np.ceil(p.bg_guard_mm / self._cell_w_mm / 2)) + 1
         gh = 2 * int(np.ceil(p.bg_guard_mm / self._cell_h_mm / 2)) + 1
         self._guard_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (gw, gh))
+        #: Box around the dark pixels of the last frame (x, y, w, h; w = 0: none).
+        self._dark_box = (0, 0, 0, 0)
 
     # -- per frame --------------------------------------------------------------
 
@@ -194,8 +206,8 @@ class RobustTracker:
         if self._shape != small.shape:
             self._setup(small.shape)
             self._bg = None
-        img = small.astype(np.float32)
-        np.maximum(img, 1.0, out=img)
+        img = self._img
+        np.copyto(img, cv2.max(small, 1))  # no zero grey level: I / B stays finite
         if self._bg is None:
             self._bg = img.copy()
         result = self._detect(img)
@@ -205,40 +217,58 @@ class RobustTracker:
     def _fit_gain(self, ratio: NDArray[np.float32]) -> NDArray[np.float32]:
         """A smooth gain field fitted to ``I / B`` over pixels that are not dark."""
         samples = ratio.ravel().take(self._grid_flat).astype(np.float64)
-        keep = samples > _median(samples) * 0.85
-        basis, basis_t = self._basis_grid, self._basis_grid_t
-        for _ in range(2):
-            # Least squares by the 6x6 normal equations, the kept samples weighted 1 and
-            # the rest 0 (cheaper than copying the kept rows out).
-            bw = basis_t * keep
-            coef = np.linalg.solve(bw @ basis + self._ridge, bw @ samples)
-            fit = basis @ coef
-            # Drop samples well below the fit (a finger, a shadow) and refit.
-            keep = samples > fit * 0.9
-        gain = (coef.astype(np.float32) @ self._basis_full).reshape(self._shape)
-        np.maximum(gain, 1e-3, out=gain)
+        floor = _median(samples) * 0.85
+        for i in range(2):
+            # Least squares by the 6x6 normal equations over the samples above the floor
+            # (the rest weighted 0: cheaper than copying the kept rows out).
+            keep = (samples > floor).astype(np.float64)
+            normal = self._normal
+            normal[self._upper] = normal[self._lower] = self._outer_t @ keep
+            normal += self._ridge
+            rhs = self._basis_grid_t @ (samples * keep)
+            # cv2.solve: the same LU with partial pivoting as np.linalg.solve, without
+            # its ~20 us of Python-side checks per call.
+            _, coef = cv2.solve(normal, rhs[:, None], flags=cv2.DECOMP_LU)
+            coef = coef.ravel()
+            if i == 0:
+                # Drop samples well below the fit (a finger, a shadow) and refit.
+                floor = (coef @ self._basis_grid_t) * 0.9
+        gain = self._gain
+        np.matmul(coef.astype(np.float32), self._basis_full, out=gain.reshape(-1))
+        cv2.max(gain, 1e-3, dst=gain)
         return gain
 
     def _detect(self, img: NDArray[np.float32]) -> RobustResult | None:
         p = self.params
-        ratio = img / self._bg
-        self._gain = self._fit_gain(ratio)
+        ratio = np.divide(img, self._bg, out=self._ratio)
+        gain = self._fit_gain(ratio)
         contrast = self._contrast
-        np.divide(ratio, self._gain, out=contrast)
+        np.divide(ratio, gain, out=contrast)
         np.subtract(1.0, contrast, out=contrast)
         np.greater(contrast, p.contrast_floor, out=self._dark)
         mask = self._dark.view(np.uint8)
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        # Label only the box around the dark pixels (mostly a small part of the view):
+        # the same regions as labelling the whole view, at a fraction of the cost.
+        self._dark_box = bx, by, bbw, bbh = cv2.boundingRect(mask)
+        if bbw == 0:
+            self.in_contact = False
+            return None
+        # Labels without OpenCV's statistics: they cost several times the labelling;
+        # the few regions get their area and box below.
+        n, labels = cv2.connectedComponents(mask[by : by + bbh, bx : bx + bbw], connectivity=8)
         sh, sw = self._shape
         best: RobustResult | None = None
         best_score = 0.0
         min_cells = p.min_area_mm2 / self._cell_area_mm2
         for i in range(1, n):
-            x0, y0, bw, bh, area = stats[i]
+            label = labels == i
+            area = np.count_nonzero(label)
             if area < min_cells:
                 continue
+            lx, ly, bw, bh = cv2.boundingRect(label.view(np.uint8))
+            x0, y0 = lx + bx, ly + by  # in the view
             sub = contrast[y0 : y0 + bh, x0 : x0 + bw]
-            inside = labels[y0 : y0 + bh, x0 : x0 + bw] == i
+            inside = label[ly : ly + bh, lx : lx + bw]
             region = np.where(inside, sub, 0.0)
             peak_idx = int(np.argmax(region))
             peak = float(region.flat[peak_idx])
@@ -261,7 +291,7 @@ class RobustTracker:
             # a light touch is a small dark core on the fingertip's shadow; a hovering
             # finger's shadow is a broad plateau that the opening keeps whole.
             tophat = self._tophat(contrast, x0, y0, bw, bh)
-            prominence = float(np.max(np.where(inside, tophat, 0.0)))
+            prominence = cv2.minMaxLoc(tophat, inside.view(np.uint8))[1]
             sharp = sharpness >= p.min_sharpness
             starts = (peak >= p.contrast_on and sharp) or prominence >= p.prominence_on
             # Kept by hysteresis alone, a contact must still peak in its middle: a
@@ -282,31 +312,33 @@ class RobustTracker:
             shadow = 0.0
             cut = core
             for _ in range(3):
-                ring = cv2.dilate(cut.astype(np.uint8), self._ring_kernel).astype(bool)
-                ring &= inside & ~cut
-                if not ring.any():
+                cut8 = cut.view(np.uint8)
+                ring = np.greater(cv2.dilate(cut8, self._ring_kernel), cut8)  # dilated, not cut
+                ring &= inside
+                ring_values = region[ring]
+                if not ring_values.size:
                     break
-                level = _median(region[ring])
+                level = _median(ring_values)
                 if level <= shadow + 0.01:
                     break
                 shadow = level
                 cut = region > shadow + 0.5 * (peak - shadow)
             f = p.weight_floor_fraction
-            w = np.maximum(region - max(peak * f, shadow + f * (peak - shadow)), 0.0)
-            total = float(w.sum())
-            wu = w.sum(axis=0)
-            wv = w.sum(axis=1)
-            cu = float(wu @ np.arange(x0, x0 + bw)) / total
-            cv_ = float(wv @ np.arange(y0, y0 + bh)) / total
-            if _elongation(w, cu - x0, cv_ - y0, total) > p.max_elongation:
+            w = np.subtract(region, np.float32(max(peak * f, shadow + f * (peak - shadow))))
+            np.maximum(w, 0.0, out=w)
+            mom = _moments(w)
+            total = mom["m00"]
+            cu = x0 + mom["m10"] / total
+            cv_ = y0 + mom["m01"] / total
+            if _elongation(mom) > p.max_elongation:
                 continue
             # Of several candidates, the darkest and most prominent is the fingertip.
             score = peak + prominence
             if score > best_score:
                 best_score = score
                 best = RobustResult(
-                    u_px=float(np.interp(cu, np.arange(sw), self._u_px)),
-                    v_px=float(np.interp(cv_, np.arange(sh), self._v_px)),
+                    u_px=float(np.interp(cu, self._cols, self._u_px)),
+                    v_px=float(np.interp(cv_, self._rows, self._v_px)),
                     area_mm2=core_area,
                     peak_contrast=peak,
                     sharpness=sharpness,
@@ -319,40 +351,57 @@ class RobustTracker:
 
     def _tophat(self, contrast: NDArray[np.float32], x0: int, y0: int, bw: int, bh: int
                 ) -> NDArray[np.float32]:
-        """White top-hat of the contrast over one region's box (with the kernel's margin
-        around it, so the result inside the box is the whole image's)."""
-        kh, kw = self._tophat_kernel.shape
-        my, mx = kh, kw
+        """White top-hat of the contrast over one region's box, equal there to the whole
+        image's (``cv2.morphologyEx(MORPH_TOPHAT)`` with replicated borders): the contrast
+        less its opening, an erosion then a dilation by the kernel."""
         sh, sw = contrast.shape
-        ya, yb = max(0, y0 - my), min(sh, y0 + bh + my)
-        xa, xb = max(0, x0 - mx), min(sw, x0 + bw + mx)
-        th = cv2.morphologyEx(contrast[ya:yb, xa:xb], cv2.MORPH_TOPHAT, self._tophat_kernel,
-                              borderType=cv2.BORDER_REPLICATE)
-        return th[y0 - ya : y0 - ya + bh, x0 - xa : x0 - xa + bw]
+        kernel = self._tophat_kernel
+        ry, rx = kernel.shape[0] // 2, kernel.shape[1] // 2
+        # The dilation at the box reads the erosion up to a radius around it, which reads
+        # the contrast up to a radius further: each is computed only where it is read.
+        ya, yb = max(0, y0 - 2 * ry), min(sh, y0 + bh + 2 * ry)
+        xa, xb = max(0, x0 - 2 * rx), min(sw, x0 + bw + 2 * rx)
+        eroded = cv2.erode(contrast[ya:yb, xa:xb], kernel, borderType=cv2.BORDER_REPLICATE)
+        ea, eb = max(0, y0 - ry), min(sh, y0 + bh + ry)
+        fa, fb = max(0, x0 - rx), min(sw, x0 + bw + rx)
+        opened = cv2.dilate(eroded[ea - ya : eb - ya, fa - xa : fb - xa], kernel,
+                            borderType=cv2.BORDER_REPLICATE)
+        return contrast[y0 : y0 + bh, x0 : x0 + bw] - opened[y0 - ea : y0 - ea + bh,
+                                                             x0 - fa : x0 - fa + bw]
 
     def _update_background(self, img: NDArray[np.float32], result: RobustResult | None) -> None:
         p = self.params
         # Learn the fabric under the current light: divide the light back out first.
         target = np.divide(img, self._gain, out=self._target)
+        diff = np.subtract(target, self._bg, out=target)  # > 0: brighter than B
         # Nothing dark enough to be a candidate is learned darker, contact or not: a
         # finger hovering still would otherwise sink into the background, and when it
         # moves on, its ghost carves a sharp crescent out of its shadow that passes for
         # a light touch. Marks present from the first frame are in the background anyway.
-        dark = cv2.dilate(self._dark.view(np.uint8), self._guard_kernel,
-                          dst=self._dark_grown).view(bool)
         rate = self._rate
         rate.fill(p.bg_rate_darker)
-        rate[dark] = 0.0
-        np.copyto(rate, np.float32(p.bg_rate_brighter),
-                  where=np.greater(target, self._bg, out=self._brighter))
+        bx, by, bbw, bbh = self._dark_box
+        if bbw:
+            # Grown by the guard kernel only around the dark pixels' box: outside it
+            # the dilation of the whole view is 0.
+            sh, sw = self._shape
+            ry, rx = (k // 2 for k in self._guard_kernel.shape)
+            ya, yb = max(0, by - ry), min(sh, by + bbh + ry)
+            xa, xb = max(0, bx - rx), min(sw, bx + bbw + rx)
+            grown = cv2.dilate(self._dark.view(np.uint8)[ya:yb, xa:xb], self._guard_kernel)
+            rate[ya:yb, xa:xb][grown.view(bool)] = 0.0
+        # Quickly where the fabric got brighter, guard or not (a finger only darkens);
+        # cv2's masked copy: a masked np.copyto costs several times more.
+        cv2.compare(diff, 0.0, cv2.CMP_GT, dst=self._brighter)
+        self._fast.fill(p.bg_rate_brighter)
+        cv2.copyTo(self._fast, self._brighter, rate)
         if result is not None:
             x0, y0, bw, bh = self._best_box
             gx = int(np.ceil(p.bg_guard_mm / self._cell_w_mm))
             gy = int(np.ceil(p.bg_guard_mm / self._cell_h_mm))
             rate[max(0, y0 - gy) : y0 + bh + gy, max(0, x0 - gx) : x0 + bw + gx] = 0.0
-        np.subtract(target, self._bg, out=target)
-        target *= rate
-        self._bg += target
+        diff *= rate
+        self._bg += diff
 
 
 def _median(a: NDArray) -> float:
@@ -365,14 +414,23 @@ def _median(a: NDArray) -> float:
     return 0.5 * float(part[mid - 1] + part[mid])
 
 
-def _elongation(w: NDArray[np.float64], cu: float, cv_: float, total: float) -> float:
-    """Ratio of the principal axes of a weighted region (1 for a disc)."""
-    vv, uu = np.indices(w.shape)
-    du = uu - cu
-    dv = vv - cv_
-    suu = float((w * du * du).sum()) / total
-    svv = float((w * dv * dv).sum()) / total
-    suv = float((w * du * dv).sum()) / total
+def _moments(w: NDArray[np.float32]) -> dict[str, float]:
+    """``cv2.moments`` of a weight image (accumulated in double precision).
+
+    OpenCV reads a 2-column single-channel array as a list of points, so a region two
+    cells wide gets a column of zero weights first (which changes no moment)."""
+    if w.shape[1] == 2:
+        w = np.pad(w, ((0, 0), (0, 1)))
+    return cv2.moments(w)
+
+
+def _elongation(mom: dict[str, float]) -> float:
+    """Ratio of the principal axes of a weighted region (1 for a disc), from its
+    ``cv2.moments``: the eigenvalues of the weighted covariance (mu20, mu11; mu11, mu02)."""
+    total = mom["m00"]
+    suu = mom["mu20"] / total
+    svv = mom["mu02"] / total
+    suv = mom["mu11"] / total
     tr = suu + svv
     det = suu * svv - suv * suv
     disc = max(tr * tr / 4 - det, 0.0) ** 0.5
