@@ -12,7 +12,7 @@ import threading
 import tomllib
 from pathlib import Path
 
-from teleop.config import TeleopConfig
+from teleop.config import TeleopConfig, check_rt_priority
 
 log = logging.getLogger("teleop")
 
@@ -42,6 +42,10 @@ def load_config(path: str | None) -> TeleopConfig:
                 raise SystemExit(f"teleop: {path}: unknown key {section}.{k} "
                                  f"(known: {', '.join(names)})")
             setattr(sub, k, tuple(v) if isinstance(v, list) else v)
+    try:
+        check_rt_priority(cfg.link.rt_priority)
+    except ValueError as e:
+        raise SystemExit(f"teleop: {path}: {e}") from None
     return cfg
 
 
@@ -57,11 +61,11 @@ def _cmd_slave(args: argparse.Namespace) -> int:
     if args.keys:
         cfg.link.keys_dir = args.keys
     if args.rt_priority is not None:
+        if not 0 <= args.rt_priority <= 99:
+            print("teleop slave: --rt-priority: real-time priority must be 0 (off) or 1-99, "
+                  f"got {args.rt_priority}", file=sys.stderr)
+            return 2
         cfg.link.rt_priority = args.rt_priority
-    if not 0 <= cfg.link.rt_priority <= 99:
-        print("teleop slave: --rt-priority: real-time priority must be 0 (off) or 1-99, got "
-              f"{cfg.link.rt_priority}", file=sys.stderr)
-        return 2
     # Before NumPy's thread pool, the socket and the arm start their threads (imported in
     # _run_slave for that reason): threads inherit the policy, earlier ones keep theirs.
     with realtime_scheduling(cfg.link.rt_priority) as scheduling:

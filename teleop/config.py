@@ -22,6 +22,16 @@ class LinkConfig:
     # process then runs on at normal priority and says so (teleop/realtime.py).
     rt_priority: int = 50
 
+    def __post_init__(self) -> None:
+        check_rt_priority(self.rt_priority)
+
+
+def check_rt_priority(value: object) -> None:
+    """ValueError naming ``link.rt_priority`` unless it is 0 (off) or 1-99."""
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 99:
+        raise ValueError(f"link.rt_priority must be 0 (normal scheduling) or a SCHED_FIFO "
+                         f"priority 1-99, got {value!r}")
+
 
 @dataclass
 class SafetyConfig:

@@ -185,14 +185,19 @@ class IMMPredictor:
                  stay: float | Sequence[float] = 0.98, max_horizon_s: float = 0.12,
                  start: Sequence[float] | None = None) -> None:
         m = len(jerk_psd)
-        stays = np.broadcast_to(np.asarray(stay, float), (m,)) if m else np.array([])
+        stay_arr = np.atleast_1d(np.asarray(stay, float))
+        if stay_arr.size not in (1, m):
+            raise ValueError(f"prediction.mode_stay has {stay_arr.size} values for the {m} "
+                             f"models of prediction.jerk_psd_z {tuple(jerk_psd)}: give one "
+                             "per model, or one for all")
+        stays = np.broadcast_to(stay_arr, (m,)) if m else np.array([])
         if (noise_mm <= 0 or not m or min(jerk_psd) <= 0
                 or not np.all((stays > 0) & (stays <= 1))):
             raise ValueError(f"IMM needs noise > 0, jerks > 0 and 0 < stay <= 1, got "
                              f"{noise_mm}, {jerk_psd}, {stay}")
         if start is not None and (len(start) != m or min(start) < 0 or sum(start) <= 0):
-            raise ValueError(f"IMM start probabilities must be {m} values >= 0 with a "
-                             f"positive sum, got {start}")
+            raise ValueError(f"prediction.mode_start must be {m} values >= 0 with a positive "
+                             f"sum, one per model of prediction.jerk_psd_z, got {start}")
         self.noise_mm = float(noise_mm)
         self.jerk_psd = tuple(float(j) for j in jerk_psd)
         self.stay = tuple(float(v) for v in stays)

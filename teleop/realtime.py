@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import logging
 import os
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -54,21 +55,51 @@ def request_realtime(priority: int, cpu: int | None = None) -> str:
     return f"SCHED_FIFO {priority}"
 
 
+def _thread_ids() -> list[int]:
+    try:
+        return [int(t) for t in os.listdir("/proc/self/task")]
+    except OSError:  # no /proc: the calling thread only
+        return [threading.get_native_id()]
+
+
+def _set_policy(tid: int, policy: int, param: os.sched_param) -> None:
+    try:
+        os.sched_setscheduler(tid, policy, param)
+    except (ProcessLookupError, PermissionError):
+        pass  # the thread ended meanwhile, or we may not lower it: nothing to undo
+
+
 @contextmanager
 def realtime_scheduling(priority: int, cpu: int | None = None) -> Iterator[str]:
-    """``request_realtime`` for a block, then the calling thread's policy, priority and
-    CPUs as they were: a command run inside another program (a test, a notebook) must not
-    leave it, and every process it starts later, on SCHED_FIFO."""
+    """The whole process on SCHED_FIFO for a block (``request_realtime`` for the calling
+    thread, then every other thread: ZeroMQ's I/O threads may predate the block), then
+    every thread as it was, and those started inside on the caller's former policy: a
+    command run inside another program (a test, a notebook) must not leave it, or the
+    processes it starts later, on SCHED_FIFO. ``cpu`` pins the calling thread meanwhile."""
     if priority == 0 or not hasattr(os, "sched_getscheduler"):
         yield request_realtime(priority, cpu)
         return
-    policy = os.sched_getscheduler(0)
-    param = os.sched_getparam(0)
+    before = {}
+    for tid in _thread_ids():
+        try:
+            before[tid] = (os.sched_getscheduler(tid), os.sched_getparam(tid))
+        except ProcessLookupError:
+            pass
+    caller = (os.sched_getscheduler(0), os.sched_getparam(0))
     cpus = os.sched_getaffinity(0)
     got = request_realtime(priority, cpu)
+    fifo = got.startswith("SCHED_FIFO")
     try:
+        if fifo:
+            for tid in before:
+                _set_policy(tid, os.SCHED_FIFO, os.sched_param(priority))
         yield got
     finally:
-        if got.startswith("SCHED_FIFO"):
-            os.sched_setscheduler(0, policy, param)
+        if fifo:
+            me = threading.get_native_id()
+            for tid in _thread_ids():
+                if tid != me:
+                    _set_policy(tid, *before.get(tid, caller))
+            os.sched_setscheduler(0, *caller)
+        if cpu is not None:
             os.sched_setaffinity(0, cpus)

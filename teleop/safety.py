@@ -108,12 +108,12 @@ class MotionLimiter:
         dv_norm = float(np.linalg.norm(dv))
         a_dt = a_max * dt_s
         if dv_norm > a_dt:
-            # Axes slowing down towards their own target brake first, the others share
-            # what is left: scaling the whole vector let a depth swinging at a touch-down
-            # take the budget x needed to stop (at 300 mm/s a re-engage passed its point
-            # in x by up to 0.8 mm; docs/teleop.md, test_safety.py).
-            err_now = tgt - self.cmd_mm
-            brake = (dv * self.vel_mm_s < 0.0) & (self.vel_mm_s * err_now > 0.0)
+            # Axes slowing down brake first, the others share what is left: scaling the
+            # whole vector let a depth swinging at a touch-down take the budget x needed
+            # to stop (at 300 mm/s a re-engage passed its point in x by up to 0.8 mm;
+            # docs/teleop.md, test_safety.py). Every axis slowing down counts, also one
+            # already past its target (a depth going deeper): without a share it runs on.
+            brake = dv * self.vel_mm_s < 0.0
             dv_b = np.where(brake, dv, 0.0)
             b_norm = float(np.linalg.norm(dv_b))
             if b_norm > a_dt:

@@ -162,3 +162,12 @@ def test_imm_step_is_one_kalman_step_per_mixed_model():
         st = imm_step(st, dt, z, 0.5, jerk, stay)
         np.testing.assert_allclose(st.x, np.array(ref_x), rtol=1e-9, atol=1e-9)
         np.testing.assert_allclose(st.mu, mu / mu.sum(), rtol=1e-9, atol=1e-12)
+
+
+def test_imm_settings_of_another_model_count_name_the_field():
+    """A config from before the third model (two jerks, the new three-value defaults for
+    stay and start) gets an error that names the fields, not a NumPy broadcast error."""
+    with pytest.raises(ValueError, match=r"prediction.mode_stay has 3 values for the 2 models"):
+        IMMPredictor(0.5, (3e4, 3e8), (0.998, 0.98, 0.95))
+    with pytest.raises(ValueError, match=r"prediction.mode_start must be 2 values"):
+        IMMPredictor(0.5, (3e4, 3e8), 0.98, start=(0.02, 0.08, 0.9))

@@ -110,27 +110,74 @@ def test_slave_run_in_process_leaves_the_caller_on_its_own_scheduling() -> None:
     would pass it on to every process it starts afterwards."""
     from teleop.cli import main
 
-    before = (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority,
-              os.sched_getaffinity(0))
+    before = (_policies(), os.sched_getaffinity(0))
     assert main(["slave", "--bind", "tcp://256.0.0.1:1", "--curve", "off",
                  "--rt-priority", "20"]) == 2  # fails to bind, after asking for SCHED_FIFO
-    after = (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority,
-             os.sched_getaffinity(0))
-    assert after == before
+    policies, cpus = _policies(), os.sched_getaffinity(0)
+    assert cpus == before[1]
+    assert {tid: policies[tid] for tid in before[0] if tid in policies} == {
+        tid: pol for tid, pol in before[0].items() if tid in policies}
+    assert (os.SCHED_FIFO, 20) not in policies.values()
+
+
+def _policies() -> dict[int, tuple[int, int]]:
+    """Every thread of this process: (policy, priority)."""
+    out = {}
+    for t in os.listdir("/proc/self/task"):
+        try:
+            out[int(t)] = (os.sched_getscheduler(int(t)), os.sched_getparam(int(t)).sched_priority)
+        except ProcessLookupError:
+            pass
+    return out
 
 
 @pytest.mark.skipif(not IS_ROOT, reason="SCHED_FIFO needs root or CAP_SYS_NICE here")
-def test_scheduling_block_is_inherited_by_its_threads_and_undone_after() -> None:
-    """Proves what the demo relies on: the in-process slave's thread, started inside the
-    block, runs SCHED_FIFO; the caller is back on its own policy after the block."""
+def test_scheduling_block_covers_every_thread_and_undoes_it_after() -> None:
+    """Proves what the demo relies on: inside the block every thread runs SCHED_FIFO, the
+    ones already there (ZeroMQ's I/O thread of an earlier session) and the ones started
+    in it (the in-process slave); after it every thread is back, none left on SCHED_FIFO
+    (the review found ZeroMQ's threads left there)."""
     import threading
 
+    import zmq
+
+    from teleop.link import SlaveSocket
+
+    zmq.Context.instance()  # its I/O threads exist before the block
+    before = _policies()
+    hold = threading.Event()
     seen: list[int] = []
+
+    def worker() -> None:
+        seen.append(os.sched_getscheduler(0))
+        hold.wait(10)
+
     with realtime_scheduling(11) as got:
-        t = threading.Thread(target=lambda: seen.append(os.sched_getscheduler(0)))
+        inside_before = {tid: _policies().get(tid) for tid in before}
+        t = threading.Thread(target=worker)
         t.start()
-        t.join()
-        inside = os.sched_getscheduler(0)
+        with SlaveSocket("tcp://127.0.0.1:*"):
+            inside_all = _policies()
+    after = _policies()
+    hold.set()
+    t.join()
     assert got == "SCHED_FIFO 11"
-    assert inside == os.SCHED_FIFO and seen == [os.SCHED_FIFO]
-    assert os.sched_getscheduler(0) == os.SCHED_OTHER
+    assert seen == [os.SCHED_FIFO]
+    assert set(inside_before.values()) == {(os.SCHED_FIFO, 11)}
+    assert set(inside_all.values()) == {(os.SCHED_FIFO, 11)}
+    assert {tid: after[tid] for tid in before} == before
+    assert all(pol == (os.SCHED_OTHER, 0) for tid, pol in after.items() if tid not in before)
+
+
+def test_a_bad_rt_priority_in_a_config_file_names_the_file_and_field(tmp_path) -> None:
+    from fydpad.config import ConfigError, load_config
+    from teleop.cli import load_config as load_teleop_config
+
+    bad = tmp_path / "slave.toml"
+    bad.write_text("[link]\nrt_priority = 120\n")
+    with pytest.raises(SystemExit, match=rf"{bad}: link.rt_priority must be 0 .* got 120"):
+        load_teleop_config(str(bad))
+    station = tmp_path / "station.toml"
+    station.write_text("[teleop.link]\nrt_priority = -1\n")
+    with pytest.raises(ConfigError, match=rf"{station}: .*link.rt_priority must be 0 .* got -1"):
+        load_config(station)

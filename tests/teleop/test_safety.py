@@ -92,6 +92,21 @@ def test_watchdog():
     assert w.trips == 1
 
 
+def test_an_axis_past_its_target_keeps_its_share_of_braking():
+    """x brakes hard onto a target 3 mm ahead at 290 mm/s while the depth, at its target,
+    still moves deeper at 100 mm/s. The depth must get its share of the deceleration: with
+    the whole budget it would stop 0.5 mm deeper (v^2 / 2a), with a proportional share
+    0.74 mm; with none while x brakes (the review found this) 2.1 mm."""
+    cfg = SafetyConfig(box_min_mm=(-1e3,) * 3, box_max_mm=(1e3,) * 3)
+    lim = MotionLimiter(cfg, np.zeros(3))
+    lim.step(np.array([3.0, 0.0, 0.0]), 0.002)  # the target holds still from here on
+    lim.cmd_mm = np.zeros(3)
+    lim.vel_mm_s = np.array([290.0, 0.0, -100.0])
+    out = run_limiter(lim, [[3.0, 0.0, 0.0]] * 100, 0.002)
+    assert out[:, 2].min() >= -1.0
+    assert out[-1] == pytest.approx([3.0, 0.0, 0.0], abs=0.05)
+
+
 def test_an_axis_brakes_onto_its_target_while_another_swings():
     """A re-engage 5 mm away in x while the depth target swings by 8 mm at the frame rate
     (a touch-down's prediction): x lands without passing its target and the acceleration

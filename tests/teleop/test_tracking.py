@@ -126,13 +126,16 @@ def test_clutch_holds_xy_and_returns_to_surface_then_no_jump(reengage_mm_s):
     assert 0.5 * reengage_mm_s <= v.max() <= reengage_mm_s * 1.01
     acc = np.abs(np.diff(v)) / np.diff(tc[after])[1:]
     assert acc.max() <= cfg.safety.max_accel_mm_s2 * 1.01
-    assert cmd[after, 0].max() <= 20.0 + 0.05  # no overshoot
+    # Where x and the depth must both slow down beyond the limit they share it, so x may
+    # pass by ~0.1 mm (0.11 measured; 0.8 with the vector scaled as a whole).
+    assert cmd[after, 0].max() <= 20.0 + 0.15
     assert abs(sl[-1, 0] - 20.0) < 0.3
 
 
 def test_a_deep_touch_nearby_is_reached_without_overshoot_or_diving():
     """A touch 5 mm from the held point and already 8 mm deep (the depth moves more than
-    x): the command does not pass the new point in x, and in transit the tool never goes
+    x): the command does not pass the new point in x by more than braking shared with
+    the depth allows, and in transit the tool never goes
     deeper than the finger was measured (the touch-down's extrapolation would dive first),
     within the acceleration limit; the PyBullet arm follows it. Before (the acceleration
     vector scaled as a whole): x passed by 0.4 mm at 150 mm/s, 0.8 mm at 300 mm/s."""
@@ -152,7 +155,9 @@ def test_a_deep_touch_nearby_is_reached_without_overshoot_or_diving():
     after = tc > t[30]
     arrived = np.flatnonzero(after & (np.linalg.norm(cmd - [15.0, 0.0, 8.0], axis=1) < 0.2))[0]
     transit = after & (np.arange(tc.size) <= arrived)
-    assert cmd[after, 0].max() <= 15.0 + 0.01 and act[after, 0].max() <= 15.0 + 0.05
+    # x shares the braking with the depth (0.09 mm measured; 0.8 with the vector scaled
+    # as a whole, test_safety.py has why the depth keeps its share).
+    assert cmd[after, 0].max() <= 15.0 + 0.15 and act[after, 0].max() <= 15.0 + 0.2
     assert cmd[transit, 2].max() <= 8.0 + 0.01 and act[transit, 2].max() <= 8.0 + 0.05
     v = np.diff(cmd[after], axis=0) / np.diff(tc[after])[:, None]
     acc = np.linalg.norm(np.diff(v, axis=0), axis=1) / np.diff(tc[after])[1:]
