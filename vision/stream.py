@@ -8,6 +8,7 @@ tele-operation replay and the demo see the same stream the station produces.
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -99,32 +100,67 @@ class CausalIndentation:
 
 
 class LiveIndentation:
-    """Indentation from the latest IR voltages, frame by frame, for a live station.
+    """Indentation at each frame of a live station from every IR sample that arrived
+    since the previous frame, filtered as :class:`CausalIndentation` does (the path of
+    ``fydpad track``): ``filter_distances_mm``, a Kalman filter per sensor, state kept
+    from frame to frame. Fed the same samples at the same frames, both give the same
+    indentation.
 
-    Without configured rest distances, the voltages seen at frames without contact are
-    kept (the last ``keep`` of them) and their median becomes the rest distances at the
-    first contact.
+    Without configured rest distances, the samples that arrived at frames without
+    contact are kept (the newest ``keep``); at the first contact, those taken more than
+    ``BASELINE_MARGIN_S`` before it give the rest distances (``with_baseline_from``: the
+    interquartile mean per sensor), kept for the rest of the session.
     """
 
-    def __init__(self, estimator: IndentationEstimator, keep: int = 60):
+    def __init__(self, estimator: IndentationEstimator, keep: int = 6000):
         self.estimator = estimator
-        self._rest: list[np.ndarray] = []
+        self._filter = DistanceFilterState.initial()
         self._keep = keep
+        self._rest: deque[tuple[np.ndarray, np.ndarray]] = deque()  # (t_s[n], volts[n, 3])
+        self._rest_n = 0
 
-    def update(self, volts, contact: Contact | None) -> float:
-        v = np.asarray(volts, np.float64)
-        if not np.all(np.isfinite(v)):
-            return math.nan  # no IR sample yet
+    def update(self, t_ir_s: np.ndarray, volts: np.ndarray, t_s: float,
+               contact: Contact | None) -> float:
+        """``t_ir_s``, ``volts[n, 3]``: the IR samples since the last call, oldest first
+        (NaN where invalid); ``t_s``: the frame's time. Returns the indentation in mm
+        (0 without contact; NaN without usable IR)."""
+        t_ir_s = np.asarray(t_ir_s, np.float64).reshape(-1)
+        volts = np.asarray(volts, np.float64).reshape(-1, 3)
+        d, fl = self.estimator.distances_mm(volts)
+        # A live camera's clock starts at its first frame, after the station's: its frame
+        # times can trail the sensors'. Never predict backwards past the newest sample.
+        t_q = max(t_s, float(t_ir_s[-1])) if t_ir_s.size else t_s
+        # The filter follows every sample, with or without contact, so it has settled
+        # on the fabric when the finger lands.
+        dist, flags, self._filter = filter_distances_mm(self._filter, t_ir_s, d, fl, t_q)
+        if self.estimator.baseline_mm is None and t_ir_s.size:
+            self._keep_rest(t_ir_s, volts)
         if contact is None:
-            if self.estimator.baseline_mm is None:
-                self._rest.append(v)
-                del self._rest[: -self._keep]
             return 0.0
         if self.estimator.baseline_mm is None:
-            rest = np.array(self._rest).reshape(-1, 3)
-            self.estimator = self.estimator.with_baseline_from(rest, np.ones(len(rest), bool))
-        value, _ = self.estimator.estimate_one(v, contact.x_mm, contact.y_mm)
-        return value
+            t_rest = np.concatenate([b[0] for b in self._rest]) if self._rest else np.empty(0)
+            v_rest = (np.concatenate([b[1] for b in self._rest]) if self._rest
+                      else np.empty((0, 3)))
+            before = t_rest < t_s - BASELINE_MARGIN_S
+            self.estimator = self.estimator.with_baseline_from(v_rest[before],
+                                                               np.ones(int(before.sum()), bool))
+            self._rest.clear()
+            self._rest_n = 0
+        r = self.estimator.estimate_from_distances(dist.reshape(1, 3), [contact.x_mm],
+                                                   [contact.y_mm], [True], [flags])
+        return float(r.indentation_mm[0])
+
+    def _keep_rest(self, t_ir_s: np.ndarray, volts: np.ndarray) -> None:
+        """The newest ``keep`` samples, as whole batches (one per frame) where possible."""
+        self._rest.append((t_ir_s, volts))
+        self._rest_n += t_ir_s.size
+        while self._rest_n - self._rest[0][0].size >= self._keep:
+            self._rest_n -= self._rest.popleft()[0].size
+        extra = self._rest_n - self._keep
+        if extra > 0:  # the oldest batch in part
+            t0, v0 = self._rest[0]
+            self._rest[0] = (t0[extra:], v0[extra:])
+            self._rest_n -= extra
 
 
 def recording_estimator(rec: PadRecording, ir_config: IRConfig | None = None

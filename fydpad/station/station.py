@@ -5,6 +5,8 @@
   process, the tele-operation link and the recorder;
 - sensors (a thread, at the sensor rate): IR voltages and load-cell force, latest value,
   replayed (:class:`SensorFeed`) or from the serial board (:class:`SerialSensorFeed`);
+  every IR sample also goes through a bounded ring (:class:`IRBuffer`) to the vision
+  loop, which filters those since its last frame into the indentation;
 - render (a process, 1 kHz): see :mod:`fydpad.station.render`;
 - tele-operation (a thread, at the vision rate): the latest state to the slave.
 
@@ -28,6 +30,7 @@ from typing import Any
 
 from fydpad.pacing import LoopTimer
 from fydpad.softness import LiveStiffness
+from fydpad.station.ir_buffer import IRBuffer
 from fydpad.station.render import CONTROL_FIELDS, RenderSpec, render_main
 from fydpad.station.shared import SharedFingerState, SharedRecord
 from fydpad.station.snapshot import Snapshot, View
@@ -46,18 +49,23 @@ class StationFault(RuntimeError):
 class LatestSensors:
     """The newest IR voltages and force, written by the sensor loop; while the station
     records, every sample also goes to ``sink`` (``write_ir``/``write_force``), so the
-    recording keeps the sensor rate, not the vision rate."""
+    recording keeps the sensor rate, not the vision rate; with ``ir_buffer``, every IR
+    sample also goes to it, for the vision loop to filter them all."""
 
     t_s: float = math.nan
     volts: tuple[float, float, float] = (math.nan, math.nan, math.nan)
     force_n: float = math.nan
     sink: Any = None
+    ir_buffer: IRBuffer | None = None
 
     def set_ir(self, t_s: float, volts: tuple[float, float, float],
                recorded: tuple[float, float, float] | None = None) -> None:
         """``volts`` for the station (NaN where invalid); ``recorded``: as read, if other."""
         self.volts = volts
         self.t_s = t_s
+        buf = self.ir_buffer
+        if buf is not None:
+            buf.push(t_s, volts)
         sink = self.sink
         if sink is not None and t_s >= 0:
             sink.write_ir(t_s, *(volts if recorded is None else recorded))
@@ -257,6 +265,7 @@ class Station:
         sensors: SensorFeed | None = None,
         indentation: LiveIndentation | None = None,
         force_full_scale_n: float = math.inf,
+        ir_buffer: IRBuffer | None = None,
     ):
         self.source = source
         self.tracker = tracker
@@ -265,6 +274,8 @@ class Station:
         self.sensors = sensors
         self.indentation = indentation
         self.latest = LatestSensors()
+        if indentation is not None:  # every IR sample, for the indentation's filter
+            self.latest.ir_buffer = ir_buffer or IRBuffer()
         self.shared = SharedFingerState()
         self.control = SharedRecord(CONTROL_FIELDS)
         self._control = [options.render.vibration_gain, options.render.stiffness_n_per_mm, 1.0,
@@ -351,8 +362,10 @@ class Station:
                     arrival = timer.mark()
                 contact = self.tracker.process(frame.image)
                 s = self.latest
-                ind = (self.indentation.update(s.volts, contact)
-                       if self.indentation is not None else math.nan)
+                ind = math.nan
+                if self.indentation is not None:  # the IR samples since the last frame
+                    t_ir, volts = s.ir_buffer.drain()
+                    ind = self.indentation.update(t_ir, volts, frame.t_s, contact)
                 state = builder.build(frame.t_s, contact, ind, s.force_n)
                 # The stiffness the finger actually feels: F / delta over each press; a
                 # saturated load cell (at full scale) no longer measures the force.
@@ -384,6 +397,9 @@ class Station:
         finally:
             self.stats["vision"] = {**timer.stats().as_dict(),
                                     "frames_dropped": self.frames_dropped}
+            if self.latest.ir_buffer is not None:
+                # lost > 0: the vision loop fell behind by more than the ring holds.
+                self.stats["vision"]["ir_samples"] = self.latest.ir_buffer.stats()
             self.stop_event.set()
 
     def _sensor_loop(self, t0: float) -> None:

@@ -3,6 +3,7 @@ distances, and accuracy against the true depth on a fabric that is not a plane."
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -350,6 +351,35 @@ def test_distance_filter_block_equals_per_sample():
     out, flags, _ = filter_distances_mm(st, t[:0], d[:0], fl[:0], t[-1] + 0.004)
     np.testing.assert_allclose(out, whole, atol=1e-9)
     assert flags == 0
+
+
+def test_distance_filter_equals_the_matrix_form_kalman_filter():
+    """The filter's scalar update against the textbook matrix form (Bar-Shalom ch. 6:
+    x = F x, P = F P F' + Q; K = P H' / (H P H' + r), x += K (z - H x), P -= K H P) on
+    irregular sample times with invalid samples."""
+    rng = np.random.default_rng(5)
+    n, q, r = 600, 1.0e4, 0.5**2
+    t = np.cumsum(rng.uniform(0.001, 0.03, n))
+    d = 100.0 + np.cumsum(rng.normal(0.0, 0.3, (n, 3)), axis=0)
+    d[rng.random((n, 3)) < 0.05] = np.nan
+    fl = np.zeros(n, np.int64)
+    got, _, st_got = filter_distances_mm(DistanceFilterState.initial(), t, d, fl, t[-1] + 0.01)
+    h = np.array([[1.0, 0.0]])
+    for i in range(3):
+        ok = np.flatnonzero(np.isfinite(d[:, i]))
+        x = np.array([d[ok[0], i], 0.0])
+        p = np.diag([r, 100.0**2])
+        for k0, k in itertools.pairwise(ok):
+            dt = t[k] - t[k0]
+            f = np.array([[1.0, dt], [0.0, 1.0]])
+            x = f @ x
+            p = f @ p @ f.T + q * np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
+            gain = p @ h.T / (h @ p @ h.T + r)
+            x = x + (gain * (d[k, i] - h @ x)).ravel()
+            p = p - gain @ h @ p
+        np.testing.assert_allclose(st_got.x[i], x, rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(st_got.p[i], p, rtol=1e-9, atol=1e-12)
+        assert got[i] == pytest.approx(x[0] + (t[-1] + 0.01 - t[ok[-1]]) * x[1], abs=1e-9)
 
 
 def test_distance_filter_averages_noise_and_follows_the_press():
