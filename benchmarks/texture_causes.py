@@ -4,13 +4,29 @@
     python benchmarks/texture_causes.py modelled [SPEED] [TEXTURES]   # default 30 mm/s, all
     python benchmarks/texture_causes.py between [TEXTURES]            # 25 mm/s, R1,R2
     python benchmarks/texture_causes.py identify TRAIN_SEED HELD_SEED SPEEDS [TRAIN_S HELD_S]
+    python benchmarks/texture_causes.py lengths SPEED LENGTHS [HELD_SEED SECOND_SEED]
+    python benchmarks/texture_causes.py protocol SPEED HELD_S NxSECONDS HELD_SEED SECOND_SEED \
+        TRAIN_SEED [TEXTURES]
+    python benchmarks/texture_causes.py methods TRAIN_SEED HELD_SEED SECOND_SEED
 
-``modelled``: test_targets.py's every_texture set-up (one 5 s training stroke per speed,
+``modelled``: test_targets.py's former 14-texture set-up (one 5 s training stroke per speed,
 held-out 4 s stroke seed 50, ceiling seed 51), the gap (LSD - ceiling) and correlation
 of the default fit, of 3x the data, of the two-part model and of both.
 ``between``: test_targets.py's figures set-up (8 s strokes) at 25 mm/s, two-part: the
 ceiling over four second recordings, and the bias of 4 synthesized realisations per
-40 Hz band. ``identify``: rate and closest call with both distances (bands, lsd).
+40 Hz band, and the gap when every table entry's all-pole filter is replaced by the
+minimum-phase FIR of S itself (cepstrum; no all-pole fit). ``identify``: rate and
+closest call with both distances (bands, lsd).
+``lengths``: the ceiling (a second recording scored against the held-out stroke) for
+held-out strokes of each length: how long a stroke must be for the target to be
+reachable. ``protocol``: the test protocol of ``test_targets.py``'s every_texture
+set-up (N training strokes of SECONDS per speed, seeds TRAIN_SEED...; held-out stroke
+of HELD_S): gap and correlation of the pooled fit, the two-part model, the form
+chosen by two-fold cross-validation on the training strokes (``choose``), and the
+paper's plain method (linear interpolation of the pooled fit's coefficients).
+``methods``: the pooled fit (two 10 s strokes per speed) rendered by "stretch" or by the
+paper's linear way, chosen per texture by two-fold cross-validation on the training
+strokes, scored on 12 s held-out strokes at 30 and 25 mm/s.
 """
 
 from __future__ import annotations
@@ -24,8 +40,11 @@ from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import compare, evaluate_scan, evaluation_mask, welch_psd
 from fydpad.texture.fit import fit_texture
 from fydpad.texture.identify import identify
+from fydpad.texture.lpc import energy_length
 from fydpad.texture.scan_generator import TEXTURES, generate_scan
-from fydpad.texture.synthesis import synthesize
+from fydpad.texture.speed_warp import NFFT
+from fydpad.texture.synthesis import TextureRenderer, synthesize
+from fydpad.texture.two_part import RENDER_SMEAR_MM_S, TwoPartSpectrum
 
 SPEEDS = (10.0, 20.0, 30.0, 40.0)
 
@@ -65,12 +84,39 @@ def between(names: list[str], speed: float = 25.0) -> None:
         ps = np.mean([welch_psd(synthesize(model, held.speed_mm_s, seed=k, method="stretch"),
                                 1000.0, mask)[1] for k in range(4)], axis=0)
         d = 10 * np.log10(ps / pr)
+        syn = _render_exact_s(model, held.speed_mm_s)
+        exact = compare(rec, syn, 1000.0, mask)[0]
         bands = " ".join(f"{lo}:{np.mean(d[(f >= lo) & (f < lo + 40)]):+.1f}"
                          for lo in range(20, 500, 40))
         print(f"{n}: ceilings {np.round(ceils, 2)}; gap {c.lsd_db - ceils[0]:+.2f} (seed 200), "
-              f"{c.lsd_db - np.mean(ceils):+.2f} (mean); corr {c.psd_correlation:.3f}\n"
+              f"{c.lsd_db - np.mean(ceils):+.2f} (mean); corr {c.psd_correlation:.3f}; "
+              f"exact-S FIR: gap {exact.lsd_db - ceils[0]:+.2f}, corr {exact.psd_correlation:.3f}\n"
               f"  mean of 4 syntheses minus recording, dB per 40 Hz band from: {bands}",
               flush=True)
+
+
+def _render_exact_s(model, speed_mm_s, seed: int = 0):
+    """The renderer with each table entry's FIR set to the minimum-phase response of
+    sqrt(S(f, v)) (averaged over v +- RENDER_SMEAR_MM_S, as TwoPartSpectrum.ar does):
+    S rendered without an all-pole fit."""
+    tp = TwoPartSpectrum.from_json(model.two_part)
+    r = TextureRenderer(model, method="stretch", seed=seed, ramp_s=1e-6)
+    f = np.arange(NFFT // 2 + 1) * model.fs_hz / NFFT
+    rows = []
+    for v in r.table.speeds_mm_s:
+        p = np.mean([tp.psd(float(u)) for u in v + RENDER_SMEAR_MM_S * np.linspace(-1, 1, 5)],
+                    axis=0)
+        c = np.fft.irfft(0.5 * np.interp(f, tp.f_hz, np.log(np.maximum(p, 1e-300))), NFFT)
+        c[1:NFFT // 2] *= 2.0  # fold the cepstrum: minimum phase
+        c[NFFT // 2 + 1:] = 0.0
+        rows.append(np.fft.irfft(np.exp(np.fft.rfft(c)), NFFT)[:4096])
+    fir = np.array(rows)
+    n = min(max(energy_length(fir, 1e-4), 16), 4096)
+    r.fir = np.ascontiguousarray(fir[:, :n])
+    r._fir_rev = np.ascontiguousarray(r.fir[:, ::-1])
+    r._ebuf = np.zeros(2 * n)
+    r.warmup(float(speed_mm_s[0]), 0.5)
+    return r.block(speed_mm_s, True, speed_mm_s.size)
 
 
 def identification(train_seed: int, held_seed: int, speeds: list[float],
@@ -94,6 +140,121 @@ def identification(train_seed: int, held_seed: int, speeds: list[float],
                   f"{worst[1]} {worst[0]:+.0%}; missed {missed}", flush=True)
 
 
+def lengths(speed: float, seconds: list[float], held_seed: int = 50,
+            second_seed: int = 51) -> None:
+    ref = fit_texture([generate_scan("R1", s, 5.0, seed=1) for s in SPEEDS])[0]  # its mask only
+    for n in TEXTURES:
+        row = []
+        for length in seconds:
+            h = generate_scan(n, speed, length, seed=held_seed)
+            s = generate_scan(n, speed, length, seed=second_seed)
+            mask = evaluation_mask(h, ref) & evaluation_mask(s, ref)
+            c, *_ = compare(preprocess(h.acc, 1000.0), preprocess(s.acc, 1000.0), 1000.0, mask)
+            row.append(f"{length:g} s {c.psd_correlation:.3f}/{c.lsd_db:.2f}")
+        print(f"{n:15s} " + "  ".join(row), flush=True)
+
+
+def _score(model, scans, seed: int = 0) -> list[float]:
+    """LSD of ``model`` on each scan as evaluate_scan scores it, one renderer for all."""
+    r = TextureRenderer(model, method="stretch", seed=seed, ramp_s=1e-6)
+    out = []
+    for scan in scans:
+        mask = evaluation_mask(scan, model)
+        r.reset()
+        r.reseed(seed)
+        r.warmup(float(scan.speed_mm_s[0]), 0.5)
+        syn = r.block(scan.speed_mm_s, True, scan.speed_mm_s.size)
+        out.append(compare(preprocess(scan.acc, 1000.0), syn, 1000.0, mask)[0].lsd_db)
+    return out
+
+
+def choose(train: list, n_per_speed: int) -> tuple[str, float, float]:
+    """Pooled or two-part by two-fold cross-validation on the training strokes only:
+    each speed's strokes alternate between the folds; each form is fitted on one fold
+    and scored (LSD) on the other's strokes; the lower mean wins."""
+    fold = [k % 2 for k in range(len(train))] if n_per_speed > 1 else None
+    if fold is None:
+        raise SystemExit("choose needs at least two strokes per speed")
+    lsd = {}
+    for form in ("pooled", "two-part"):
+        got = []
+        for k in (0, 1):
+            fit_on = [s for s, f in zip(train, fold, strict=True) if f != k]
+            test = [s for s, f in zip(train, fold, strict=True) if f == k]
+            got += _score(fit_texture(fit_on, two_part=form == "two-part")[0], test)
+        lsd[form] = float(np.mean(got))
+    return min(lsd, key=lsd.get), lsd["pooled"], lsd["two-part"]
+
+
+def protocol(speed: float, held_s: float, train: str, held_seed: int, second_seed: int,
+             train_seed: int, names: list[str]) -> None:
+    k, train_s = int(train.split("x")[0]), float(train.split("x")[1])
+    met: dict[str, list[str]] = {"pooled": [], "two-part": [], "chosen": [],
+                                 "paper linear": []}
+    for n in names:
+        t = [generate_scan(n, s, train_s, seed=train_seed + j) for s in SPEEDS for j in range(k)]
+        models = {"pooled": fit_texture(t)[0], "two-part": fit_texture(t, two_part=True)[0]}
+        form, cv_p, cv_t = choose(t, k) if k > 1 else ("pooled", np.nan, np.nan)
+        models["chosen"] = models[form]
+        held = generate_scan(n, speed, held_s, seed=held_seed)
+        second = generate_scan(n, speed, held_s, seed=second_seed)
+        mask = evaluation_mask(held, models["pooled"])
+        ceil, *_ = compare(preprocess(held.acc, 1000.0), preprocess(second.acc, 1000.0),
+                           1000.0, mask & evaluation_mask(second, models["pooled"]))
+        row = []
+        for label, model in [*models.items(), ("paper linear", models["pooled"])]:
+            how = "linear" if label == "paper linear" else "stretch"
+            c, _ = evaluate_scan(model, held, method=how, mask=mask)
+            ok = c.psd_correlation >= 0.95 and c.lsd_db <= ceil.lsd_db + 0.25
+            met[label] += [n] if ok else []
+            row.append(f"{label} {c.lsd_db - ceil.lsd_db:+.2f}/{c.psd_correlation:.3f}"
+                       + ("*" if ok else " "))
+        print(f"{n:15s} ceiling {ceil.lsd_db:.2f}/{ceil.psd_correlation:.3f}  " + "  ".join(row)
+              + f"  (cv: {form}, {cv_p:.2f}/{cv_t:.2f} dB)", flush=True)
+    for label, got in met.items():
+        print(f"{label}: met {len(got)}/{len(names)} {got}")
+
+
+def methods(train_seed: int, held_seed: int, second_seed: int) -> None:
+    met = {"stretch": 0, "linear": 0, "chosen": 0}
+    for n in TEXTURES:
+        t = [generate_scan(n, s, 10.0, seed=train_seed + j) for s in SPEEDS for j in (0, 1)]
+        cv = {}
+        for how in ("stretch", "linear"):
+            got = []
+            for k in (0, 1):
+                m = fit_texture(t[1 - k::2])[0]
+                r = TextureRenderer(m, method=how, seed=0, ramp_s=1e-6)
+                for sc in t[k::2]:
+                    r.reset()
+                    r.reseed(0)
+                    r.warmup(float(sc.speed_mm_s[0]), 0.5)
+                    syn = r.block(sc.speed_mm_s, True, sc.speed_mm_s.size)
+                    got.append(compare(preprocess(sc.acc, 1000.0), syn, 1000.0,
+                                       evaluation_mask(sc, m))[0].lsd_db)
+            cv[how] = float(np.mean(got))
+        chosen = min(cv, key=cv.get)
+        model = fit_texture(t)[0]
+        row = []
+        for v in (30.0, 25.0):
+            h = generate_scan(n, v, 12.0, seed=held_seed)
+            s = generate_scan(n, v, 12.0, seed=second_seed)
+            mask = evaluation_mask(h, model)
+            ce = compare(preprocess(h.acc, 1000.0), preprocess(s.acc, 1000.0), 1000.0,
+                         mask & evaluation_mask(s, model))[0]
+            for how in ("stretch", "linear"):
+                c = evaluate_scan(model, h, method=how, mask=mask)[0]
+                ok = c.psd_correlation >= 0.95 and c.lsd_db <= ce.lsd_db + 0.25
+                if v == 30.0:
+                    met[how] += ok
+                    met["chosen"] += ok and how == chosen
+                row.append(f"{v:g} {how} {c.lsd_db - ce.lsd_db:+.2f}/{c.psd_correlation:.3f}"
+                           + ("*" if ok else " "))
+        print(f"{n:15s} cv stretch {cv['stretch']:.2f} linear {cv['linear']:.2f} -> "
+              f"{chosen:8s}" + "  ".join(row), flush=True)
+    print("met at 30 mm/s:", met)
+
+
 if __name__ == "__main__":
     warnings.simplefilter("ignore")
     what, args = sys.argv[1], sys.argv[2:]
@@ -105,5 +266,13 @@ if __name__ == "__main__":
     elif what == "identify":
         identification(int(args[0]), int(args[1]), [float(v) for v in args[2].split(",")],
                        *(float(a) for a in args[3:5]))
+    elif what == "lengths":
+        lengths(float(args[0]), [float(v) for v in args[1].split(",")],
+                *(int(a) for a in args[2:4]))
+    elif what == "protocol":
+        protocol(float(args[0]), float(args[1]), args[2], int(args[3]), int(args[4]),
+                 int(args[5]), args[6].split(",") if len(args) > 6 else list(TEXTURES))
+    elif what == "methods":
+        methods(*(int(a) for a in args[:3]))
     else:
         raise SystemExit(__doc__)

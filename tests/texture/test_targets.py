@@ -11,12 +11,15 @@ The thresholds are the issue's and are not loosened. Where the code does not mee
 target yet, the test is marked ``xfail(strict=True)`` with the measured figures: it
 fails loudly the day the target is met, so the mark cannot outlive the gap. Data are
 kept small (4 textures, one 8 s training stroke per speed) to stay within the suite's
-time budget; the full figures are in docs/texture.md.
+time budget; the 14-texture target at a modelled speed uses 12 s held-out strokes and
+two 10 s training strokes per speed (the ceiling is out of reach on shorter strokes:
+docs/texture.md, "Held-out protocol"); the full figures are in docs/texture.md.
 """
 
 from __future__ import annotations
 
 import warnings
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -116,8 +119,9 @@ def test_two_part_model_meets_the_correlation_target_between_speeds(figures):
 @pytest.mark.xfail(strict=True, reason="measured with fit_texture(two_part=True) at 25 mm/s: "
                    "LSD above the ceiling by 0.41 (R1), 0.49 dB (R2); felt +0.13, glass -0.01 "
                    "meet it; corr 0.972-0.981. R1: the ceiling's draw (+0.19 against the mean "
-                   "of 4 second recordings); R2 +0.45 against it: the all-pole rendering fills "
-                   "the notch of the tenth harmonic at 103-128 Hz by 1-3 dB (docs/texture.md)")
+                   "of 4 second recordings); R2 +0.45 against it: S itself is 0.8 dB high at "
+                   "100-140 Hz (the tenth harmonic's notch); S rendered exactly, without the "
+                   "all-pole fit, scores the same (+0.50) (docs/texture.md)")
 def test_targets_between_modelled_speeds_two_part(figures):
     _check(figures, 25.0, "two_part")
 
@@ -152,7 +156,7 @@ def test_a_model_is_closer_to_its_own_surface_than_the_ceiling_is_far(figures):
 @pytest.fixture(scope="module")
 def every_texture():
     """A model of every texture (one 5 s stroke per speed) and held-out 4 s strokes at
-    15 and 30 mm/s."""
+    15 and 30 mm/s: the identification set-up."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         models = [fit_texture([generate_scan(n, s, 5.0, seed=1) for s in SPEEDS])[0]
@@ -161,14 +165,57 @@ def every_texture():
     return models, scans
 
 
+# The protocol of the 14-texture target at a modelled speed (docs/texture.md, "Held-out
+# protocol"): a second recording of the same surface clears the correlation target on
+# 12 s strokes (0.980-0.997 at 30 mm/s, seeds 50/51) but not on 4 s ones (0.890-0.945 on
+# five textures), so the held-out strokes are 12 s, as a real scan session's are; the
+# models are fitted on two 10 s strokes per speed, as a lab would record. The
+# thresholds are unchanged.
+TRAIN_STROKES, TRAIN_S, HELD_S = 2, 10.0, 12.0
+
+
+@pytest.fixture(scope="module")
+def every_texture_long():
+    """A model of every texture (two 10 s strokes per speed, seeds 1-2) and its held-out
+    12 s stroke at 30 mm/s (seed 50)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        models = [fit_texture([generate_scan(n, s, TRAIN_S, seed=1 + j) for s in SPEEDS
+                               for j in range(TRAIN_STROKES)])[0] for n in TEXTURES]
+        scans = [generate_scan(n, 30.0, HELD_S, seed=50) for n in TEXTURES]
+    return models, scans
+
+
+def test_the_protocols_ceiling_clears_the_correlation_target():
+    """Why 12 s held-out strokes: a second recording of the same surface (seed 51) scored
+    against the held-out stroke (seed 50) at 30 mm/s reaches the 0.95 correlation on 12 s
+    strokes for every texture (measured 0.980-0.997) but not on 4 s ones (felt 0.936,
+    glass 0.890, mesh_steel 0.936, rubber 0.945, aluminum_knurl 0.934): on 4 s the
+    spectrum has too few Welch averages for the target to be reachable."""
+    ref = SimpleNamespace(speeds_mm_s=np.asarray(SPEEDS), tolerance_mm_s=5.0)
+    corr = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for seconds in (4.0, HELD_S):
+            for n in TEXTURES:
+                held = generate_scan(n, 30.0, seconds, seed=50)
+                second = generate_scan(n, 30.0, seconds, seed=51)
+                mask = evaluation_mask(held, ref) & evaluation_mask(second, ref)
+                c, *_ = compare(preprocess(held.acc, 1000.0), preprocess(second.acc, 1000.0),
+                                1000.0, mask)
+                corr[(n, seconds)] = c.psd_correlation
+    assert min(corr[(n, HELD_S)] for n in TEXTURES) >= 0.95, corr
+    assert sum(corr[(n, 4.0)] < 0.95 for n in TEXTURES) >= 3, corr
+
+
 def _misses(models, scans, speed: float) -> list[str]:
-    """Textures that miss the targets on their held-out stroke at ``speed``."""
+    """Textures that miss the targets on their held-out stroke at ``speed``; the ceiling
+    is a second recording (seed 51) as long as the held-out stroke."""
     out = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        k = HELD_SPEEDS.index(speed)
-        for model, held in zip(models, scans[k::len(HELD_SPEEDS)], strict=True):
-            second = generate_scan(model.surface, speed, 4.0, seed=51)
+        for model, held in zip(models, scans, strict=True):
+            second = generate_scan(model.surface, speed, held.t_s.size / held.fs_hz, seed=51)
             mask = evaluation_mask(held, model)
             ceil, *_ = compare(preprocess(held.acc, 1000.0), preprocess(second.acc, 1000.0),
                                1000.0, mask & evaluation_mask(second, model))
@@ -179,14 +226,14 @@ def _misses(models, scans, speed: float) -> list[str]:
     return out
 
 
-@pytest.mark.xfail(strict=True, reason="measured at 30 mm/s with 'stretch' on these short "
-                   "strokes: 3 of 14 textures meet both; LSD above the ceiling by 0.13-4.13 dB "
-                   "(sandpaper_p80 4.13, brick 2.04, canvas 1.23, aluminum_knurl 1.29), corr "
-                   "0.861-0.976; a second recording itself scores corr 0.890-0.945 on 5 of "
-                   "them (felt, glass, mesh_steel, rubber, aluminum_knurl): causes per texture "
-                   "in docs/texture.md")
-def test_targets_at_a_modelled_speed_over_every_texture(every_texture):
-    misses = _misses(*every_texture, 30.0)
+@pytest.mark.xfail(strict=True, reason="measured at 30 mm/s with 'stretch' (12 s held-out "
+                   "strokes, two 10 s training strokes per speed): 7 of 14 textures meet both; "
+                   "LSD above the ceiling by 0.44-3.67 dB on sandpaper_p80 3.67, aluminum_knurl "
+                   "1.68, brick 1.62, canvas 1.39, cork 0.52, mesh_steel 0.45 (corr 0.940), "
+                   "corduroy 0.44; the same on a second seed (7/14); the two-part model meets "
+                   "11/14 (8/14 on the second seed): causes per texture in docs/texture.md")
+def test_targets_at_a_modelled_speed_over_every_texture(every_texture_long):
+    misses = _misses(*every_texture_long, 30.0)
     assert not misses, misses
 
 
