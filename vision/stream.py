@@ -61,42 +61,32 @@ class FingerStateBuilder:
 
 
 class CausalIndentation:
-    """Indentation at each frame from the IR samples up to that frame.
+    """Indentation at each frame of a recording from the IR samples up to that frame.
 
-    The distances come from ``filter_distances_mm`` (a Kalman filter per sensor fed
-    every IR sample up to the frame and predicted to the frame time), so no sample taken
-    after the frame is used, as on a live station. The rest distances are the configured
-    or ``meta.json`` ones; otherwise they are estimated, at the first contact, from the
-    samples taken before it (less a margin), and kept for the rest of the session.
+    The frame's share of the samples (those since the previous frame, none after it) goes
+    to a :class:`LiveIndentation` that keeps every sample before the first contact for
+    the rest distances, so a recording and a live station fed the same samples at the
+    same frames give the same indentation: ``filter_distances_mm`` (a Kalman filter per
+    sensor fed every IR sample up to the frame and predicted to the frame time); the
+    rest distances the configured or ``meta.json`` ones, else estimated at the first
+    contact from the samples taken before it (less a margin) and kept.
     """
 
     def __init__(self, estimator: IndentationEstimator, t_ir_s: np.ndarray, volts: np.ndarray):
-        self.estimator = estimator
         self.t_ir_s = t_ir_s
         self.volts = volts
-        self._dist, self._flags = estimator.distances_mm(volts)
-        self._resolved = estimator.baseline_mm is not None
-        self._filter = DistanceFilterState.initial()
+        self._live = LiveIndentation(estimator, keep=None)
         self._next = 0  # first IR sample not yet given to the filter
 
+    @property
+    def estimator(self) -> IndentationEstimator:
+        return self._live.estimator
+
     def at(self, t_s: float, x_mm: float, y_mm: float, contact: bool) -> float:
-        # The filter follows every sample, with or without contact, so it has settled
-        # on the fabric when the finger lands.
-        end = int(np.searchsorted(self.t_ir_s, t_s, side="right"))
+        end = max(int(np.searchsorted(self.t_ir_s, t_s, side="right")), self._next)
         k = slice(self._next, end)
-        d, fl, self._filter = filter_distances_mm(
-            self._filter, self.t_ir_s[k], self._dist[k], self._flags[k], t_s)
-        self._next = max(end, self._next)
-        if not contact:
-            return 0.0
-        if not self._resolved:
-            before = self.t_ir_s < t_s - BASELINE_MARGIN_S
-            self.estimator = self.estimator.with_baseline_from(self.volts[before],
-                                                               np.ones(int(before.sum()), bool))
-            self._resolved = True
-        r = self.estimator.estimate_from_distances(d.reshape(1, 3), [x_mm], [y_mm], [True],
-                                                   [fl])
-        return float(r.indentation_mm[0])
+        self._next = end
+        return self._live.update_at(self.t_ir_s[k], self.volts[k], t_s, x_mm, y_mm, contact)
 
 
 class LiveIndentation:
@@ -107,12 +97,13 @@ class LiveIndentation:
     indentation.
 
     Without configured rest distances, the samples that arrived at frames without
-    contact are kept (the newest ``keep``); at the first contact, those taken more than
-    ``BASELINE_MARGIN_S`` before it give the rest distances (``with_baseline_from``: the
-    interquartile mean per sensor), kept for the rest of the session.
+    contact are kept (the newest ``keep``; ``None``: all); at the first contact, those
+    taken more than ``BASELINE_MARGIN_S`` before it give the rest distances
+    (``with_baseline_from``: the interquartile mean per sensor), kept for the rest of the
+    session.
     """
 
-    def __init__(self, estimator: IndentationEstimator, keep: int = 6000):
+    def __init__(self, estimator: IndentationEstimator, keep: int | None = 6000):
         self.estimator = estimator
         self._filter = DistanceFilterState.initial()
         self._keep = keep
@@ -124,6 +115,13 @@ class LiveIndentation:
         """``t_ir_s``, ``volts[n, 3]``: the IR samples since the last call, oldest first
         (NaN where invalid); ``t_s``: the frame's time. Returns the indentation in mm
         (0 without contact; NaN without usable IR)."""
+        if contact is None:
+            return self.update_at(t_ir_s, volts, t_s, math.nan, math.nan, False)
+        return self.update_at(t_ir_s, volts, t_s, contact.x_mm, contact.y_mm, True)
+
+    def update_at(self, t_ir_s: np.ndarray, volts: np.ndarray, t_s: float, x_mm: float,
+                  y_mm: float, contact: bool) -> float:
+        """:meth:`update` with the contact as a flag and a centroid."""
         t_ir_s = np.asarray(t_ir_s, np.float64).reshape(-1)
         volts = np.asarray(volts, np.float64).reshape(-1, 3)
         d, fl = self.estimator.distances_mm(volts)
@@ -135,7 +133,7 @@ class LiveIndentation:
         dist, flags, self._filter = filter_distances_mm(self._filter, t_ir_s, d, fl, t_q)
         if self.estimator.baseline_mm is None and t_ir_s.size:
             self._keep_rest(t_ir_s, volts)
-        if contact is None:
+        if not contact:
             return 0.0
         if self.estimator.baseline_mm is None:
             t_rest = np.concatenate([b[0] for b in self._rest]) if self._rest else np.empty(0)
@@ -146,14 +144,16 @@ class LiveIndentation:
                                                                np.ones(int(before.sum()), bool))
             self._rest.clear()
             self._rest_n = 0
-        r = self.estimator.estimate_from_distances(dist.reshape(1, 3), [contact.x_mm],
-                                                   [contact.y_mm], [True], [flags])
+        r = self.estimator.estimate_from_distances(dist.reshape(1, 3), [x_mm], [y_mm], [True],
+                                                   [flags])
         return float(r.indentation_mm[0])
 
     def _keep_rest(self, t_ir_s: np.ndarray, volts: np.ndarray) -> None:
         """The newest ``keep`` samples, as whole batches (one per frame) where possible."""
         self._rest.append((t_ir_s, volts))
         self._rest_n += t_ir_s.size
+        if self._keep is None:
+            return
         while self._rest_n - self._rest[0][0].size >= self._keep:
             self._rest_n -= self._rest.popleft()[0].size
         extra = self._rest_n - self._keep
