@@ -17,6 +17,7 @@ from fydpad.errors import UserError
 from fydpad.opening import open_source
 from fydpad.station.render import RenderSpec
 from fydpad.station.station import SensorFeed, Station, StationFault, StationOptions
+from fydpad.texture.interpolation import METHODS
 from vision.indentation import IndentationEstimator
 from vision.stream import LiveIndentation, recording_estimator
 
@@ -76,6 +77,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="stream the finger to a slave robot (`teleop slave`) at this endpoint")
     p.add_argument("--vibration-gain", type=float, default=1.0,
                    help="texture vibration gain (the paper: 1)")
+    p.add_argument("--texture-method", choices=METHODS, default=None,
+                   help="an LPC model's interpolation between its fitted speeds: stretch "
+                   "(default; the one `fydpad texture evaluate` scores), lsf, reflection, or "
+                   "linear (the paper's coefficient interpolation) (docs/texture.md)")
+    p.add_argument("--drive-filter", action="store_true",
+                   help="band-pass an LPC model's vibration through its file's drive band "
+                   "(the paper's 165-220 Hz, where the fabric's actuators respond)")
     soft = p.add_mutually_exclusive_group()
     soft.add_argument("--softness", type=float, metavar="N_PER_MM",
                       help="render this stiffness (N/mm)")
@@ -244,7 +252,12 @@ def run(args: argparse.Namespace) -> int:
     if args.texture:  # a bad model file fails here, in one line, not in the render process
         from fydpad.texture.families import load_family
 
-        load_family(args.texture)
+        family = load_family(args.texture)
+        if (args.texture_method or args.drive_filter) and not hasattr(family, "drive_filter"):
+            raise UserError(f"{args.texture}: --texture-method and --drive-filter apply to LPC "
+                            f"texture models, this one is {family.kind!r}")
+    elif args.texture_method or args.drive_filter:
+        raise UserError("--texture-method and --drive-filter need --texture MODEL")
     if args.compensate:  # a TF file of another chain fails here, in one line
         from fydpad.chain.tf_file import load_tf_set
 
@@ -255,6 +268,8 @@ def run(args: argparse.Namespace) -> int:
         rate_hz=config.loops.render_hz,
         texture=args.texture,
         vibration_gain=args.vibration_gain,
+        texture_method=args.texture_method,
+        drive_filter=args.drive_filter,
         stiffness_n_per_mm=_stiffness(args),
         motors=args.motors,
         commands_csv=str(Path(args.record) / "commands.csv") if args.record else None,

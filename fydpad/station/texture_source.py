@@ -17,14 +17,19 @@ class TextureSource:
     speeds clears the filter (counted in ``resets``) and is clipped.
     """
 
-    def __init__(self, model_path, rate_hz: float = 1000.0, limit_factor: float = 10.0):
+    def __init__(self, model_path, rate_hz: float = 1000.0, limit_factor: float = 10.0,
+                 method: str | None = None, drive_filter: bool = False):
+        from fydpad.texture.interpolation import DEFAULT_METHOD
         from fydpad.texture.model_file import TextureModel, load_model
         from fydpad.texture.synthesis import CentroidSpeed, TextureRenderer
 
         # A path, or an already loaded model (the LPC family of fydpad.texture.families).
         self.model = (model_path if isinstance(model_path, TextureModel)
                       else load_model(model_path))
-        self.renderer = TextureRenderer(self.model, method="lsf")
+        # The interpolation the commands evaluate (`fydpad texture evaluate`) is the one felt.
+        self.method = method or DEFAULT_METHOD
+        self.renderer = TextureRenderer(self.model, method=self.method,
+                                        drive_filter=drive_filter)
         self.speed = CentroidSpeed(cutoff_hz=10.0)
         self.dt_s = 1.0 / rate_hz
         rms = 0.0
@@ -55,14 +60,26 @@ class TextureSource:
         return v
 
 
-def open_texture(spec: str, rate_hz: float):
+def open_texture(spec: str, rate_hz: float, method: str | None = None,
+                 drive_filter: bool = False):
     """The texture family of ``MODEL.json`` or ``KIND:MODEL.json`` (issue 9), for ``tick``.
 
     Its ``tick`` returns the values of its ``tick_channels`` ("vibration", "tension").
+    ``method`` (an LPC model's interpolation) and ``drive_filter`` (its drive band) apply
+    to the families that render an LPC model; another family given them is an error.
     """
+    from fydpad.errors import UserError
     from fydpad.texture.families import load_family
 
     family = load_family(spec)
+    for name, value in (("method", method), ("drive_filter", drive_filter or None)):
+        if value is None:
+            continue
+        if not hasattr(family, name):
+            flag = "--texture-method" if name == "method" else "--drive-filter"
+            raise UserError(f"{spec}: {flag} applies to LPC texture models, this one is "
+                            f"{family.kind!r}")
+        setattr(family, name, value)
     if hasattr(family, "rate_hz"):
         family.rate_hz = rate_hz
     if hasattr(family, "prepare"):  # build everything now, not on the first tick

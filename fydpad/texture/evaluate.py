@@ -21,6 +21,7 @@ import scipy.signal as ss
 from numpy.typing import ArrayLike, NDArray
 
 from fydpad.texture.dft321 import preprocess
+from fydpad.texture.interpolation import DEFAULT_METHOD
 from fydpad.texture.model_file import TextureModel
 from fydpad.texture.scan_io import Scan
 from fydpad.texture.segment import runs
@@ -105,7 +106,7 @@ def evaluation_mask(scan: Scan, model: TextureModel, tolerance_mm_s: float | Non
     return (v >= model.speeds_mm_s[0] - tol) & (v <= model.speeds_mm_s[-1] + tol)
 
 
-def evaluate_scan(model: TextureModel, scan: Scan, *, method: str = "lsf", seed: int = 0,
+def evaluate_scan(model: TextureModel, scan: Scan, *, method: str = DEFAULT_METHOD, seed: int = 0,
                   mask: ArrayLike | None = None) -> tuple[Comparison, dict]:
     """Synthesize along the scan's own speed trace and compare with its DFT321 signal."""
     if abs(scan.fs_hz - model.fs_hz) > 1e-6 * model.fs_hz:

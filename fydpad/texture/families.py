@@ -150,11 +150,15 @@ class LpcFamily:
     tick_channels = ("vibration",)
 
     def __init__(self, model: Any, path: str | None = None, rate_hz: float = 1000.0,
-                 method: str = "lsf", seed: int | None = None):
+                 method: str | None = None, seed: int | None = None):
+        from fydpad.texture.interpolation import DEFAULT_METHOD
+
         self.model = model
         self.path = path
         self.channels = {"vibration": float(model.fs_hz)}
-        self.method = method
+        self.method = method or DEFAULT_METHOD
+        #: The station's path band-passes through the model's drive band (--drive-filter).
+        self.drive_filter = False
         self.seed = seed
         self.rate_hz = rate_hz
         self._source = None
@@ -169,7 +173,8 @@ class LpcFamily:
         if self._source is None:
             from fydpad.station.texture_source import TextureSource
 
-            self._source = TextureSource(self.model, self.rate_hz)
+            self._source = TextureSource(self.model, self.rate_hz, method=self.method,
+                                         drive_filter=self.drive_filter)
         return self._source
 
     @property

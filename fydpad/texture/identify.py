@@ -38,6 +38,7 @@ from numpy.typing import NDArray
 
 from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import BAND_HZ, evaluation_mask, lsd_db, welch_psd
+from fydpad.texture.interpolation import DEFAULT_METHOD
 from fydpad.texture.model_file import TextureModel
 from fydpad.texture.scan_io import Scan
 from fydpad.texture.synthesis import TextureRenderer
@@ -86,7 +87,7 @@ DISTANCES: dict[str, Callable[[Array, Array, Array], float]] = {
     "bands": band_level_distance_db, "lsd": _bin_lsd_db}
 
 
-def identify(models: Sequence[TextureModel], scans: Sequence[Scan], *, method: str = "lsf",
+def identify(models: Sequence[TextureModel], scans: Sequence[Scan], *, method: str = DEFAULT_METHOD,
              distance: str = "bands", seed: int = 0,
              wrap: Callable[[Iterable], Iterable] = lambda it: it) -> Identification:
     """Assign every scan to the model with the nearest synthesized spectrum (``distance``:

@@ -32,6 +32,8 @@ from fydpad.texture.two_part import TwoPartSpectrum
 
 Array = NDArray[np.float64]
 METHODS = ("stretch", "lsf", "reflection", "linear")
+#: What every path renders unless told otherwise: the station, the commands, evaluation.
+DEFAULT_METHOD = "stretch"
 HOLD_FRACTION = 0.3
 
 

@@ -313,7 +313,8 @@ def family_from_net(net: SpectrumNet, path: str | None = None, force_n: float = 
     """The LPC family's renderer (``LpcFamily``) on the network's speed table."""
     from fydpad.texture.families import LpcFamily
 
-    fam = LpcFamily(net.texture_model(force_n), path)
+    # Its speed table is dense, and its figures (mlp_eval) were measured with "lsf".
+    fam = LpcFamily(net.texture_model(force_n), path, method="lsf")
     fam.kind = KIND  # type: ignore[misc]
     return fam
 

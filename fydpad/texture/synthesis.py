@@ -28,7 +28,8 @@ give the same samples:
 
 Silence: no contact, or speed below ``still_mm_s``. Below the slowest model's range
 (its speed minus the fit tolerance) the slowest model fades out linearly with speed;
-above the fastest it is clamped (warned once). The output gain follows its target
+above the fastest model's fit range (its speed plus the tolerance) it is clamped
+(warned once). The output gain follows its target
 through a short one-pole ramp.
 """
 
@@ -97,6 +98,7 @@ class TextureRenderer:
         # there; below that it fades out linearly to silence at 0 mm/s.
         self.fade_below_mm_s = (max(self.v_min - model.tolerance_mm_s, 0.5 * self.v_min)
                                 if fade_below_mm_s is None else float(fade_below_mm_s))
+        self.clamp_above_mm_s = self.v_max + float(model.tolerance_mm_s)
         self.still_mm_s = float(still_mm_s)
         self.gain = float(model.gain if gain is None else gain)
         self._alpha = 1.0 - math.exp(-1.0 / (max(ramp_s, 1e-9) * self.fs_hz))
@@ -164,18 +166,21 @@ class TextureRenderer:
             return 0.0
         if speed_mm_s < self.fade_below_mm_s:
             return self.gain * speed_mm_s / self.fade_below_mm_s
-        if speed_mm_s > self.v_max and not self.clamped:
+        # The fastest model was fitted on speeds up to v_max + tolerance: only beyond its
+        # data is the clamp news (a stroke at the fastest speed wanders above it).
+        if speed_mm_s > self.clamp_above_mm_s and not self.clamped:
             self.clamped = True
             warnings.warn(
-                f"{self.model.surface}: speed {speed_mm_s:.1f} mm/s above the fastest model "
-                f"({self.v_max:g} mm/s): clamped to it", stacklevel=3)
+                f"{self.model.surface}: speed {speed_mm_s:.1f} mm/s above the fastest model's "
+                f"range ({self.v_max:g} mm/s, fitted within {self.model.tolerance_mm_s:g}): "
+                "clamped to it", stacklevel=3)
         return self.gain
 
     def target_gains(self, v: Array, c: Array) -> Array:
         """Vectorised :meth:`target_gain`."""
         on = c & (v >= self.still_mm_s)
         g = np.where(on, self.gain * np.minimum(v / self.fade_below_mm_s, 1.0), 0.0)
-        fast = on & (v > self.v_max)
+        fast = on & (v > self.clamp_above_mm_s)
         if fast.any() and not self.clamped:
             self.target_gain(float(v[np.argmax(fast)]), True)
         return g

@@ -61,6 +61,10 @@ def test_fade_below_slowest_model_and_clamp_warns_once(model):
     assert r.target_gain(6.0, True) == 1.0
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
+        # Within the fastest model's fit tolerance (40 + 5 mm/s) its data cover the speed.
+        r.block(44.0, True, 100)
+        r.tick(44.9, True)
+        assert not r.clamped and not caught
         r.block(55.0, True, 100)
         r.block(60.0, True, 100)
         r.tick(70.0, True)

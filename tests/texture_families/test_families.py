@@ -9,8 +9,10 @@ import sys
 
 import numpy as np
 import pytest
+import scipy.signal as ss
 
 from fydpad.errors import UserError
+from fydpad.station.texture_source import open_texture
 from fydpad.texture.families import (
     KINDS,
     LpcFamily,
@@ -20,6 +22,7 @@ from fydpad.texture.families import (
     save_model_json,
 )
 from fydpad.texture.fit import fit_texture
+from fydpad.texture.interpolation import DEFAULT_METHOD, build_table
 from fydpad.texture.model_file import save_model
 from fydpad.texture.scan_generator import generate_scan
 from fydpad.texture.synthesis import TextureRenderer
@@ -52,7 +55,7 @@ def test_lpc_adapter_renders_what_the_renderer_does(files):
     fam.seed = 3
     fb = constant_stroke(20.0, 1.0, 1000.0)
     y = fam.render(fb, "vibration")
-    r = TextureRenderer(fam.model, method="lsf", seed=3, ramp_s=1e-6)
+    r = TextureRenderer(fam.model, method=DEFAULT_METHOD, seed=3, ramp_s=1e-6)
     r.warmup(20.0, 0.5)
     np.testing.assert_array_equal(y, r.block(fb.speed_mm_s, fb.contact))
     fam.rate_hz = 1000.0
@@ -93,6 +96,52 @@ def test_spec_kind_must_match(files):
         load_family(f"friction:{files / 'grating.json'}")
     with pytest.raises(UserError, match="unknown texture kind"):
         fit_family("nope", [])
+
+
+def _band_share(y: np.ndarray, lo_hz: float, hi_hz: float) -> float:
+    f, p = ss.welch(y, fs=1000.0, nperseg=256)
+    return float(p[(f >= lo_hz) & (f <= hi_hz)].sum() / p[(f >= 20) & (f <= 500)].sum())
+
+
+def _ticks(source, n: int = 3000) -> np.ndarray:
+    # A finger crossing at 20 mm/s, a new camera centroid every 33 ms (30 frames/s).
+    out = np.empty(n)
+    for k in range(n):
+        t = k / 1000.0
+        frame_t = np.floor(t * 30.0) / 30.0
+        out[k] = source.tick(t, True, 5.0 + 20.0 * frame_t, 10.0, 20.0, 1.0)[0]
+    return out[1000:]
+
+
+def test_station_renders_the_evaluated_method_and_the_drive_band(files):
+    """The station's 1 kHz path renders the interpolation the commands score (the default,
+    "stretch", unless --texture-method says otherwise), and --drive-filter puts the
+    vibration in the model's drive band (165-220 Hz, paper III-B)."""
+    model_path = str(files / "lpc.json")
+    plain = open_texture(model_path, 1000.0)
+    table = build_table(plain.model, DEFAULT_METHOD)
+    np.testing.assert_array_equal(plain.source.renderer.table.polys, table.polys)
+    linear = open_texture(model_path, 1000.0, method="linear")
+    assert linear.source.renderer.method == "linear"
+    assert not np.allclose(linear.source.renderer.table.polys, table.polys)
+    band = open_texture(model_path, 1000.0, drive_filter=True)
+    lo, hi = plain.model.drive_band_hz
+    share_plain, share_band = _band_share(_ticks(plain), lo, hi), _band_share(_ticks(band), lo, hi)
+    assert share_band > 0.8 and share_band > 2.0 * share_plain, (share_plain, share_band)
+
+
+def test_lpc_options_on_another_family_are_one_line_errors(files, capsys):
+    from fydpad.cli import main
+
+    with pytest.raises(UserError, match="--drive-filter applies to LPC"):
+        open_texture(str(files / "friction.json"), 1000.0, drive_filter=True)
+    assert main(["run", "--synthetic", "circle", "--motors", "sim", "--texture",
+                 str(files / "grating.json"), "--texture-method", "linear"]) == 2
+    err = capsys.readouterr().err
+    assert "grating.json: --texture-method and --drive-filter apply to LPC" in err
+    assert err.count("\n") == 1
+    assert main(["run", "--synthetic", "circle", "--drive-filter"]) == 2
+    assert "need --texture MODEL" in capsys.readouterr().err
 
 
 def test_command_line_bad_model_is_one_line_exit_2(files, tmp_path):
