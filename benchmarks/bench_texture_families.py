@@ -3,7 +3,9 @@
 
 The per-tick cost of each family's ``tick`` (the station's 1 kHz render process calls it
 once a tick; the budget is the 1 ms tick shared with eq. 3 and the motors) against the
-LPC family's tick (order 200, issue 4's path) measured in the same run as the baseline;
+LPC family's tick (order 200, issue 4's path) measured in the same run as the baseline
+(the penn family: HaTT-schema files of the orders named, 10 kHz models, 10 model
+samples and the anti-alias low-pass per tick);
 and the offline ``render`` throughput (x real time) of 10 s at 1 kHz and the audio
 channel at 48 kHz.
 """
@@ -32,7 +34,29 @@ def per_tick_us(fam, n: int = 20_000) -> float:
     return (time.perf_counter() - t0) / n * 1e6
 
 
+def penn_family(order_ar: int, order_ma: int, tmp: str):
+    """A HaTT-schema file (10 kHz, a 4 x 3 speed x force grid, Delaunay triangles) with
+    random stable ARMA models, loaded as ``fydpad run --texture FILE.xml`` does."""
+    from scipy.spatial import Delaunay
+
+    from fydpad.texture.families import load_family
+    from fydpad.texture.penn import PennModelSet, write_penn
+
+    rng = np.random.default_rng(order_ar)
+    s, f = np.meshgrid([10.0, 50.0, 120.0, 250.0], [0.2, 1.0, 3.0], indexing="ij")
+    s, f = s.ravel(), f.ravel()
+    lsf = lambda k: np.sort(rng.uniform(0.02, 3.1, (s.size, k)), axis=1)  # noqa: E731
+    ms = PennModelSet("bench", 10_000.0, s, f, Delaunay(np.column_stack([s, f])).simplices,
+                      lsf(order_ar), lsf(order_ma), np.full(s.size, 1e-3),
+                      np.ones(s.size), 250.0, 3.0)
+    fam = load_family(write_penn(f"{tmp}/Models_bench_{order_ar}_{order_ma}.xml", ms))
+    fam.prepare()
+    return fam
+
+
 def main() -> None:
+    import tempfile
+
     warnings.simplefilter("ignore")
     scans = [generate_scan("canvas", v, 6.0, seed=1, friction=True) for v in (10.0, 30.0)]
     model, _ = fit_texture(scans, order=200, speeds_mm_s=[10.0, 30.0])
@@ -42,6 +66,10 @@ def main() -> None:
     fams = {"lpc (baseline)": lpc, "friction": fric,
             "grating sine": GratingFamily(2.15, profile="sine"),
             "grating rect": GratingFamily(2.15, profile="rect")}
+    with tempfile.TemporaryDirectory() as tmp:
+        # HaTT sets: 10 model samples (10 kHz) and the anti-alias low-pass per tick.
+        fams["penn AR(20) 10k"] = penn_family(20, 0, tmp)
+        fams["penn ARMA(25,5)"] = penn_family(25, 5, tmp)
     base = per_tick_us(lpc)
     print("per tick (us)        figure   / lpc")
     for name, fam in fams.items():
@@ -55,7 +83,8 @@ def main() -> None:
             ("friction tension", fric, fb, "tension"),
             ("friction audio 48k", fric, fa, "audio"),
             ("grating rect vibration", fams["grating rect"], fb, "vibration"),
-            ("grating rect audio 48k", fams["grating rect"], fa, "audio")):
+            ("grating rect audio 48k", fams["grating rect"], fa, "audio"),
+            ("penn AR(20) 10k vibration", fams["penn AR(20) 10k"], fb, "vibration")):
         t0 = time.perf_counter()
         fam.render(finger, ch)
         print(f"  {name:24s} {10.0 / (time.perf_counter() - t0):9.0f}x")

@@ -36,6 +36,12 @@ def _kinds() -> tuple[str, ...]:
     return KIND_NAMES
 
 
+def _fit_kinds() -> tuple[str, ...]:
+    from fydpad.texture.families import FIT_KIND_NAMES
+
+    return FIT_KIND_NAMES
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "texture", help="texture models: fit from scans, synthesize, evaluate, identify",
@@ -63,7 +69,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     f.add_argument("scans", nargs="*", metavar="SCAN.csv", help="texture scan recordings")
     f.add_argument("--out", required=True, metavar="MODEL.json", help="model file to write")
-    f.add_argument("--kind", choices=_kinds(), default="lpc",
+    f.add_argument("--kind", choices=_fit_kinds(), default="lpc",
                    help="texture family (default lpc). friction: mu(x) = F_f/F_n from scans "
                    "with force_n, friction_n, x_mm (paper 001 IV-B; docs/texture_friction.md)."
                    " grating: a parametric grating at a vibrotactile:friction ratio (paper "
@@ -124,8 +130,12 @@ def register(sub: argparse._SubParsersAction) -> None:
             "output fades out with speed; above the fastest it is clamped (with a warning)."),
     )
     s.add_argument("model", metavar="MODEL.json",
-                   help="model file from 'fydpad texture fit' (any kind; read from the file)")
+                   help="model file from 'fydpad texture fit' (any kind; read from the file), "
+                   "or a Penn Haptic Texture Toolkit model, [penn:]FILE.xml (with --force-n)")
     s.add_argument("--speed-mm-s", type=float, required=True, help="finger speed in mm/s")
+    s.add_argument("--force-n", type=float,
+                   help="normal force in N (needed by HaTT models, penn:FILE.xml or FILE.xml,"
+                   " which are indexed by speed and force; default 1 N for the others)")
     s.add_argument("--seconds", type=float, required=True, help="duration in seconds")
     s.add_argument("--out", required=True, metavar="OUT.csv|OUT.wav|audio[:DEVICE][@RATE]",
                    help="CSV t_s,a (LPC) or t_s,<channel>; .wav writes a WAV file; audio plays "
@@ -395,11 +405,14 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
 
 
 def run_synth(args: argparse.Namespace) -> int:
-    from fydpad.texture.families import model_kind, read_model_json
+    from fydpad.texture.families import spec_kind
 
-    kind = model_kind(read_model_json(args.model))
+    kind = spec_kind(args.model)
     if args.kind is not None and args.kind != kind:
         raise UserError(f"{args.model}: key 'kind' is {kind!r}, not --kind {args.kind}")
+    if kind == "penn" and args.force_n is None:
+        raise UserError(f"{args.model}: a HaTT model is indexed by speed and force: give "
+                        "--force-n (N)")
     if (kind != "lpc" or args.channel not in (None, "vibration") or args.out.endswith(".wav")
             or _is_audio(args.out)):
         return _run_synth_family(args)
@@ -444,20 +457,32 @@ def _run_synth_family(args: argparse.Namespace) -> int:
     if channel == "audio":
         fam.channels["audio"] = rate
     x0 = args.x0_mm if args.x0_mm is not None else float(getattr(fam, "x0_mm", 0.0))
-    finger = constant_stroke(args.speed_mm_s, args.seconds, rate, x0_mm=x0)
+    force = 1.0 if args.force_n is None else args.force_n
+    if not (math.isfinite(force) and force >= 0):
+        raise UserError("--force-n must be >= 0")
+    finger = constant_stroke(args.speed_mm_s, args.seconds, rate, x0_mm=x0, force_n=force)
     if fam.kind == "lpc":
         fam.seed = args.seed
     try:
-        y = fam.render(finger, channel)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            if fam.kind == "penn":  # a steady stroke: filters and gate already settled
+                fam.warmup(args.speed_mm_s, force, rate)
+            y = fam.render(finger, channel)
     except ValueError as exc:
         raise UserError(f"{args.model}: {exc}") from None
+    for w in dict.fromkeys(str(c.message) for c in caught):
+        print(f"fydpad texture synth: warning: {w}", file=sys.stderr)
     if _is_audio(args.out):
         _play_audio(args.out, y, rate, channel)
     elif args.out.lower().endswith(".wav"):
         _write_wav(args.out, y, rate)
     else:
-        with CsvRowWriter(args.out, ("t_s", channel), comment=f"kind={fam.kind} "
-                          f"channel={channel} speed_mm_s={args.speed_mm_s:g}",
+        # HaTT models: t_s,a (m/s^2), the synth format, as the LPC path writes.
+        col = "a" if fam.kind == "penn" and channel == "vibration" else channel
+        with CsvRowWriter(args.out, ("t_s", col), comment=f"kind={fam.kind} "
+                          f"channel={channel} speed_mm_s={args.speed_mm_s:g}"
+                          + (f" force_n={force:g}" if args.force_n is not None else ""),
                           flush_every_s=math.inf) as wr:
             for t, v in zip(finger.t_s, y, strict=True):
                 wr.write(float(t), float(v))
@@ -548,9 +573,9 @@ def run_staircase(args: argparse.Namespace) -> int:
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
-    from fydpad.texture.families import model_kind, read_model_json
+    from fydpad.texture.families import spec_kind
 
-    if model_kind(read_model_json(args.model)) != "lpc":
+    if spec_kind(args.model) != "lpc":
         return _run_evaluate_family(args)
     from fydpad.texture.evaluate import evaluate_scan, evaluation_mask
 
@@ -618,9 +643,9 @@ def _run_evaluate_family(args: argparse.Namespace) -> int:
 
 
 def run_identify(args: argparse.Namespace) -> int:
-    from fydpad.texture.families import model_kind, read_model_json
+    from fydpad.texture.families import spec_kind
 
-    kinds = {model_kind(read_model_json(p)) for p in args.models}
+    kinds = {spec_kind(p) for p in args.models}
     if kinds != {"lpc"}:
         return _run_identify_family(args, kinds)
     from fydpad.texture.identify import identify, plot_confusion
@@ -677,7 +702,7 @@ def run_compare(args: argparse.Namespace) -> int:
     from fydpad.texture.identify import Identification, plot_confusion
 
     kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
-    unknown = [k for k in kinds if k not in _kinds()]
+    unknown = [k for k in kinds if k not in _fit_kinds()]
     if unknown:
         raise UserError(f"--kinds: unknown {', '.join(unknown)}")
     train, test = read_scans(args.train), read_scans(args.scans)

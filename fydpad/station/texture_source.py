@@ -40,18 +40,9 @@ class TextureSource:
         self.renderer.reset()
         self.limit = limit_factor * rms if rms > 0 else math.inf
         self.resets = 0
-        self._last_x_mm = math.nan
-        self._last_y_mm = math.nan
-        self._last_contact = False
 
     def tick(self, t_s: float, contact: bool, x_mm: float, y_mm: float) -> float:
-        # A new camera frame's centroid is differentiated once (and held between frames).
-        # Without contact the position is NaN: only the change to "no contact" is news.
-        if contact != self._last_contact or (
-            contact and (x_mm != self._last_x_mm or y_mm != self._last_y_mm)
-        ):
-            self.speed.position(t_s, x_mm, y_mm, contact)
-            self._last_x_mm, self._last_y_mm, self._last_contact = x_mm, y_mm, contact
+        self.speed.sample(t_s, x_mm, y_mm, contact)
         v = self.renderer.tick(self.speed.tick(self.dt_s), self.speed.contact)
         if not abs(v) <= self.limit:
             self.renderer.reset()

@@ -45,15 +45,21 @@ class Kind:
     from_json: Callable[[dict[str, Any], str], TextureFamily]
     fit: Callable[..., dict[str, Any]] | None
     summary: str = ""
+    #: A family read from its own file format instead of JSON (penn: HaTT XML).
+    from_file: Callable[[str], TextureFamily] | None = None
 
 
 KINDS: dict[str, Kind] = {}
 #: Families registered by importing their module on first use.
 _LAZY = {"lpc": "fydpad.texture.families", "friction": "fydpad.texture.friction",
          "grating": "fydpad.texture.grating", "mlp": "fydpad.texture.mlp",
-         "mlp_lsf": "fydpad.texture.mlp"}
+         "mlp_lsf": "fydpad.texture.mlp", "penn": "fydpad.texture.penn_family"}
 #: The kinds the commands offer.
 KIND_NAMES = tuple(_LAZY)
+#: Kinds read from another tool's files (HaTT XML), never fitted here.
+IMPORTED_KINDS = ("penn",)
+#: The kinds ``fydpad texture fit`` and ``compare`` fit from scans.
+FIT_KIND_NAMES = tuple(k for k in KIND_NAMES if k not in IMPORTED_KINDS)
 
 
 def register_kind(kind: Kind) -> None:
@@ -92,6 +98,9 @@ def model_kind(data: dict[str, Any]) -> str:
 def load_family(spec: str | Path) -> TextureFamily:
     """A ready-to-render family from ``MODEL.json`` or ``KIND:MODEL.json``."""
     want, path = split_spec(str(spec))
+    own = _file_format_kind(want, path)
+    if own is not None:  # not JSON: a HaTT XML file (penn:FILE.xml or FILE.xml)
+        return get_kind(own).from_file(path)  # type: ignore[misc]
     data = read_model_json(path)
     kind = model_kind(data)
     if want is not None and want != kind:
@@ -102,6 +111,20 @@ def load_family(spec: str | Path) -> TextureFamily:
         raise UserError(f"{path}: key 'kind' is {kind!r}, not a texture family (known: "
                         f"{', '.join(sorted(_LAZY))})") from None
     return k.from_json(data, str(path))
+
+
+def _file_format_kind(want: str | None, path: str) -> str | None:
+    """The kind of a spec whose file is not JSON: ``penn:`` or a bare ``.xml`` path."""
+    if want is None and str(path).lower().endswith(".xml"):
+        want = "penn"
+    return want if want is not None and get_kind(want).from_file is not None else None
+
+
+def spec_kind(spec: str | Path) -> str:
+    """The family of ``[KIND:]MODEL`` without building it (JSON ``kind``, or penn)."""
+    want, path = split_spec(str(spec))
+    own = _file_format_kind(want, path)
+    return own if own is not None else model_kind(read_model_json(path))
 
 
 def fit_family(kind: str, scans: list, **options: Any) -> dict[str, Any]:

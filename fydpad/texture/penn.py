@@ -1,24 +1,32 @@
 """Penn Haptic Texture Toolkit (HaTT) model files: ARMA models over speed and force.
 
-A HaTT XML file (one per texture; Culbertson, Lopez Delgado and Kuchenbecker 2014) is
-a ``<modelSet>`` with ``numMod``, ``numTri``, ``maxSpeed`` (mm/s), ``maxForce`` (N),
-``speedList``/``forceList`` (``<value>`` lists), a Delaunay triangulation of the
-(speed, force) points as ``<tri><value>i</value>x3</tri>`` (1-based in the toolkit's
-files), ``numARCoeff``, ``numMACoeff``, optional ``SampleRate`` (Hz) and ``mu``, then one
-``<model>`` per point with ``speedMod``, ``forceMod``, ``var``, ``gain`` (ARMA only),
-``ARlsf`` and ``MAlsf`` (radians) and optionally ``ARcoeff``/``MAcoeff``.
+A HaTT XML file (one per texture, ``Models_<material>.xml``; Culbertson, Lopez Delgado
+and Kuchenbecker 2014) is a ``<modelSet>`` with ``material``, optional ``AccelUnits``/
+``SpeedUnits``/``ForceUnits``, ``SampleRate`` (Hz; 10 kHz for the recorded models, lower
+for the toolkit's resampled sets), ``mu``, ``numMod``, ``numTri``, ``maxSpeed`` (mm/s),
+``maxForce`` (N), ``speedList``/``forceList`` (``<value>`` lists), the Delaunay
+triangulation of the (speed, force) points as ``<tri><value>i</value>x3</tri>`` (MATLAB's
+1-based indices into ``speedList``/``forceList``), ``numARCoeff``, ``numMACoeff``, then one
+``<model>`` per point: ``modNum``, ``ARcoeff`` (A(z) with its leading 1), ``ARlsf``,
+``MAcoeff`` (B(z) with its leading 1), ``MAlsf`` (radians), ``var``, ``gain``,
+``speedMod``, ``forceMod``. Checked against the toolkit's own code (docs/texture.md,
+"Penn Haptic Texture Toolkit"): its MATLAB writer ``CreateResampledModels.m``, its
+reader ``AutoGenHashMatrix`` and its synthesis ``AccSynthHashMatrix.cpp``/``LPCModel``.
 
-Synthesis (the toolkit's convention), at the model's sample rate:
+Synthesis (the toolkit's ``LPCvibration``), at the model's sample rate, in m/s^2:
 
     y(k) = -sum_i A_i y(k-i) + gain * (e(k) + sum_j B_j e(k-j)),  e ~ N(0, var)
 
-which is eq. 5 extended with the moving-average part. Models are interpolated inside
-the Delaunay triangle holding (speed, force) by barycentric weights on the LSFs (stable),
-``var`` and ``gain``. The toolkit's files are not shipped; point the reader at yours.
+which is eq. 5 extended with the moving-average part; with ``numMACoeff`` 0 (AR models)
+the toolkit ignores ``gain`` and ``MAlsf``: y(k) = -sum_i A_i y(k-i) + e(k). Models are
+interpolated inside the Delaunay triangle holding (speed, force) by barycentric weights
+on the LSFs (stable), ``var`` and ``gain``. The toolkit's files are not shipped; point the
+reader at yours.
 """
 
 from __future__ import annotations
 
+import warnings
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,6 +40,10 @@ from fydpad.texture.lsf import lsf_to_poly
 
 Array = NDArray[np.float64]
 DEFAULT_FS_HZ = 10_000.0
+#: Unit spellings the reader accepts (lower case, spaces removed); the toolkit's HTML
+#: shows m/s^2, mm/s and N.
+_UNITS = {"AccelUnits": ("m/s^2", "m/s2", "m/s/s", "m/sec^2"),
+          "SpeedUnits": ("mm/s", "mm/sec"), "ForceUnits": ("n", "newton", "newtons")}
 
 
 @dataclass
@@ -71,6 +83,23 @@ def _num(root: ET.Element, key: str, where: str, default: float | None = None) -
         raise UserError(f"{where}: <{key}> is not a number ({node.text!r})") from None
 
 
+def _check_units(root: ET.Element, where: str) -> None:
+    for key, ok in _UNITS.items():
+        node = root.find(key)
+        if node is None or not (node.text or "").strip():
+            continue
+        unit = "".join((node.text or "").split()).lower()
+        if unit not in ok:
+            warnings.warn(f"{where}: <{key}> is {node.text.strip()!r}; read as "
+                          f"{ok[0]} (the toolkit's unit)", stacklevel=3)
+
+
+def _check_lsf(lsf: Array, where: str) -> None:
+    """Sorted within [0, pi]: what the toolkit's LSF-to-polynomial step assumes."""
+    if lsf.size and (lsf[0] < 0 or lsf[-1] > np.pi or np.any(np.diff(lsf) < 0)):
+        raise UserError(f"{where}: not sorted line spectral frequencies in [0, pi] rad")
+
+
 def read_penn(path: str | Path) -> PennModelSet:
     """Parse a HaTT model XML file; errors name the file and element."""
     path = Path(path)
@@ -83,53 +112,96 @@ def read_penn(path: str | Path) -> PennModelSet:
     if root.tag != "modelSet":
         raise UserError(f"{path}: root element is <{root.tag}>, expected <modelSet>")
     w = str(path)
+    _check_units(root, w)
     p = int(_num(root, "numARCoeff", w))
     q = int(_num(root, "numMACoeff", w, 0.0))
     fs = _num(root, "SampleRate", w, DEFAULT_FS_HZ)
+    if not fs > 0:
+        raise UserError(f"{w}: <SampleRate> must be positive, got {fs:g}")
     models = root.findall("model")
     if not models:
         raise UserError(f"{w}: no <model> elements")
+    n = len(models)
+    num_mod = _num(root, "numMod", w, float(n))
+    if int(num_mod) != n:
+        raise UserError(f"{w}: <numMod> says {int(num_mod)}, the file has {n} <model> elements")
     sp, fo, ar, ma, var, gain = [], [], [], [], [], []
     for i, m in enumerate(models):
         mw = f"{w}: model {i + 1}"
         sp.append(_num(m, "speedMod", mw))
         fo.append(_num(m, "forceMod", mw))
         var.append(_num(m, "var", mw))
-        gain.append(_num(m, "gain", mw, 1.0))
+        if not var[-1] >= 0:
+            raise UserError(f"{mw}: <var> must be >= 0, got {var[-1]:g}")
+        # AR models (numMACoeff 0): the toolkit reads neither gain nor MAlsf.
+        gain.append(_num(m, "gain", mw, 1.0) if q else 1.0)
         a = _values(m.find("ARlsf"), f"{mw}: <ARlsf>")
         if a.size != p:
             raise UserError(f"{mw}: <ARlsf> has {a.size} values, <numARCoeff> says {p}")
+        _check_lsf(a, f"{mw}: <ARlsf>")
         ar.append(a)
         b = _values(m.find("MAlsf"), f"{mw}: <MAlsf>") if q else np.zeros(0)
         if b.size != q:
             raise UserError(f"{mw}: <MAlsf> has {b.size} values, <numMACoeff> says {q}")
+        _check_lsf(b, f"{mw}: <MAlsf>")
         ma.append(b)
-    tris = [_values(t, f"{w}: <tri>").astype(np.int64) for t in root.findall("tri")]
-    n = len(models)
-    if tris:
-        tri = np.vstack(tris)
-        if tri.shape[1] != 3:
-            raise UserError(f"{w}: <tri> must hold 3 values")
-        if tri.min() >= 1 and tri.max() == n:  # the toolkit writes MATLAB's 1-based indices
-            tri = tri - 1
-        if tri.min() < 0 or tri.max() >= n:
-            raise UserError(f"{w}: <tri> indices outside 1..{n}")
-    else:
-        tri = np.zeros((0, 3), np.int64)
-    speeds = np.asarray(sp)
-    forces = np.asarray(fo)
+    speeds, forces = np.asarray(sp), np.asarray(fo)
+    order = _list_order(root, speeds, forces, w)
+    tri = _read_tri(root, n, w)
     return PennModelSet(
-        name=path.stem, fs_hz=fs, speeds_mm_s=speeds, forces_n=forces, tri=tri,
-        ar_lsf=np.vstack(ar), ma_lsf=np.vstack(ma) if q else np.zeros((n, 0)),
-        var=np.asarray(var), gain=np.asarray(gain),
+        name=(root.findtext("material") or "").strip() or path.stem, fs_hz=fs,
+        speeds_mm_s=speeds[order], forces_n=forces[order], tri=tri,
+        ar_lsf=np.vstack(ar)[order], ma_lsf=np.vstack(ma)[order] if q else np.zeros((n, 0)),
+        var=np.asarray(var)[order], gain=np.asarray(gain)[order],
         max_speed_mm_s=_num(root, "maxSpeed", w, float(speeds.max())),
         max_force_n=_num(root, "maxForce", w, float(forces.max())),
         mu=_num(root, "mu", w, float("nan")),
     )
 
 
+def _list_order(root: ET.Element, speeds: Array, forces: Array, w: str) -> NDArray[np.int64]:
+    """The model for each entry of speedList/forceList: the toolkit stores a model at the
+    list position with its (speed, force), and ``<tri>`` indexes that list."""
+    n = speeds.size
+    if root.find("speedList") is None and root.find("forceList") is None:
+        return np.arange(n)
+    ls = _values(root.find("speedList"), f"{w}: <speedList>")
+    lf = _values(root.find("forceList"), f"{w}: <forceList>")
+    if ls.size != n or lf.size != n:
+        raise UserError(f"{w}: <speedList> and <forceList> have {ls.size} and {lf.size} "
+                        f"values for {n} models")
+    order = np.empty(n, np.int64)
+    for k in range(n):
+        hit = np.flatnonzero(np.isclose(speeds, ls[k], rtol=1e-6, atol=1e-6)
+                             & np.isclose(forces, lf[k], rtol=1e-6, atol=1e-6))
+        if hit.size == 0:
+            raise UserError(f"{w}: <speedList>/<forceList> value {k + 1} ({ls[k]:g} mm/s, "
+                            f"{lf[k]:g} N) has no <model> with that speedMod and forceMod")
+        order[k] = hit[0]
+    return order
+
+
+def _read_tri(root: ET.Element, n: int, w: str) -> NDArray[np.int64]:
+    """The triangles, 0-based; the file's indices are MATLAB's 1-based ones."""
+    rows = []
+    for k, t in enumerate(root.findall("tri")):
+        v = _values(t, f"{w}: <tri> {k + 1}")
+        if v.size != 3:
+            raise UserError(f"{w}: <tri> {k + 1} has {v.size} values, expected 3")
+        bad = v[(v < 1) | (v > n) | (v != np.round(v))]
+        if bad.size:
+            raise UserError(f"{w}: <tri> {k + 1}: index {bad[0]:g} outside 1..{n}")
+        rows.append(v.astype(np.int64) - 1)
+    num_tri = root.findtext("numTri")
+    if num_tri is not None and num_tri.strip() and int(float(num_tri)) != len(rows):
+        raise UserError(f"{w}: <numTri> says {int(float(num_tri))}, the file has "
+                        f"{len(rows)} <tri> elements")
+    return np.vstack(rows) if rows else np.zeros((0, 3), np.int64)
+
+
 def write_penn(path: str | Path, ms: PennModelSet) -> Path:
-    """Write a model set in the toolkit's schema (for tests and hand-made models)."""
+    """Write a model set in the toolkit's schema and element order (as its
+    ``CreateResampledModels.m`` does; for tests and hand-made models)."""
     root = ET.Element("modelSet")
 
     def add(parent: ET.Element, tag: str, text: object) -> ET.Element:
@@ -143,8 +215,11 @@ def write_penn(path: str | Path, ms: PennModelSet) -> Path:
             add(e, "value", repr(float(v)) if not isinstance(v, np.integer) else int(v))
 
     add(root, "material", ms.name)
-    add(root, "mu", 0.0 if ms.mu is None or not np.isfinite(ms.mu) else ms.mu)
+    add(root, "AccelUnits", "m/s^2")
+    add(root, "SpeedUnits", "mm/s")
+    add(root, "ForceUnits", "N")
     add(root, "SampleRate", ms.fs_hz)
+    add(root, "mu", 0.0 if ms.mu is None or not np.isfinite(ms.mu) else ms.mu)
     add(root, "numMod", len(ms.speeds_mm_s))
     add(root, "numTri", len(ms.tri))
     add(root, "maxSpeed", ms.max_speed_mm_s)
@@ -157,42 +232,67 @@ def write_penn(path: str | Path, ms: PennModelSet) -> Path:
     add(root, "numMACoeff", ms.ma_lsf.shape[1])
     for i in range(len(ms.speeds_mm_s)):
         m = ET.SubElement(root, "model")
-        add(m, "modelNum", i + 1)
-        add(m, "speedMod", ms.speeds_mm_s[i])
-        add(m, "forceMod", ms.forces_n[i])
+        add(m, "modNum", i + 1)
+        add_list(m, "ARcoeff", lsf_to_poly(ms.ar_lsf[i]))
+        add_list(m, "ARlsf", ms.ar_lsf[i])
+        add_list(m, "MAcoeff", lsf_to_poly(ms.ma_lsf[i]) if ms.ma_lsf.shape[1] else [1.0])
+        add_list(m, "MAlsf", ms.ma_lsf[i])
         add(m, "var", ms.var[i])
         add(m, "gain", ms.gain[i])
-        add_list(m, "ARlsf", ms.ar_lsf[i])
-        add_list(m, "ARcoeff", lsf_to_poly(ms.ar_lsf[i])[1:])
-        if ms.ma_lsf.shape[1]:
-            add_list(m, "MAlsf", ms.ma_lsf[i])
-            add_list(m, "MAcoeff", lsf_to_poly(ms.ma_lsf[i])[1:])
+        add(m, "speedMod", ms.speeds_mm_s[i])
+        add(m, "forceMod", ms.forces_n[i])
     ET.indent(root)
     ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
     return Path(path)
 
 
-def barycentric(ms: PennModelSet, speed_mm_s: float, force_n: float) -> tuple[NDArray, Array]:
-    """Vertex indices and weights of the triangle holding the point (clamped to the grid).
+def _clamp(ms: PennModelSet, speed_mm_s: Array, force_n: Array) -> tuple[Array, Array]:
+    """Into the modelled range, as the toolkit's ``HashAndInterp2`` does (it saturates
+    just inside ``maxSpeed``/``maxForce``); below 0 (and NaN) is 0."""
+    s = np.clip(np.nan_to_num(np.asarray(speed_mm_s, float)), 0.0, ms.max_speed_mm_s)
+    f = np.clip(np.nan_to_num(np.asarray(force_n, float)), 0.0, ms.max_force_n)
+    return s, f
 
-    Outside every triangle, the nearest model alone (weight 1), as the toolkit does at
-    the edges of its measured range.
-    """
-    s = min(max(speed_mm_s, 0.0), ms.max_speed_mm_s)
-    f = min(max(force_n, 0.0), ms.max_force_n)
+
+def barycentric_weights(ms: PennModelSet, speed_mm_s: Array, force_n: Array) -> Array:
+    """(k, m) weights of the m models at k (speed, force) points: barycentric in the first
+    Delaunay triangle holding the point; outside every triangle the nearest model alone
+    (the toolkit's walk is undefined outside the hull: it prints "Unstable!")."""
+    s, f = _clamp(ms, np.atleast_1d(speed_mm_s), np.atleast_1d(force_n))
+    k, m = s.size, ms.speeds_mm_s.size
+    out = np.zeros((k, m))
+    todo = np.ones(k, bool)
     pts = np.column_stack([ms.speeds_mm_s, ms.forces_n])
     for t in ms.tri:
+        if not todo.any():
+            break
         p0, p1, p2 = pts[t]
-        m = np.column_stack([p1 - p0, p2 - p0])
-        det = np.linalg.det(m)
+        mat = np.column_stack([p1 - p0, p2 - p0])
+        det = np.linalg.det(mat)
         if abs(det) < 1e-12:
             continue
-        l1, l2 = np.linalg.solve(m, np.array([s, f]) - p0)
-        w = np.array([1.0 - l1 - l2, l1, l2])
-        if np.all(w >= -1e-9):
-            return t, np.clip(w, 0.0, 1.0) / np.clip(w, 0.0, 1.0).sum()
-    j = int(np.argmin(np.hypot(ms.speeds_mm_s - s, ms.forces_n - f)))
-    return np.array([j]), np.array([1.0])
+        l12 = np.linalg.solve(mat, np.vstack([s - p0[0], f - p0[1]]))
+        wt = np.vstack([1.0 - l12[0] - l12[1], l12[0], l12[1]])
+        inside = todo & np.all(wt >= -1e-9, axis=0)
+        if inside.any():
+            wi = np.clip(wt[:, inside], 0.0, 1.0)
+            wi /= wi.sum(axis=0)
+            rows = np.flatnonzero(inside)
+            for c in range(3):
+                out[rows, t[c]] += wi[c]
+            todo &= ~inside
+    if todo.any():
+        rows = np.flatnonzero(todo)
+        d = np.hypot(ms.speeds_mm_s[None, :] - s[rows, None], ms.forces_n[None, :] - f[rows, None])
+        out[rows, np.argmin(d, axis=1)] = 1.0
+    return out
+
+
+def barycentric(ms: PennModelSet, speed_mm_s: float, force_n: float) -> tuple[NDArray, Array]:
+    """Vertex indices and weights of the triangle holding the point (clamped to the grid)."""
+    w = barycentric_weights(ms, speed_mm_s, force_n)[0]
+    idx = np.flatnonzero(w > 0)
+    return idx, w[idx]
 
 
 def interpolate(ms: PennModelSet, speed_mm_s: float, force_n: float

@@ -383,10 +383,21 @@ class CentroidSpeed:
     cutoff); ``tick(dt_s)`` at 1 kHz holds that raw velocity between frames (i.e. it
     extrapolates the position linearly) and applies the paper's 10 Hz low-pass at the
     tick rate, so the speed is smooth rather than a 30 Hz staircase.
+
+    ``sample(t_s, x_mm, y_mm, contact)`` takes the newest centroid at every tick (held
+    between frames, as the station's render loop sees it): a changed one is a new frame,
+    differentiated once; one unchanged for ``rest_after_s`` is a finger at rest (without
+    that, ``tick`` would hold the last frame's velocity for ever).
     """
 
     cutoff_hz: float = 10.0
+    #: Longer than a frame period at the slowest vision rate (the paper's 10 Hz).
+    rest_after_s: float = 0.25
     contact: bool = False
+    _last_x_mm: float = math.nan
+    _last_y_mm: float = math.nan
+    _last_contact: bool = False
+    _t_new_s: float = -math.inf
     _state: SpeedState | None = None
     _vx: float = 0.0
     _vy: float = 0.0
@@ -403,6 +414,17 @@ class CentroidSpeed:
             self._vx = self._vy = self._fx = self._fy = 0.0
         elif was:
             self._vx, self._vy = new.vx_mm_s, new.vy_mm_s
+
+    def sample(self, t_s: float, x_mm: float, y_mm: float, contact: bool) -> None:
+        """The newest centroid at a tick: :meth:`position` once per new frame, and again
+        (a zero velocity) once it has stayed put for ``rest_after_s``."""
+        # Without contact the position is NaN: only the change to "no contact" is news.
+        if contact != self._last_contact or (
+                contact and (x_mm != self._last_x_mm or y_mm != self._last_y_mm
+                             or t_s - self._t_new_s >= self.rest_after_s)):
+            self.position(t_s, x_mm, y_mm, contact)
+            self._last_x_mm, self._last_y_mm, self._last_contact = x_mm, y_mm, contact
+            self._t_new_s = t_s
 
     def tick(self, dt_s: float = 1e-3) -> float:
         """Advance the low-pass by ``dt_s``; the filtered speed in mm/s (0 without contact)."""

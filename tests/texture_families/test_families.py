@@ -130,6 +130,22 @@ def test_station_renders_the_evaluated_method_and_the_drive_band(files):
     assert share_band > 0.8 and share_band > 2.0 * share_plain, (share_plain, share_band)
 
 
+def test_station_texture_falls_silent_when_the_finger_stops(files):
+    """A finger crossing at 20 mm/s for 1 s, then held still (the camera's centroid
+    exactly unchanged, as a replay or a quantised tracker gives it): the vibration is
+    there while it moves and gone within 0.5 s of the stop (it used to run on at the
+    last frame's speed for ever)."""
+    src = open_texture(str(files / "lpc.json"), 1000.0)
+    out = np.empty(3000)
+    for k in range(out.size):
+        t = k / 1000.0
+        frame_t = min(np.floor(t * 30.0) / 30.0, 1.0)
+        out[k] = src.tick(t, True, 5.0 + 20.0 * frame_t, 10.0, 20.0, 1.0)[0]
+    moving = np.sqrt(np.mean(out[400:1000] ** 2))
+    still = np.sqrt(np.mean(out[1500:] ** 2))
+    assert moving > 0 and still < 1e-3 * moving, (moving, still)
+
+
 def test_lpc_options_on_another_family_are_one_line_errors(files, capsys):
     from fydpad.cli import main
 

@@ -1,0 +1,368 @@
+"""HaTT texture models (``fydpad.texture.penn``) as a texture family (kind ``"penn"``).
+
+``fydpad run --texture penn:Models_Wood.xml`` (or any ``.xml`` path) renders a Penn
+Haptic Texture Toolkit model set: the toolkit's ARMA synthesis (``penn`` module
+docstring) at the model's rate (10 kHz for the recorded sets), the model interpolated
+over speed and force, brought to the output rate through an anti-alias low-pass.
+
+The (speed, force) plane over [0, maxSpeed] x [0, maxForce] is sampled on a grid
+(``grid`` points, 64 x 32 by default): at every grid point the Delaunay-barycentric
+interpolation of the LSFs, ``var`` and ``gain`` (``penn.barycentric_weights``) is
+turned into A(z), B(z) once, at load. Both paths take the nearest grid point's model,
+so ``render`` and ``tick`` run the same filters; the toolkit re-interpolates on every
+update instead (the grid step is maxSpeed/63 and maxForce/31: 0.3 % of the LSF range
+per step, documented in docs/texture.md).
+
+- ``tick`` (the station's 1 kHz loop): R = fs_model / rate model samples per tick
+  (10 for 10 kHz models) through the ARMA recursion and an elliptic low-pass (passband
+  0.45 x rate, stopband 0.55 x rate, 60 dB), the last one kept. The whole step is
+  linear in the state [y history, e history, low-pass state] and the R noise samples,
+  so it is one precomputed matrix per grid point: one ``np.dot`` a tick, no
+  allocation. The state is physical (past outputs and excitations of the recursion),
+  so a model change carries it as the toolkit does, without a click.
+- ``render`` (offline): the same recursion by ``lfilter`` over runs of one grid point
+  (``zi`` rebuilt from the histories, state carried across blocks); to an output rate
+  that divides the model rate, the same low-pass (state carried) and every R-th sample;
+  to any other rate, ``resample_poly`` of the block.
+
+Speed from the contact centroid as the LPC family's ``TextureSource`` (differentiated,
+10 Hz low-pass, every tick); force from the tick's load-cell argument (a missing
+reading holds the last one; before any, the median model force); a centroid unchanged
+for 0.25 s is a finger at rest (speed 0). Silent without
+contact or below ``still_mm_s``, through a 5 ms one-pole ramp; above ``maxSpeed`` or
+``maxForce`` clamped (warned once), as the toolkit saturates.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from fractions import Fraction
+from itertools import pairwise
+from pathlib import Path
+
+import numpy as np
+import scipy.signal as ss
+from numpy.typing import NDArray
+
+from fydpad.errors import UserError
+from fydpad.texture.family import FingerBlock
+from fydpad.texture.penn import PennModelSet, barycentric_weights, read_penn
+
+Array = NDArray[np.float64]
+_NOISE_TICKS = 512  # ticks of noise drawn at once
+#: Largest tick-matrix table (bytes); the grid shrinks to fit it for high orders.
+_TABLE_BYTES = 32 << 20
+
+
+def lsf_to_poly_rows(lsf: Array) -> Array:
+    """``fydpad.texture.lsf.lsf_to_poly`` for every row of ``lsf`` at once (k, p) ->
+    (k, p + 1): the product of the quadratic factors on an FFT grid."""
+    lsf = np.sort(np.atleast_2d(np.asarray(lsf, float)), axis=1)
+    k, order = lsf.shape
+    if order == 0:
+        return np.ones((k, 1))
+    n = 1 << int(np.ceil(np.log2(order + 2)) + 1)
+    z1 = np.exp(-2j * np.pi * np.arange(n) / n)
+    pf = np.ones((k, n), complex)
+    qf = np.ones((k, n), complex)
+    for i in range(order):
+        f = pf if i % 2 == 0 else qf  # interlacing: 1st, 3rd, ... zeros are P's
+        f *= 1.0 - 2.0 * np.cos(lsf[:, i:i + 1]) * z1 + z1 * z1
+    if order % 2 == 0:
+        pf *= 1.0 + z1
+        qf *= 1.0 - z1
+    else:
+        qf *= 1.0 - z1 * z1
+    a = 0.5 * (np.fft.ifft(pf, axis=1).real + np.fft.ifft(qf, axis=1).real)[:, :order + 1]
+    a[:, 0] = 1.0
+    return a
+
+
+def decimation_sos(ratio: int, rate_hz: float) -> Array:
+    """The anti-alias low-pass before keeping every ``ratio``-th sample: elliptic, 0.1 dB
+    ripple to 0.45 x ``rate_hz``, 60 dB down from 0.55 x ``rate_hz`` (what folds onto
+    0-450 Hz at 1 kHz is >= 550 Hz). Empty for ``ratio`` 1."""
+    if ratio == 1:
+        return np.zeros((0, 6))
+    fs = ratio * rate_hz
+    order, wn = ss.ellipord(0.45 * rate_hz, 0.55 * rate_hz, 0.1, 60.0, fs=fs)
+    return ss.ellip(order, 0.1, 60.0, wn, fs=fs, output="sos")
+
+
+class PennTexture:
+    """A HaTT model set behind the ``TextureFamily`` interface (module docstring)."""
+
+    kind = "penn"
+    tick_channels = ("vibration",)
+
+    def __init__(self, ms: PennModelSet, path: str | None = None, *, rate_hz: float = 1000.0,
+                 seed: int | None = None, still_mm_s: float = 1.0, ramp_s: float = 0.005,
+                 grid: tuple[int, int] = (64, 32)):
+        self.ms = ms
+        self.path = path or ms.name
+        self.surface = ms.name
+        self.rate_hz = float(rate_hz)
+        self.channels = {"vibration": self.rate_hz}
+        self.seed = seed
+        self.still_mm_s = float(still_mm_s)
+        self.ramp_s = float(ramp_s)
+        #: A centroid unchanged this long (s) is a finger at rest (TickPosition's rule).
+        self.stop_s = 0.25
+        self.p = ms.ar_lsf.shape[1]
+        self.q = ms.ma_lsf.shape[1]
+        self._grid = self._fit_grid(grid)
+        self._build_table()
+        self.default_force_n = float(np.median(ms.forces_n))
+        self._tick_ready = False
+        self._rng = np.random.default_rng(seed)
+        self.clamped = False
+        self.reset()
+
+    # ------------------------------------------------------------------ the model grid
+    def _fit_grid(self, grid: tuple[int, int]) -> tuple[int, int]:
+        ns, nf = max(2, int(grid[0])), max(2, int(grid[1]))
+        ratio = max(1, round(self.ms.fs_hz / self.rate_hz))
+        d = self.p + self.q + 2 * 8  # an 8th-order low-pass at most (60 dB, 450/550)
+        per_cell = 8 * (d + 1) * (d + ratio)
+        while ns * nf * per_cell > _TABLE_BYTES and ns * nf > 64:
+            ns, nf = max(8, ns * 3 // 4), max(8, nf * 3 // 4)
+        return ns, nf
+
+    def _build_table(self) -> None:
+        ms = self.ms
+        ns, nf = self._grid
+        self.speed_grid_mm_s = np.linspace(0.0, ms.max_speed_mm_s, ns)
+        self.force_grid_n = np.linspace(0.0, ms.max_force_n, nf)
+        s, f = np.meshgrid(self.speed_grid_mm_s, self.force_grid_n, indexing="ij")
+        w = barycentric_weights(ms, s.ravel(), f.ravel())  # (cells, models)
+        self.den = lsf_to_poly_rows(w @ ms.ar_lsf)
+        self.ma_poly = lsf_to_poly_rows(w @ ms.ma_lsf) if self.q else np.ones((w.shape[0], 1))
+        self.sigma = np.sqrt(np.maximum(w @ ms.var, 0.0))
+        self.gain = w @ ms.gain  # AR files: 1 (penn.read_penn)
+        self.num = self.gain[:, None] * self.ma_poly
+        self._inv_ds = (ns - 1) / ms.max_speed_mm_s if ms.max_speed_mm_s > 0 else 0.0
+        self._inv_df = (nf - 1) / ms.max_force_n if ms.max_force_n > 0 else 0.0
+
+    def cells(self, speed_mm_s: Array, force_n: Array) -> NDArray[np.int64]:
+        """The nearest grid point of each (speed, force)."""
+        ns, nf = self._grid
+        i = np.clip(np.rint(np.nan_to_num(speed_mm_s) * self._inv_ds), 0, ns - 1)
+        j = np.clip(np.rint(np.nan_to_num(force_n) * self._inv_df), 0, nf - 1)
+        return (i * nf + j).astype(np.int64)
+
+    def _warn_clamp(self, speed_mm_s: float, force_n: float) -> None:
+        ms = self.ms
+        if not self.clamped and (speed_mm_s > ms.max_speed_mm_s or force_n > ms.max_force_n):
+            self.clamped = True
+            warnings.warn(f"{self.path}: speed {speed_mm_s:.1f} mm/s, force {force_n:.2f} N "
+                          f"beyond the models' {ms.max_speed_mm_s:g} mm/s, "
+                          f"{ms.max_force_n:g} N: clamped to them", stacklevel=3)
+
+    # ------------------------------------------------------------------ state
+    def reset(self) -> None:
+        """A new stroke: zero every filter state, the gain ramps and the speed estimate."""
+        from fydpad.texture.synthesis import CentroidSpeed
+
+        self._yh = np.zeros(self.p)  # render: newest first, at the model rate
+        self._eh = np.zeros(self.q)
+        self._rzi: Array | None = None
+        self._rg = 0.0
+        self.speed = CentroidSpeed(cutoff_hz=10.0, rest_after_s=self.stop_s)
+        self._f = math.nan
+        self._g = 0.0
+        if self._tick_ready:
+            self._state[:] = 0.0
+
+    def prepare(self) -> None:
+        """Build the tick path for ``rate_hz`` (the station sets it) before the loop."""
+        ratio = self.ms.fs_hz / self.rate_hz
+        r = round(ratio)
+        if r < 1 or abs(ratio - r) > 1e-9 * ratio:
+            raise UserError(f"{self.path}: <SampleRate> {self.ms.fs_hz:g} Hz is not a whole "
+                            f"multiple of the render rate {self.rate_hz:g} Hz")
+        self.channels["vibration"] = self.rate_hz
+        self.ratio = r
+        self.sos = decimation_sos(r, self.rate_hz)
+        self._W = self._tick_matrices(r, self.sos)
+        self._d = self._W.shape[1] - 1
+        self._state = np.zeros(self._d + r)  # [y hist, e hist, low-pass state, R noises]
+        self._out = np.zeros(self._d + 1)
+        self._noise = np.zeros(r * _NOISE_TICKS)
+        self._npos = self._noise.size
+        self._dt_s = 1.0 / self.rate_hz
+        self._alpha = 1.0 - math.exp(-1.0 / (max(self.ramp_s, 1e-9) * self.rate_hz))
+        self._tick_ready = True
+
+    def _tick_matrices(self, r: int, sos: Array) -> Array:
+        """W (cells, d + 1, d + r): one tick of R model samples as a linear map of
+        v = [y(k-1..k-p), e(k-1..k-q), low-pass state, n(1..R)] (n standard normal) to
+        the next state and, in the last row, the low-pass output at the R-th sample."""
+        a, bg, sig = self.den, self.num, self.sigma
+        c, p, q, s = a.shape[0], self.p, self.q, sos.shape[0]
+        d = p + q + 2 * s
+        eye = np.eye(d + r)
+        yh = np.repeat(eye[None, :p], c, axis=0)  # each state variable as a row over v
+        eh = np.repeat(eye[None, p:p + q], c, axis=0)
+        z = np.repeat(eye[None, p + q:d].reshape(1, s, 2, d + r), c, axis=0)
+        x = np.zeros((c, d + r))
+        for k in range(r):
+            e = sig[:, None] * eye[d + k][None, :]
+            y = bg[:, :1] * e
+            if p:
+                y -= np.einsum("cp,cpd->cd", a[:, 1:], yh)
+            if q:
+                y += np.einsum("cq,cqd->cd", bg[:, 1:], eh)
+                eh = np.concatenate([e[:, None], eh[:, :-1]], axis=1)
+            if p:
+                yh = np.concatenate([y[:, None], yh[:, :-1]], axis=1)
+            x = y
+            for j in range(s):  # transposed direct form II, as scipy's sosfilt
+                b0, b1, b2, _, a1, a2 = sos[j]
+                o = b0 * x + z[:, j, 0]
+                z[:, j, 0] = b1 * x - a1 * o + z[:, j, 1]
+                z[:, j, 1] = b2 * x - a2 * o
+                x = o
+        w = np.concatenate([yh, eh, z.reshape(c, 2 * s, d + r), x[:, None]], axis=1)
+        return np.ascontiguousarray(w)
+
+    # ------------------------------------------------------------------ 1 kHz loop
+    def tick(self, t_s: float, contact: bool, x_mm: float, y_mm: float,
+             speed_mm_s: float, force_n: float) -> tuple[float]:
+        if not self._tick_ready:
+            self.prepare()  # the station calls prepare() before the loop
+        self.speed.sample(t_s, x_mm, y_mm, contact)
+        v = self.speed.tick(self._dt_s)
+        if force_n == force_n and force_n != math.inf:
+            self._f = force_n
+        f = self._f if self._f == self._f else self.default_force_n
+        ns, nf = self._grid
+        i = int(v * self._inv_ds + 0.5)
+        if i >= ns:
+            i = ns - 1
+            self._warn_clamp(v, f)
+        fj = f * self._inv_df + 0.5
+        j = int(fj) if fj > 0.0 else 0
+        if j >= nf:
+            j = nf - 1
+            self._warn_clamp(v, f)
+        r = self.ratio
+        pos = self._npos
+        if pos + r > self._noise.size:
+            self._rng.standard_normal(out=self._noise)
+            pos = 0
+        st, out, d = self._state, self._out, self._d
+        st[d:] = self._noise[pos:pos + r]
+        self._npos = pos + r
+        np.dot(self._W[i * nf + j], st, out=out)
+        st[:d] = out[:d]
+        target = 1.0 if (self.speed.contact and v >= self.still_mm_s) else 0.0
+        self._g += self._alpha * (target - self._g)
+        return (self._g * out[d],)
+
+    # ------------------------------------------------------------------ offline
+    def render(self, finger: FingerBlock, channel: str = "vibration") -> Array:
+        """The block's vibration at ``finger.fs_hz`` from its speed and force (m/s^2)."""
+        if channel not in self.channels:
+            raise UserError(f"a penn model renders {', '.join(self.channels)}; not {channel!r}")
+        n = finger.t_s.size
+        if n == 0:
+            return np.zeros(0)
+        fs, fo = self.ms.fs_hz, float(finger.fs_hz)
+        speed = np.where(np.isfinite(finger.speed_mm_s), finger.speed_mm_s, 0.0)
+        force = _hold_finite(finger.force_n, self._f if self._f == self._f
+                             else self.default_force_n)
+        self._f = float(force[-1])
+        bad = (speed > self.ms.max_speed_mm_s) | (force > self.ms.max_force_n)
+        if bad.any():
+            k = int(np.argmax(bad))
+            self._warn_clamp(float(speed[k]), float(force[k]))
+        cells = self.cells(speed, force)
+        on = finger.contact & (speed >= self.still_mm_s)
+        ratio = fs / fo
+        r = round(ratio)
+        whole = r >= 1 and abs(ratio - r) <= 1e-9 * ratio
+        if whole:
+            cm = np.repeat(cells, r)
+        else:
+            m = round(n * ratio)
+            cm = cells[np.minimum((np.arange(m) / ratio).astype(np.int64), n - 1)]
+        y = self._arma(cm)
+        alpha = 1.0 - math.exp(-1.0 / (max(self.ramp_s, 1e-9) * (fo if whole else fs)))
+        if whole:
+            if r > 1:
+                sos = decimation_sos(r, fo)
+                if self._rzi is None or self._rzi.shape[0] != sos.shape[0]:
+                    self._rzi = np.zeros((sos.shape[0], 2))
+                y, self._rzi = ss.sosfilt(sos, y, zi=self._rzi)
+                y = y[r - 1::r]
+            return y * self._ramp(on.astype(float), alpha)
+        target = on[np.minimum((np.arange(y.size) / ratio).astype(np.int64), n - 1)]
+        y = y * self._ramp(target.astype(float), alpha)
+        fr = Fraction(fo / fs).limit_denominator(1000)
+        out = ss.resample_poly(y, fr.numerator, fr.denominator)
+        return np.pad(out[:n], (0, max(0, n - out.size)))
+
+    def warmup(self, speed_mm_s: float, force_n: float, fs_hz: float, seconds: float = 0.5
+               ) -> None:
+        """Render ``seconds`` at (speed, force) and drop them: a steady synthesis starts
+        with its filters and gate in their stationary state (``fydpad texture synth``)."""
+        from fydpad.texture.families import constant_stroke
+
+        self.render(constant_stroke(speed_mm_s, seconds, fs_hz, force_n=force_n))
+
+    def _ramp(self, target: Array, alpha: float) -> Array:
+        g, _ = ss.lfilter([alpha], [1.0, alpha - 1.0], target, zi=[(1.0 - alpha) * self._rg])
+        self._rg = float(g[-1])
+        return g
+
+    def _arma(self, cells: NDArray[np.int64]) -> Array:
+        """The toolkit's recursion at the model rate over runs of one grid point."""
+        m = cells.size
+        e = self._rng.standard_normal(m) * self.sigma[cells]
+        y = np.empty(m)
+        edges = np.concatenate([[0], np.flatnonzero(np.diff(cells)) + 1, [m]])
+        p, q = self.p, self.q
+        for s0, s1 in pairwise(edges.tolist()):
+            c = cells[s0]
+            a, b = self.den[c], self.num[c]
+            zi = ss.lfiltic(b, a, self._yh, self._eh) if max(p, q) else None
+            if zi is None:
+                y[s0:s1] = b[0] * e[s0:s1]
+            else:
+                y[s0:s1], _ = ss.lfilter(b, a, e[s0:s1], zi=zi)
+            if p:
+                self._yh = np.concatenate([y[s0:s1][::-1], self._yh])[:p]
+            if q:
+                self._eh = np.concatenate([e[s0:s1][::-1], self._eh])[:q]
+        return y
+
+
+def _hold_finite(x: Array, first: float) -> Array:
+    """``x`` with every non-finite sample replaced by the last finite one before it."""
+    x = np.asarray(x, float)
+    ok = np.isfinite(x)
+    if ok.all():
+        return x
+    idx = np.where(ok, np.arange(x.size), -1)
+    np.maximum.accumulate(idx, out=idx)
+    return np.where(idx >= 0, x[np.maximum(idx, 0)], first)
+
+
+def load_penn_family(path: str | Path) -> PennTexture:
+    """``fydpad run --texture penn:FILE.xml``: the model set of a HaTT XML file."""
+    return PennTexture(read_penn(path), str(path))
+
+
+def _register() -> None:
+    from fydpad.texture.families import Kind, register_kind
+
+    def from_json(data: dict, where: str) -> PennTexture:
+        raise UserError(f"{where}: penn models are HaTT XML files (penn:FILE.xml), not JSON")
+
+    register_kind(Kind("penn", from_json, None,
+                       "Penn Haptic Texture Toolkit ARMA models over speed and force (XML)",
+                       from_file=load_penn_family))
+
+
+_register()
