@@ -250,9 +250,11 @@ def run(args: argparse.Namespace) -> int:
     if args.record:
         Path(args.record).mkdir(parents=True, exist_ok=True)
     if args.texture:  # a bad model file fails here, in one line, not in the render process
+        from fydpad.station.texture_source import check_family_rate
         from fydpad.texture.families import load_family
 
         family = load_family(args.texture)
+        check_family_rate(family, config.loops.render_hz, args.texture)  # else a wrong pitch
         if (args.texture_method or args.drive_filter) and not hasattr(family, "drive_filter"):
             raise UserError(f"{args.texture}: --texture-method and --drive-filter apply to LPC "
                             f"texture models, this one is {family.kind!r}")

@@ -282,6 +282,43 @@ def _load_model(path: str):
     return load_model(path)
 
 
+def _check_out(path: str | None, option: str) -> None:
+    """An output file's folder must exist and the path not be a folder: a one-line error
+    before the work (a fit takes minutes), not a traceback after it."""
+    if path is None:
+        return
+    out = Path(path)
+    if out.is_dir():
+        raise UserError(f"{option} {path}: is a directory, expected a file name")
+    folder = out.parent
+    if not folder.is_dir():
+        raise UserError(f"{option} {path}: directory {folder} does not exist "
+                        f"(mkdir -p {folder})")
+
+
+def _make_dir(path: str, option: str) -> Path:
+    """``--out-dir``: created with its parents; a path that cannot be is one line."""
+    out = Path(path)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"{option} {path}: cannot be created ({exc.strerror})") from None
+    return out
+
+
+def _print_warnings(command: str, where: str, caught: list) -> None:
+    """Python warnings as one line each (``fydpad texture fit: warning: FILES: ...``),
+    each message once, instead of the file:line and source line of the default."""
+    for msg in dict.fromkeys(str(w.message) for w in caught):
+        print(f"fydpad texture {command}: warning: {where}: {msg}", file=sys.stderr)
+
+
+def _scan_names(paths: list[str]) -> str:
+    """The scans a warning is about, shortened past three."""
+    return ", ".join(paths) if len(paths) <= 3 else (
+        f"{paths[0]}, {paths[1]} and {len(paths) - 2} more scans")
+
+
 def _ratio(text: str | None) -> tuple[int, int] | None:
     if text is None:
         return None
@@ -295,6 +332,8 @@ def _ratio(text: str | None) -> tuple[int, int] | None:
 
 
 def run_fit(args: argparse.Namespace) -> int:
+    _check_out(args.out, "--out")
+    _check_out(args.plot, "--plot")
     if args.kind != "lpc":
         return _run_fit_family(args)
     if not args.scans:
@@ -368,13 +407,17 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
     if len(args.drive_band) != 2:
         raise UserError("--drive-band needs LO,HI")
     scans = _load_scans(args.scans)
-    model, reports = fit_texture(
-        scans, order=args.order, speeds_mm_s=args.speeds, tolerance_mm_s=args.tolerance,
-        highpass_hz=args.highpass_hz, min_seconds=args.min_seconds, method=args.method,
-        surface=args.surface, drive_band_hz=tuple(args.drive_band),
-        prewhiten_order=args.prewhiten_order, speed_normalise=args.speed_normalise,
-        two_part=args.two_part,
-        wrap=lambda it: progress(it, total=len(scans), desc="fit"))
+    _check_fit_options(args, scans[0].fs_hz)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        model, reports = fit_texture(
+            scans, order=args.order, speeds_mm_s=args.speeds, tolerance_mm_s=args.tolerance,
+            highpass_hz=args.highpass_hz, min_seconds=args.min_seconds, method=args.method,
+            surface=args.surface, drive_band_hz=tuple(args.drive_band),
+            prewhiten_order=args.prewhiten_order, speed_normalise=args.speed_normalise,
+            two_part=args.two_part,
+            wrap=lambda it: progress(it, total=len(scans), desc="fit"))
+    _print_warnings("fit", _scan_names(args.scans), caught)
     save_model(model, args.out)
     g2 = 9.80665**2
     print(f"{args.out}: surface {model.surface}, order {model.order}, {model.fs_hz:g} Hz")
@@ -404,9 +447,28 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_fit_options(args: argparse.Namespace, fs_hz: float) -> None:
+    """The fit's filters and targets against the scans' rate: each option that would
+    fail in the fit (a traceback) or be written into the model (failing on reading)."""
+    nyq = fs_hz / 2
+    where = f"the scans' Nyquist frequency {nyq:g} Hz"
+    if not (math.isfinite(args.highpass_hz) and 0 <= args.highpass_hz < nyq):
+        raise UserError(f"--highpass-hz {args.highpass_hz:g}: must be >= 0 and below {where}")
+    lo, hi = args.drive_band
+    if not (0 < lo < hi < nyq):
+        raise UserError(f"--drive-band {lo:g},{hi:g}: need 0 < LO < HI < {where}")
+    if not args.speeds or not all(math.isfinite(v) and v > 0 for v in args.speeds):
+        raise UserError(f"--speeds {','.join(f'{v:g}' for v in args.speeds)}: every target "
+                        "speed must be > 0 mm/s")
+    if not (math.isfinite(args.tolerance) and args.tolerance >= 0):
+        raise UserError(f"--tolerance {args.tolerance:g}: must be >= 0 mm/s")
+
+
 def run_synth(args: argparse.Namespace) -> int:
     from fydpad.texture.families import spec_kind
 
+    if not _is_audio(args.out):
+        _check_out(args.out, "--out")
     kind = spec_kind(args.model)
     if args.kind is not None and args.kind != kind:
         raise UserError(f"{args.model}: key 'kind' is {kind!r}, not --kind {args.kind}")
@@ -536,6 +598,7 @@ def run_staircase(args: argparse.Namespace) -> int:
     from fydpad.web.experiment import ExperimentError
     from fydpad.web.staircase import StaircaseSession
 
+    _check_out(args.log, "--log")
     try:
         session = StaircaseSession.from_log(args.log, args.start, args.step)
     except ExperimentError as exc:
@@ -575,6 +638,8 @@ def run_staircase(args: argparse.Namespace) -> int:
 def run_evaluate(args: argparse.Namespace) -> int:
     from fydpad.texture.families import spec_kind
 
+    _check_out(args.json, "--json")
+    _check_out(args.plot, "--plot")
     if spec_kind(args.model) != "lpc":
         return _run_evaluate_family(args)
     from fydpad.texture.evaluate import evaluate_scan, evaluation_mask
@@ -645,6 +710,8 @@ def _run_evaluate_family(args: argparse.Namespace) -> int:
 def run_identify(args: argparse.Namespace) -> int:
     from fydpad.texture.families import spec_kind
 
+    _check_out(args.json, "--json")
+    _check_out(args.plot, "--plot")
     kinds = {spec_kind(p) for p in args.models}
     if kinds != {"lpc"}:
         return _run_identify_family(args, kinds)
@@ -655,7 +722,8 @@ def run_identify(args: argparse.Namespace) -> int:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         ident = identify(models, scans, method=args.method, distance=args.distance,
-                         wrap=lambda it: progress(it, total=len(scans), desc="identify"))
+                         wrap=lambda it: progress(it, total=len(scans), desc="identify"),
+                         model_names=args.models)
     print(f"identification rate {ident.rate:.1%} ({len(scans)} scans, {len(models)} models)")
     if args.json:
         Path(args.json).write_text(json.dumps(ident.to_json(), indent=1) + "\n",
@@ -706,8 +774,7 @@ def run_compare(args: argparse.Namespace) -> int:
     if unknown:
         raise UserError(f"--kinds: unknown {', '.join(unknown)}")
     train, test = read_scans(args.train), read_scans(args.scans)
-    out_dir = Path(args.out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    out_dir = _make_dir(args.out_dir, "--out-dir")
     result: dict = {"train": args.train, "scans": args.scans, "families": {}}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -758,8 +825,7 @@ def run_generate(args: argparse.Namespace) -> int:
     unknown = [n for n in names if n not in TEXTURES]
     if unknown:
         raise UserError(f"--textures: unknown {', '.join(unknown)} (known: {', '.join(TEXTURES)})")
-    out = Path(args.out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = _make_dir(args.out_dir, "--out-dir")
     jobs = [(n, s, args.seed + k) for n in names for s in args.speeds for k in range(args.strokes)]
     for n, s, seed in progress(jobs, total=len(jobs), desc="generate"):
         scan = generate_scan(n, s, args.seconds, seed=seed, friction=args.friction)

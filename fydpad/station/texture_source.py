@@ -4,8 +4,11 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
+
+from fydpad.errors import UserError
 
 
 class TextureSource:
@@ -26,6 +29,8 @@ class TextureSource:
         # A path, or an already loaded model (the LPC family of fydpad.texture.families).
         self.model = (model_path if isinstance(model_path, TextureModel)
                       else load_model(model_path))
+        check_render_rate(self.model, rate_hz, str(model_path) if not isinstance(
+            model_path, TextureModel) else f"texture model '{self.model.surface}'")
         # The interpolation the commands evaluate (`fydpad texture evaluate`) is the one felt.
         self.method = method or DEFAULT_METHOD
         self.renderer = TextureRenderer(self.model, method=self.method,
@@ -51,6 +56,24 @@ class TextureSource:
         return v
 
 
+def check_render_rate(model: Any, rate_hz: float, where: str) -> None:
+    """An LPC model renders one sample per tick: a model at another ``sample_rate_hz``
+    would play at rate_hz / fs_hz times its pitch, so it is refused (naming ``where``)."""
+    fs = float(model.fs_hz)
+    if not abs(fs - rate_hz) <= 1e-6 * rate_hz:
+        raise UserError(f"{where}: key 'sample_rate_hz' is {fs:g} Hz, the station renders at "
+                        f"{rate_hz:g} Hz (fit the model on scans at {rate_hz:g} Hz)")
+
+
+def check_family_rate(family: Any, rate_hz: float, spec: str) -> None:
+    """``check_render_rate`` for a family that renders an LPC model (its ``model``)."""
+    from fydpad.texture.model_file import TextureModel
+
+    model = getattr(family, "model", None)
+    if isinstance(model, TextureModel):
+        check_render_rate(model, rate_hz, spec)
+
+
 def open_texture(spec: str, rate_hz: float, method: str | None = None,
                  drive_filter: bool = False):
     """The texture family of ``MODEL.json`` or ``KIND:MODEL.json`` (issue 9), for ``tick``.
@@ -59,10 +82,10 @@ def open_texture(spec: str, rate_hz: float, method: str | None = None,
     ``method`` (an LPC model's interpolation) and ``drive_filter`` (its drive band) apply
     to the families that render an LPC model; another family given them is an error.
     """
-    from fydpad.errors import UserError
     from fydpad.texture.families import load_family
 
     family = load_family(spec)
+    check_family_rate(family, rate_hz, spec)
     for name, value in (("method", method), ("drive_filter", drive_filter or None)):
         if value is None:
             continue

@@ -36,6 +36,7 @@ from itertools import pairwise
 import numpy as np
 from numpy.typing import NDArray
 
+from fydpad.errors import UserError
 from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import BAND_HZ, evaluation_mask, lsd_db, welch_psd
 from fydpad.texture.interpolation import DEFAULT_METHOD
@@ -89,11 +90,17 @@ DISTANCES: dict[str, Callable[[Array, Array, Array], float]] = {
 
 def identify(models: Sequence[TextureModel], scans: Sequence[Scan], *, method: str = DEFAULT_METHOD,
              distance: str = "bands", seed: int = 0,
-             wrap: Callable[[Iterable], Iterable] = lambda it: it) -> Identification:
+             wrap: Callable[[Iterable], Iterable] = lambda it: it,
+             model_names: Sequence[str] | None = None) -> Identification:
     """Assign every scan to the model with the nearest synthesized spectrum (``distance``:
-    ``"bands"`` or ``"lsd"``, module docstring)."""
+    ``"bands"`` or ``"lsd"``, module docstring). ``model_names`` (the model files) name
+    the models in errors; a scan at another rate than a model, or too short for one
+    spectrum, is a UserError naming the scan."""
     if distance not in DISTANCES:
         raise ValueError(f"distance {distance!r}: expected one of {', '.join(DISTANCES)}")
+    names = list(model_names) if model_names is not None else [
+        f"model '{m.surface}'" for m in models]
+    _check_rates(models, names, scans)
     dist_fn = DISTANCES[distance]
     model_labels = [m.surface for m in models]
     labels = list(dict.fromkeys(model_labels + [s.surface for s in scans]))
@@ -107,7 +114,12 @@ def identify(models: Sequence[TextureModel], scans: Sequence[Scan], *, method: s
             if mask.sum() < scan.fs_hz / 2:
                 mask = scan.speed_mm_s > 1.0
             rec = preprocess(scan.acc, scan.fs_hz, m.highpass_hz)
-            f, pr = welch_psd(rec, scan.fs_hz, mask)
+            try:
+                f, pr = welch_psd(rec, scan.fs_hz, mask)
+            except ValueError as exc:  # the synthesis has the same mask: one check
+                raise UserError(f"{scan.path}: too short to identify ({scan.t_s.size} rows, "
+                                f"{int(mask.sum())} of them scanning by column "
+                                f"'speed_mm_s'): {exc}") from None
             r.reset()
             r.reseed(seed)  # each scan's synthesis independent of the scans before it
             r.warmup(float(scan.speed_mm_s[0]), 0.5)
@@ -123,6 +135,18 @@ def identify(models: Sequence[TextureModel], scans: Sequence[Scan], *, method: s
                                             zip(model_labels, dists, strict=True)}})
     rate = float(np.trace(conf) / max(1, conf.sum()))
     return Identification(labels, conf.tolist(), rate, assignments)
+
+
+def _check_rates(models: Sequence[TextureModel], names: Sequence[str],
+                 scans: Sequence[Scan]) -> None:
+    """The synthesis runs at the model's rate along the scan's samples: at another rate
+    its spectrum is stretched (a 2 kHz model on 1 kHz scans: an octave down), so the
+    scores would mean nothing; evaluate_scan refuses it the same way."""
+    for scan in scans:
+        for m, name in zip(models, names, strict=True):
+            if abs(scan.fs_hz - m.fs_hz) > 1e-6 * m.fs_hz:
+                raise UserError(f"{scan.path}: column 't_s': sample rate {scan.fs_hz:g} Hz, "
+                                f"{name}: key 'sample_rate_hz' {m.fs_hz:g} Hz")
 
 
 def plot_confusion(path: str, ident: Identification, title: str = "") -> None:

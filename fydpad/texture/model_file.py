@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -79,6 +80,86 @@ def _get(d: dict[str, Any], key: str, where: str) -> Any:
     return d[key]
 
 
+# -- header and entry checks: every value the renderer uses, named by its key, so a bad
+# file fails on reading in one line, not in the render loop after the station started.
+def _number(data: dict[str, Any], key: str, where: str, default: float | None, *,
+            minimum: float, above: bool = False) -> float:
+    """``data[key]`` (``default`` when absent; required when None) as a finite number
+    >= ``minimum`` (> when ``above``)."""
+    v = _get(data, key, where) if default is None else data.get(key, default)
+    if (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+            or not (v > minimum if above else v >= minimum)):
+        raise UserError(f"{where}: key '{key}' must be a finite number "
+                        f"{'>' if above else '>='} {minimum:g}, not {_short(v)}")
+    return float(v)
+
+
+def _band(data: dict[str, Any], key: str, where: str, default: Any, fs_hz: float,
+          open_ends: bool) -> tuple[float, float]:
+    """``data[key]`` as [lo, hi] Hz within 0..Nyquist, lo < hi (``open_ends``: 0 < lo and
+    hi < Nyquist, as a band-pass filter needs)."""
+    v = data.get(key, default)
+    nyq = fs_hz / 2
+    ok = (isinstance(v, (list, tuple)) and len(v) == 2
+          and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                  for x in v)
+          and (0 < v[0] < v[1] < nyq if open_ends else 0 <= v[0] < v[1] <= nyq))
+    if not ok:
+        rel = "0 < lo < hi <" if open_ends else "0 <= lo < hi <="
+        raise UserError(f"{where}: key '{key}' must be [lo, hi] with {rel} {nyq:g} Hz "
+                        f"(Nyquist of 'sample_rate_hz'), not {_short(v)}")
+    return float(v[0]), float(v[1])
+
+
+def _header(data: dict[str, Any], where: str) -> tuple[float, dict[str, Any]]:
+    """The sample rate and the checked header fields (TextureModel keyword arguments)."""
+    fs = _number(data, "sample_rate_hz", where, None, minimum=0.0, above=True)
+    hp = _number(data, "highpass_hz", where, 10.0, minimum=0.0)
+    if hp >= fs / 2:
+        raise UserError(f"{where}: key 'highpass_hz' {hp:g} Hz must be below the Nyquist "
+                        f"frequency {fs / 2:g} Hz of 'sample_rate_hz'")
+    drive = data.get("drive_band_hz", (165.0, 220.0))
+    provenance = data.get("provenance", {})
+    if not isinstance(provenance, dict):
+        raise UserError(f"{where}: key 'provenance' must be an object, not "
+                        f"{_short(provenance)}")
+    return fs, {
+        "highpass_hz": hp,
+        "fit_band_hz": _band(data, "fit_band_hz", where, (hp, fs / 2), fs, False),
+        "drive_band_hz": (None if drive is None
+                          else _band(data, "drive_band_hz", where, drive, fs, True)),
+        "gain": _number(data, "gain", where, 1.0, minimum=0.0),
+        "tolerance_mm_s": _number(data, "speed_tolerance_mm_s", where, 5.0, minimum=0.0),
+        "provenance": dict(provenance),
+    }
+
+
+def _check_entry(speed_mm_s: float, sigma2: float, h: Array, where: str) -> None:
+    """One ``models[i]``: a positive speed, a positive residual variance (sigma2 = 0 is
+    a singular spectrum for the interpolation), a non-empty finite ``h``."""
+    if not (math.isfinite(speed_mm_s) and speed_mm_s > 0):
+        raise UserError(f"{where}: key 'speed_mm_s' must be a finite speed > 0 mm/s, "
+                        f"not {speed_mm_s:g}")
+    if not (math.isfinite(sigma2) and sigma2 > 0):
+        raise UserError(f"{where}: key 'sigma2' must be a finite variance > 0, not {sigma2:g}")
+    if h.ndim != 1 or h.size == 0 or not np.isfinite(h).all():
+        raise UserError(f"{where}: key 'h' must be a non-empty list of finite numbers")
+
+
+def _check_order(data: dict[str, Any], p: int, where: str) -> None:
+    """Key ``order``, when present, is the number of coefficients in every ``h``."""
+    o = data.get("order", p)
+    if isinstance(o, bool) or not isinstance(o, (int, float)) or o != p:
+        raise UserError(f"{where}: key 'order' is {_short(o)}, but models[].h have {p} "
+                        "coefficients")
+
+
+def _short(v: Any) -> str:
+    """A value for a one-line message (a long list cut)."""
+    r = repr(v)
+    return r if len(r) <= 40 else r[:37] + "..."
+
+
 def parse_model(data: Any, where: str = "model") -> TextureModel:
     """Check and convert a parsed JSON model; errors name the file and the key."""
     if not isinstance(data, dict) or data.get("format") != FORMAT:
@@ -89,7 +170,7 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
             f"{where}: key 'format_version' is {version!r}; this fydpad reads version "
             f"{FORMAT_VERSION} only (refit the model with 'fydpad texture fit')"
         )
-    fs = float(_get(data, "sample_rate_hz", where))
+    fs, head = _header(data, where)
     models = _get(data, "models", where)
     if not isinstance(models, list) or not models:
         raise UserError(f"{where}: key 'models' must be a non-empty list")
@@ -102,29 +183,23 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
             hs.append(np.asarray(_get(m, "h", w), float))
         except (TypeError, ValueError) as exc:
             raise UserError(f"{w}: {exc}") from None
-        if not np.isfinite(hs[-1]).all() or not np.isfinite(sig[-1]) or sig[-1] < 0:
-            raise UserError(f"{w}: 'h' or 'sigma2' is not finite and non-negative")
+        _check_entry(speeds[-1], sig[-1], hs[-1], w)
         if hs[-1].size != hs[0].size:
             raise UserError(f"{w}: key 'h' has {hs[-1].size} coefficients, models[0] has "
                             f"{hs[0].size}")
         if not is_stable(poly_from_h(hs[-1])):
             raise UserError(f"{w}: key 'h' is an unstable filter")
+    _check_order(data, hs[0].size, where)
     order = np.argsort(speeds)
     if np.any(np.diff(np.asarray(speeds)[order]) <= 0):
         raise UserError(f"{where}: key 'models' has two models at the same speed")
-    band = data.get("drive_band_hz", (165.0, 220.0))
     return TextureModel(
         surface=str(data.get("surface", "")),
         fs_hz=fs,
         speeds_mm_s=np.asarray(speeds)[order],
         h=np.vstack(hs)[order],
         sigma2=np.asarray(sig)[order],
-        highpass_hz=float(data.get("highpass_hz", 10.0)),
-        fit_band_hz=tuple(data.get("fit_band_hz", (10.0, fs / 2))),
-        drive_band_hz=None if band is None else (float(band[0]), float(band[1])),
-        gain=float(data.get("gain", 1.0)),
-        tolerance_mm_s=float(data.get("speed_tolerance_mm_s", 5.0)),
-        provenance=dict(data.get("provenance", {})),
+        **head,
         two_part=_two_part(data.get("two_part"), where),
     )
 

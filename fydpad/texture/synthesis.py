@@ -203,7 +203,10 @@ class TextureRenderer:
 
     # -------------------------------------------------------------- per sample
     def tick(self, speed_mm_s: float, contact: bool = True) -> float:
-        """One output sample (m/s^2) for the current speed and contact: eq. 5."""
+        """One output sample (m/s^2) for the current speed and contact: eq. 5. A speed that
+        is not finite (NaN, inf) is no speed: silence, as a lost track."""
+        if not math.isfinite(speed_mm_s):  # else the table index raises (NaN, inf)
+            speed_mm_s, contact = 0.0, False
         t = self.table
         i = t.index(speed_mm_s)
         if self._noise_pos >= _NOISE_CHUNK:
