@@ -244,11 +244,31 @@ def read_csv_columns(
     return {c: np.asarray(v, dtype=np.float64) for c, v in columns.items()}
 
 
+def csv_data_line(path: str | Path, row: int) -> int:
+    """The file line (1-based) of data row ``row`` (0-based) as :func:`read_csv_columns`
+    counts rows (``#`` lines before the header, the header, blank lines skipped); -1 if
+    there is no such row. For error messages only: it reads the file again."""
+    with Path(path).open(newline="", encoding="utf-8") as fh:
+        reader = csv.reader(fh)
+        for r in reader:
+            if not (r and r[0].lstrip().startswith("#")):
+                break  # the header
+        k = -1
+        for r in reader:
+            if not r or (len(r) == 1 and not r[0].strip()):
+                continue
+            k += 1
+            if k == row:
+                return reader.line_num
+    return -1
+
+
 def _check_increasing(path: Path, t_s: NDArray[np.float64]) -> None:
     bad = np.flatnonzero(np.diff(t_s) < 0)
     if bad.size:
-        # +2: the header is line 1 and diff index i compares rows i and i+1.
-        raise RecordingError(f"{path}: line {int(bad[0]) + 3}: column 't_s' goes back in time")
+        # diff index i compares data rows i and i + 1: the later one is at fault.
+        line = csv_data_line(path, int(bad[0]) + 1)
+        raise RecordingError(f"{path}: line {line}: column 't_s' goes back in time")
 
 
 class CsvRowWriter:

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.accel.base import ACCEL_COLUMNS, AccelError
-from vision.recording import RecordingError, read_csv_columns
+from vision.recording import RecordingError, csv_data_line, read_csv_columns
 
 
 def read_accel_csv(path: str | Path) -> NDArray[np.float64]:
@@ -27,8 +27,9 @@ def read_accel_csv(path: str | Path) -> NDArray[np.float64]:
     data = np.column_stack([cols[c] for c in ACCEL_COLUMNS])
     bad = np.flatnonzero(np.diff(data[:, 0]) <= 0)
     if bad.size:
-        # header is line 1; diff index i compares data rows i and i+1 (lines i+2, i+3)
-        raise AccelError(f"{path}: line {int(bad[0]) + 3}: column 't_s' does not increase")
+        # diff index i compares data rows i and i + 1: the later one is at fault.
+        line = csv_data_line(path, int(bad[0]) + 1)
+        raise AccelError(f"{path}: line {line}: column 't_s' does not increase")
     return data
 
 

@@ -6,7 +6,6 @@
 
 from __future__ import annotations
 
-import csv
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,7 +14,7 @@ import numpy as np
 import scipy.signal as ss
 from numpy.typing import NDArray
 
-from vision.recording import CsvRowWriter, RecordingError, read_csv_columns
+from vision.recording import CsvRowWriter, RecordingError, csv_data_line, read_csv_columns
 
 Array = NDArray[np.float64]
 REQUIRED = ("t_s", "ax", "ay", "az")
@@ -69,25 +68,6 @@ def speed_from_position(t_s: Array, x_mm: Array, y_mm: Array, cutoff_hz: float =
     return np.hypot(vx, vy)
 
 
-def _data_line(path: Path, row: int) -> int:
-    """The file line (1-based) of data row ``row`` (0-based), counted as
-    ``read_csv_columns`` reads: ``#`` lines before the header, then the header, blank
-    lines skipped. Only on an error path: the file is read again."""
-    with path.open(newline="", encoding="utf-8") as fh:
-        reader = csv.reader(fh)
-        for r in reader:
-            if not (r and r[0].lstrip().startswith("#")):
-                break  # the header
-        k = -1
-        for r in reader:
-            if not r or (len(r) == 1 and not r[0].strip()):
-                continue
-            k += 1
-            if k == row:
-                return reader.line_num
-    return -1
-
-
 def read_scan(path: str | Path, rate_tolerance: float = 0.01) -> Scan:
     """Read and check a scan; errors name the file and the field."""
     path = Path(path)
@@ -98,14 +78,14 @@ def read_scan(path: str | Path, rate_tolerance: float = 0.01) -> Scan:
     dt = np.diff(t)
     if np.any(dt <= 0):
         i = int(np.flatnonzero(dt <= 0)[0])
-        raise RecordingError(f"{path}: line {_data_line(path, i + 1)}: column 't_s' does not "
+        raise RecordingError(f"{path}: line {csv_data_line(path, i + 1)}: column 't_s' does not "
                              "increase")
     med = float(np.median(dt))
     dev = np.abs(dt - med) > rate_tolerance * med
     if np.any(dev):
         i = int(np.flatnonzero(dev)[0])
         raise RecordingError(
-            f"{path}: line {_data_line(path, i + 1)}: column 't_s' is unevenly sampled (step "
+            f"{path}: line {csv_data_line(path, i + 1)}: column 't_s' is unevenly sampled (step "
             f"{dt[i]:.6g} s against {med:.6g} s); resample the recording to a constant rate"
         )
     acc = np.column_stack([cols["ax"], cols["ay"], cols["az"]])

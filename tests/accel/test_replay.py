@@ -26,6 +26,9 @@ def test_replay_all_rows(tmp_path):
     (["0,1,2,3", "0.001,1,x,3"], None, r"line 3: column 'ay_m_s2'"),
     (["0,1,2,3", "0.001,1,2"], None, r"line 3: expected 4 fields"),
     (["0,1,2,3", "0,1,2,3"], None, r"line 3: column 't_s' does not increase"),
+    # A comment above the header and a blank line move the rows down: the real line.
+    (["0,1,2,3", "", "0.001,1,2,3", "0.001,1,2,3"], "# sensor=adxl\nt_s,ax_m_s2,ay_m_s2,az_m_s2",
+     r"line 6: column 't_s' does not increase"),
     (["0,1,2"], "t_s,ax_m_s2,ay_m_s2", r"missing column\(s\) az_m_s2"),
 ])
 def test_bad_rows_name_file_line_field(tmp_path, rows, header, match):
