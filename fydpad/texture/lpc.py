@@ -57,9 +57,7 @@ def levinson(r: ArrayLike, order: int) -> tuple[Array, float, Array]:
     return a, float(err), k
 
 
-def lpc_autocorrelation(
-    segments: Sequence[ArrayLike], order: int, lag_window_hz: float = 0.0, fs_hz: float = 1000.0
-) -> tuple[Array, float]:
+def lpc_autocorrelation(segments: Sequence[ArrayLike], order: int) -> tuple[Array, float]:
     """LPC over several segments: their autocorrelations summed (no seams), then Levinson.
 
     Returns (A, sigma^2) with sigma^2 in the signal's units squared. A small white-noise
@@ -74,9 +72,6 @@ def lpc_autocorrelation(
     if n <= order:
         raise ValueError(f"{n} samples cannot fit an order-{order} model")
     r = total / n
-    if lag_window_hz > 0:  # Gaussian lag window: smooths spectral lines by ~lag_window_hz
-        lags = np.arange(order + 1) / fs_hz
-        r = r * np.exp(-0.5 * (2 * np.pi * lag_window_hz * lags) ** 2)
     r[0] *= 1.0 + 1e-9
     a, err, _ = levinson(r, order)
     return a, err
