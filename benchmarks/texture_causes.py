@@ -8,6 +8,9 @@
     python benchmarks/texture_causes.py protocol SPEED HELD_S NxSECONDS HELD_SEED SECOND_SEED \
         TRAIN_SEED [TEXTURES]
     python benchmarks/texture_causes.py methods TRAIN_SEED HELD_SEED SECOND_SEED
+    python benchmarks/texture_causes.py forms SPEEDS HELD_SEED SECOND_SEED TRAIN_SEED \
+        [NxSECONDS HELD_S [TEXTURES [FORMS]]]
+    python benchmarks/texture_causes.py constant TEXTURE [TRAIN_SEED]
 
 ``modelled``: test_targets.py's former 14-texture set-up (one 5 s training stroke per speed,
 held-out 4 s stroke seed 50, ceiling seed 51), the gap (LSD - ceiling) and correlation
@@ -27,6 +30,19 @@ paper's plain method (linear interpolation of the pooled fit's coefficients).
 ``methods``: the pooled fit (two 10 s strokes per speed) rendered by "stretch" or by the
 paper's linear way, chosen per texture by two-fold cross-validation on the training
 strokes, scored on 12 s held-out strokes at 30 and 25 mm/s.
+``forms``: the spectral forms side by side on one seed set (default two 10 s training
+strokes per speed, 12 s held-out strokes, all textures): the pooled fit ("stretch", the
+default), the two-part model, the paper's linear interpolation of the pooled fit, the
+calibrated two-part model (``fit --free-form``), and on request (FORMS, comma-separated)
+``free``, ``surface`` (free_form.py's other forms) and ``hold5`` (the pooled fit held
+over the whole +-5 mm/s of each fitted speed: what the paper's linear way approximates
+near a fitted speed). Gap (LSD - ceiling) / correlation, ``*`` where both targets are
+met, the fit time, and the met count per form and speed.
+``constant``: how well the speed-resolved spectra (two-part, calibrated; fitted on two
+10 s strokes per speed from TRAIN_SEED, default 8) match the texture's spectrum at a
+*constant* speed (strokes without the hand's wander, 12 s, at 26-34 mm/s): correlation
+and LSD of S (with the render's +-1 mm/s average) against the Welch spectrum, beside a
+second constant-speed stroke.
 """
 
 from __future__ import annotations
@@ -255,6 +271,93 @@ def methods(train_seed: int, held_seed: int, second_seed: int) -> None:
     print("met at 30 mm/s:", met)
 
 
+FORM_FIT = {"pooled": {}, "two-part": {"two_part": True}, "linear": {},
+            "calibrated": {"free_form": "calibrated"}, "free": {"free_form": "free"},
+            "surface": {"free_form": "surface"}, "hold5": {}}
+
+
+def _evaluate(model, held, mask, form: str):
+    """evaluate_scan by the form's method; ``hold5``: "stretch" with every fitted model
+    held over +-5 mm/s (the renderer's table built with hold_mm_s=5)."""
+    if form != "hold5":
+        return evaluate_scan(model, held, method="linear" if form == "linear" else "stretch",
+                             mask=mask)[0]
+    import fydpad.texture.synthesis as synthesis
+
+    build = synthesis.build_table
+    synthesis.build_table = lambda m, method, step: build(m, method, step, hold_mm_s=5.0)
+    try:
+        return evaluate_scan(model, held, method="stretch", mask=mask)[0]
+    finally:
+        synthesis.build_table = build
+
+
+def forms(speeds: list[float], held_seed: int, second_seed: int, train_seed: int,
+          train: str = "2x10", held_s: float = 12.0, names: list[str] | None = None,
+          which: list[str] | None = None) -> None:
+    import time
+
+    k, train_s = int(train.split("x")[0]), float(train.split("x")[1])
+    which = which or ["pooled", "two-part", "linear", "calibrated"]
+    met = {(f, v): [] for f in which for v in speeds}
+    for n in names or list(TEXTURES):
+        t = [generate_scan(n, s, train_s, seed=train_seed + j) for s in SPEEDS for j in range(k)]
+        models, cost = {}, {}
+        for f in which:
+            same = "pooled" if f in ("linear", "hold5") and "pooled" in models else None
+            t0 = time.process_time()
+            models[f] = models[same] if same else fit_texture(t, **FORM_FIT[f])[0]
+            cost[f] = time.process_time() - t0
+        ref = models[which[0]]
+        for v in speeds:
+            held = generate_scan(n, v, held_s, seed=held_seed)
+            second = generate_scan(n, v, held_s, seed=second_seed)
+            mask = evaluation_mask(held, ref)
+            ceil, *_ = compare(preprocess(held.acc, 1000.0), preprocess(second.acc, 1000.0),
+                               1000.0, mask & evaluation_mask(second, ref))
+            row = []
+            for f in which:
+                c = _evaluate(models[f], held, mask, f)
+                ok = c.psd_correlation >= 0.95 and c.lsd_db <= ceil.lsd_db + 0.25
+                met[(f, v)] += [n] if ok else []
+                row.append(f"{f} {c.lsd_db - ceil.lsd_db:+.2f}/{c.psd_correlation:.3f}"
+                           + ("*" if ok else " "))
+            print(f"{n:15s} {v:g} ceiling {ceil.lsd_db:.2f}/{ceil.psd_correlation:.3f}  "
+                  + "  ".join(row), flush=True)
+        print("  fit s: " + ", ".join(f"{f} {c:.2f}" for f, c in cost.items()), flush=True)
+    for (f, v), got in met.items():
+        print(f"{f} at {v:g} mm/s: met {len(got)}/{len(names or TEXTURES)} {got}")
+
+
+def constant(name: str, train_seed: int = 8) -> None:
+    from fydpad.texture.evaluate import lsd_db, psd_correlation
+    from fydpad.texture.free_form import spectrum_of
+
+    t = [generate_scan(name, s, 10.0, seed=train_seed + j) for s in SPEEDS for j in (0, 1)]
+    cal = fit_texture(t, free_form="calibrated")[0]
+    specs = {"two-part": TwoPartSpectrum.from_json(cal.two_part), "calibrated": spectrum_of(cal)}
+    smear = RENDER_SMEAR_MM_S * np.linspace(-1.0, 1.0, 5)
+
+    def welch_at(v: float, seed: int):
+        sc = generate_scan(name, v, 12.0, seed=seed, hand_variation=0.0)
+        return welch_psd(preprocess(sc.acc, 1000.0)[500:-500], 1000.0)
+
+    for v in (26.0, 28.0, 30.0, 32.0, 34.0):
+        f, p = welch_at(v, 3)
+        _, p2 = welch_at(v, 4)
+        sel = (f >= 20) & (f <= 500)
+
+        def score(q, p=p, sel=sel) -> str:
+            return f"{psd_correlation(p[sel], q[sel]):.3f}/{lsd_db(p[sel], q[sel]):.2f}"
+
+        row = [f"second stroke {score(p2)}"]
+        for label, sp in specs.items():
+            # S is power per 2 Hz bin (mean = power); the Welch density is 2 S / fs.
+            e = np.interp(f, sp.f_hz, np.mean([sp.psd(v + d) for d in smear], axis=0)) * 2e-3
+            row.append(f"{label} {score(e)}")
+        print(f"{name} at {v:g} mm/s (corr/LSD dB): " + "  ".join(row), flush=True)
+
+
 if __name__ == "__main__":
     warnings.simplefilter("ignore")
     what, args = sys.argv[1], sys.argv[2:]
@@ -274,5 +377,13 @@ if __name__ == "__main__":
                  int(args[5]), args[6].split(",") if len(args) > 6 else list(TEXTURES))
     elif what == "methods":
         methods(*(int(a) for a in args[:3]))
+    elif what == "constant":
+        constant(args[0], *(int(a) for a in args[1:2]))
+    elif what == "forms":
+        forms([float(v) for v in args[0].split(",")], int(args[1]), int(args[2]), int(args[3]),
+              *(args[4:5] or ["2x10"]), *([float(args[5])] if len(args) > 5 else []),
+              *([args[6].split(",")] if len(args) > 6 and args[6] != "all" else
+                ([None] if len(args) > 6 else [])),
+              *([args[7].split(",")] if len(args) > 7 else []))
     else:
         raise SystemExit(__doc__)

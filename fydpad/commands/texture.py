@@ -115,6 +115,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "scans: a fixed tool/floor part and a surface part that moves with speed; "
                    "rendered at every speed by the 'stretch' method. Option, not default: "
                    "better between speeds, R2 0.2 dB worse at 20 mm/s (docs/texture.md)")
+    f.add_argument("--free-form", nargs="?", const="calibrated", default=None,
+                   choices=("calibrated", "free", "surface"),
+                   help="a speed-resolved spectrum (free_form.py): 'calibrated' (the default "
+                   "form: the two-part S times a correction measured at each fitted speed), "
+                   "'free' (S free in f, piecewise linear in v) or 'surface'; rendered by the "
+                   "'stretch' method. Option, not default (docs/texture.md)")
     f.add_argument("--surface", help="surface label (default: the scans' # surface= or name)")
     f.add_argument("--drive-band", type=_floats, default=[165.0, 220.0], metavar="LO,HI",
                    help="output drive filter band stored in the model (default 165,220 Hz)")
@@ -415,7 +421,7 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
             highpass_hz=args.highpass_hz, min_seconds=args.min_seconds, method=args.method,
             surface=args.surface, drive_band_hz=tuple(args.drive_band),
             prewhiten_order=args.prewhiten_order, speed_normalise=args.speed_normalise,
-            two_part=args.two_part,
+            two_part=args.two_part, free_form=args.free_form,
             wrap=lambda it: progress(it, total=len(scans), desc="fit"))
     _print_warnings("fit", _scan_names(args.scans), caught)
     save_model(model, args.out)

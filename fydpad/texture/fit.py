@@ -13,6 +13,12 @@ from numpy.typing import NDArray
 
 from fydpad.errors import UserError
 from fydpad.texture.dft321 import preprocess
+from fydpad.texture.free_form import (
+    FORMS,
+    fit_calibrated,
+    fit_free_form,
+    fit_surface_resolved,
+)
 from fydpad.texture.lpc import h_from_poly, is_stable, lpc_autocorrelation, lpc_burg
 from fydpad.texture.model_file import TextureModel
 from fydpad.texture.scan_io import Scan
@@ -82,6 +88,7 @@ def fit_texture(
     tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S, highpass_hz: float = 10.0,
     min_seconds: float = 0.25, method: str = "autocorrelation", surface: str | None = None,
     prewhiten_order: int = 8, speed_normalise: bool = False, two_part: bool = False,
+    free_form: str | None = None, free_form_options: dict | None = None,
     drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
     wrap: Callable[[Iterable], Iterable] = lambda it: it,
 ) -> tuple[TextureModel, list[FitReport]]:
@@ -102,6 +109,13 @@ def fit_texture(
     only the segmented runs), store it in the model, and make each speed's (h, sigma^2)
     the all-pole fit of S at that speed; the ``"stretch"`` interpolation then renders
     S at every speed of its table. Takes precedence over ``speed_normalise``.
+
+    ``free_form``: a speed-resolved spectrum of :mod:`free_form`: ``"calibrated"`` (the
+    two-part S times a correction measured at each fitted speed on its segmented runs),
+    ``"free"`` (S free in f, piecewise linear in v) or ``"surface"`` (the two-part
+    surface part freed in speed); ``free_form_options`` go to its fit function. Stored
+    in ``model.free_form`` (with the two-part factors it builds on); the ``"stretch"``
+    method renders it; each speed's (h, sigma^2) is the all-pole fit of its S.
     """
     scans = list(scans)
     if not scans:
@@ -146,18 +160,36 @@ def fit_texture(
         raise UserError("no part of the scans is near any target speed (column 'speed_mm_s')")
     label = surface or scans[0].surface
     normalised = spectrum = None
-    if two_part:
-        lo = min(got_speeds) - tolerance_mm_s
+    free = None
+    if free_form is not None and free_form not in FORMS:
+        raise UserError(f"free-form model: form must be one of {FORMS}, not {free_form!r}")
+    if two_part or free_form:
+        lo = max(min(got_speeds) - tolerance_mm_s, 0.5)
         hi = max(got_speeds) + tolerance_mm_s
+        runs, traces = [w[0] for w in whole], [w[1] for w in whole]
+        s_of = None
+        if two_part or free_form != "free":
+            try:
+                s_of = fit_two_part(runs, traces, fs, (lo, hi))
+            except ValueError as exc:
+                raise UserError(f"two-part model: {exc}") from None
+            spectrum = s_of.to_json()
+        opts = dict(free_form_options or {})
         try:
-            tp = fit_two_part([w[0] for w in whole], [w[1] for w in whole], fs,
-                              (max(lo, 0.5), hi))
-        except ValueError as exc:
-            raise UserError(f"two-part model: {exc}") from None
-        spectrum = tp.to_json()
-        polys = [tp.ar(s, order, fs) for s in got_speeds]
+            if free_form == "calibrated":
+                by = {v: list(zip(pooled[v], speeds_of[v], strict=True)) for v in got_speeds}
+                s_of = fit_calibrated(by, fs, s_of, **opts)
+            elif free_form == "surface":
+                s_of = fit_surface_resolved(runs, traces, fs, (lo, hi), s_of, **opts)
+            elif free_form == "free":
+                s_of = fit_free_form(runs, traces, fs, (lo, hi), **opts)
+        except (ValueError, TypeError) as exc:
+            raise UserError(f"free-form model ({free_form}): {exc}") from None
+        if free_form:
+            free = s_of.to_json()
+        polys = [s_of.ar(s, order, fs) for s in got_speeds]
         if not all(is_stable(a) for a, _ in polys):
-            raise UserError("two-part model: an all-pole fit of S(f, v) is unstable")
+            raise UserError("spectral model: an all-pole fit of S(f, v) is unstable")
         hs, sig = [h_from_poly(a) for a, _ in polys], [s2 for _, s2 in polys]
     elif speed_normalise and len(got_speeds) > 1:
         hs, sig, normalised = _speed_normalised(got_speeds, hs, sig, pooled, speeds_of, fs,
@@ -179,6 +211,9 @@ def fit_texture(
     if spectrum is not None:
         model.two_part = spectrum
         model.provenance["spectral_model"] = "two-part"
+    if free is not None:
+        model.free_form = free
+        model.provenance["spectral_model"] = "free-form"
     return model, reports
 
 

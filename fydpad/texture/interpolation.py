@@ -60,7 +60,13 @@ class SpeedInterpolator:
         self.method = method
         self.polys = np.vstack([model.poly(i) for i in range(len(model.speeds_mm_s))])
         self._two = None
-        if method == "stretch" and model.two_part is not None:
+        if method == "stretch" and model.free_form is not None:
+            # A speed-resolved spectrum (free_form.py) at any speed; imported here because
+            # free_form builds on this module's neighbours.
+            from fydpad.texture.free_form import spectrum_of
+
+            self._two = spectrum_of(model)
+        elif method == "stretch" and model.two_part is not None:
             # The two-part model gives the spectrum at any speed itself (two_part.py).
             self._two = TwoPartSpectrum.from_json(model.two_part)
         elif method == "stretch":

@@ -35,6 +35,7 @@ class TextureModel:
     tolerance_mm_s: float = 5.0
     provenance: dict[str, Any] = field(default_factory=dict)
     two_part: dict[str, Any] | None = None  # two_part.TwoPartSpectrum.to_json(), if fitted
+    free_form: dict[str, Any] | None = None  # free_form.FreeFormSpectrum.to_json(), if fitted
 
     @property
     def order(self) -> int:
@@ -65,6 +66,7 @@ def model_to_json(model: TextureModel) -> dict[str, Any]:
         ],
         "provenance": model.provenance,
         **({} if model.two_part is None else {"two_part": model.two_part}),
+        **({} if model.free_form is None else {"free_form": model.free_form}),
     }
 
 
@@ -201,6 +203,7 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
         sigma2=np.asarray(sig)[order],
         **head,
         two_part=_two_part(data.get("two_part"), where),
+        free_form=_free_form(data.get("free_form"), data.get("two_part"), where),
     )
 
 
@@ -227,6 +230,50 @@ def _two_part(d: Any, where: str) -> dict[str, Any] | None:
             if len(d[k]) != len(d[grid]):
                 raise UserError(f"{where}: two_part.{k} has {len(d[k])} values, "
                                 f"two_part.{grid} {len(d[grid])}")
+    return dict(d)
+
+
+_FREE_FORM_KEYS = {"calibrated": ("f_hz", "v_mm_s", "log_c"), "free": ("f_hz", "v_mm_s", "psd"),
+                   "surface": ("v_mm_s", "q")}
+
+
+def _free_form(d: Any, two_part: Any, where: str) -> dict[str, Any] | None:
+    """Check the optional speed-resolved spectrum (free_form.py): its ``form``, ascending
+    grids, a finite table of one row per speed (nonnegative unless it is ``log_c``), and
+    the ``two_part`` block the calibrated and surface forms build on."""
+    if d is None:
+        return None
+    w = f"{where}: free_form"
+    if not isinstance(d, dict):
+        raise UserError(f"{where}: key 'free_form' must be an object")
+    form = d.get("form")
+    if form not in _FREE_FORM_KEYS:
+        raise UserError(f"{w}.form must be one of {tuple(_FREE_FORM_KEYS)}, not {form!r}")
+    try:
+        arrays = {k: np.asarray(_get(d, k, w), float) for k in _FREE_FORM_KEYS[form]}
+    except (TypeError, ValueError) as exc:
+        raise UserError(f"{w}: {exc}") from None
+    for k in ("f_hz", "v_mm_s"):
+        a = arrays.get(k)
+        if a is not None and (a.ndim != 1 or a.size < 1 or not np.isfinite(a).all()
+                              or (np.diff(a) <= 0).any()):
+            raise UserError(f"{w}.{k} must be an ascending list of finite numbers")
+    table = _FREE_FORM_KEYS[form][-1]
+    t = arrays[table]
+    n_col = arrays["f_hz"].size if "f_hz" in arrays else None
+    if (t.ndim != 2 or t.shape[0] != arrays["v_mm_s"].size
+            or (n_col is not None and t.shape[1] != n_col) or not np.isfinite(t).all()
+            or (table != "log_c" and (t < 0).any())):
+        raise UserError(f"{w}.{table} must be one row per free_form.v_mm_s of finite"
+                        f"{'' if table == 'log_c' else ', nonnegative'} values"
+                        f"{' per free_form.f_hz' if n_col is not None else ''}")
+    if form != "free":
+        if two_part is None:
+            raise UserError(f"{w}: form {form!r} needs the key 'two_part', which is missing")
+        grid = "f_hz" if form == "calibrated" else "k_per_mm"
+        if t.shape[1] != len(two_part[grid]):
+            raise UserError(f"{w}.{table} has {t.shape[1]} columns, two_part.{grid} "
+                            f"{len(two_part[grid])}")
     return dict(d)
 
 

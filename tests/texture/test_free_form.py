@@ -1,0 +1,242 @@
+"""Speed-resolved spectra (fydpad/texture/free_form.py) against ground truth.
+
+Data: strokes whose speed wanders (0.8-1.2 x the target, a new speed every 0.5 s) with
+Gaussian noise shaped to a known S(f, v) that the two-part model cannot represent: two
+spatial bands with different speed laws (one falls with speed, one rises steeply above
+25 mm/s, as contact loss would switch a texture's vibration on), through a fixed mode.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from fydpad.commands import texture
+from fydpad.errors import UserError
+from fydpad.texture.fit import fit_texture
+from fydpad.texture.free_form import (
+    RENDER_SMEAR_MM_S,
+    fit_calibrated,
+    fit_free_form,
+    spectrum_of,
+)
+from fydpad.texture.lpc import is_stable
+from fydpad.texture.model_file import load_model, model_to_json, parse_model, save_model
+from fydpad.texture.scan_generator import generate_scan
+from fydpad.texture.segment import segment_by_speed
+from fydpad.texture.synthesis import TextureRenderer
+from fydpad.texture.two_part import chunk_periodograms, fit_two_part
+
+FS = 1000.0
+SPEEDS = (10.0, 20.0, 30.0, 40.0)
+
+
+def true_psd(f_hz, v_mm_s):
+    """Band a at 4 /mm (level ~ 1/v), band b at 10 /mm (level a sigmoid in v centred on
+    25 mm/s), both through a fixed 150 Hz mode; not T(f) U(f/v) g(v) + N(f) n(v)."""
+    f = np.asarray(f_hz, float)
+    a = 10.0 * (20.0 / v_mm_s) * np.exp(-((f / v_mm_s - 4.0) / 0.5) ** 2)
+    b = 10.0 / (1.0 + np.exp(-(v_mm_s - 25.0) / 2.0)) * np.exp(-((f / v_mm_s - 10.0) / 0.8) ** 2)
+    mode = 1.0 + 2.0 / (1.0 + ((f - 150.0) / 30.0) ** 2)
+    return (a + b + 0.05) * mode + 1e-3
+
+
+def stroke(target_mm_s, seconds, rng, seg_s=0.5):
+    """Noise shaped to S at a piecewise-constant speed drawn in 0.8-1.2 x the target."""
+    m = int(seg_s * FS)
+    f = np.fft.rfftfreq(m, 1 / FS)
+    xs, vs = [], []
+    for _ in range(int(seconds / seg_s)):
+        v = target_mm_s * rng.uniform(0.8, 1.2)
+        spec = (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size)) / np.sqrt(2)
+        xs.append(np.fft.irfft(spec * np.sqrt(true_psd(f, v) * m), m))
+        vs.append(np.full(m, v))
+    return np.concatenate(xs), np.concatenate(vs)
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    rng = np.random.default_rng(5)
+    runs = [stroke(v, 10.0, rng) for v in SPEEDS for _ in range(2)]
+    x, v = [r[0] for r in runs], [r[1] for r in runs]
+    two = fit_two_part(x, v, FS, (5.0, 45.0))
+    by: dict[float, list] = {}
+    for xi, vi in runs:
+        for s, rs in segment_by_speed(vi, FS, SPEEDS, 5.0, 0.25).items():
+            by.setdefault(s, []).extend((xi[a:b], vi[a:b]) for a, b in rs)
+    return {"two": two, "calibrated": fit_calibrated(by, FS, two),
+            "free": fit_free_form(x, v, FS, (5.0, 45.0)), "by": by,
+            "held": {t: t * np.random.default_rng(7).uniform(0.8, 1.2, 24)
+                     for t in (20.0, 25.0, 30.0)}}
+
+
+def _db(x):
+    return 10 * np.log10(x)
+
+
+def _smooth(p):
+    """Mean over 5 bins (10 Hz): the fit's per-bin scatter averaged down, its bias kept."""
+    return np.convolve(p, np.ones(5) / 5, mode="same")
+
+
+def _error_db(spec, speeds, f):
+    """RMS dB error over 20-480 Hz of the spectrum averaged over a stroke's speeds."""
+    sel = (f >= 20) & (f <= 480)
+    got = np.mean([spec.psd(float(u)) for u in speeds], axis=0)
+    truth = np.mean([true_psd(f, u) for u in speeds], axis=0)
+    return float(np.sqrt(np.mean((_db(_smooth(got)) - _db(_smooth(truth)))[sel] ** 2)))
+
+
+def test_calibrated_spectrum_reproduces_the_pooled_runs_at_each_fitted_speed(fitted):
+    """By construction (free_form.py): S_two C_i, averaged over the runs' own sample
+    speeds with the render's +-1 mm/s average, is the runs' mean periodogram. Checked
+    here by a different average (every 8th sample, not the 0.25 mm/s histogram)."""
+    cal = fitted["calibrated"]
+    smear = RENDER_SMEAR_MM_S * np.linspace(-1.0, 1.0, 5)
+    for s in (20.0, 30.0):
+        runs = [(x, v) for x, v in fitted["by"][s] if x.size >= 512]
+        p, _ = chunk_periodograms([x for x, _ in runs], [v for _, v in runs], FS)
+        speeds = np.concatenate([v for _, v in runs])[::8]
+        # The identity is for S_two C_i (the tent then weighs C_i down away from v_i).
+        c_only = np.exp(cal.log_c[list(cal.v_mm_s).index(s)])
+        got = np.mean([cal.two.psd(float(u + d)) for u in speeds for d in smear], axis=0) * c_only
+        d = _db(got) - _db(p[:, 1:].mean(axis=0))
+        # Measured 0.12 / 0.07 dB; without the +-1 mm/s average 0.38 / 0.26.
+        assert np.sqrt(np.mean(d**2)) < 0.2, np.sqrt(np.mean(d**2))
+
+
+def test_calibrated_spectrum_is_closer_to_the_truth_than_two_part_at_fitted_speeds(fitted):
+    """Averaged over a held-out stroke's speeds (0.8-1.2 x 20 and 30 mm/s): measured
+    0.54 / 0.63 dB against two-part 0.71 / 0.74 dB."""
+    f = fitted["two"].f_hz
+    for t in (20.0, 30.0):
+        cal = _error_db(fitted["calibrated"], fitted["held"][t], f)
+        two = _error_db(fitted["two"], fitted["held"][t], f)
+        assert cal < two and cal < 0.8, (t, cal, two)
+
+
+def test_spectrum_between_fitted_speeds_matches_the_truth(fitted):
+    """At 25 mm/s (no stroke's target; 20-30 mm/s wander) within 1 dB of the truth
+    (measured: calibrated 0.67, free 0.56, two-part 0.84 dB), where the neighbours'
+    log mix (a cross-fade of the truth at 20 and 30 mm/s) is 4.5 dB off."""
+    f = fitted["two"].f_hz
+    held = fitted["held"][25.0]
+    mix = np.exp(0.5 * np.log(np.mean([true_psd(f, u) for u in held * 0.8], axis=0))
+                 + 0.5 * np.log(np.mean([true_psd(f, u) for u in held * 1.2], axis=0)))
+    sel = (f >= 20) & (f <= 480)
+    truth = np.mean([true_psd(f, u) for u in held], axis=0)
+    mix_db = float(np.sqrt(np.mean((_db(_smooth(mix)) - _db(_smooth(truth)))[sel] ** 2)))
+    for form in ("calibrated", "free"):
+        err = _error_db(fitted[form], held, f)
+        assert err < 1.0 and err < mix_db / 3, (form, err, mix_db)
+
+
+@pytest.fixture(scope="module")
+def scan_model():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scans = [generate_scan("felt", v, 5.0, seed=1) for v in (10.0, 20.0, 30.0)]
+        model, _ = fit_texture(scans, speeds_mm_s=(10.0, 20.0, 30.0), order=60,
+                               free_form="calibrated")
+    return model
+
+
+def test_fit_texture_stores_the_spectrum_and_the_renderer_uses_it(scan_model, tmp_path):
+    assert scan_model.provenance["spectral_model"] == "free-form"
+    assert scan_model.free_form["form"] == "calibrated" and scan_model.two_part is not None
+    back = load_model(save_model(scan_model, tmp_path / "m.json"))
+    a, b = spectrum_of(back), spectrum_of(scan_model)
+    assert np.allclose(a.psd(23.0), b.psd(23.0))
+    r = TextureRenderer(back, method="stretch", step_mm_s=1.0, seed=0)
+    assert r.table.stable.all() and all(is_stable(p) for p in r.table.polys)
+    # At a fitted speed the stored h is the table's filter (one model, two views).
+    assert np.allclose(r.table.h[r.table.index(20.0)], back.h[1])
+    y = r.block(np.full(2000, 22.0), True, 2000)
+    assert np.isfinite(y).all() and y.std() > 0
+
+
+def test_bad_free_form_block_names_the_key(scan_model):
+    data = json.loads(json.dumps(model_to_json(scan_model)))
+    bad = json.loads(json.dumps(data))
+    bad["free_form"]["form"] = "magic"
+    with pytest.raises(UserError, match=r"m.json: free_form.form must be one of"):
+        parse_model(bad, "m.json")
+    bad = json.loads(json.dumps(data))
+    bad["free_form"]["log_c"] = bad["free_form"]["log_c"][:-1]
+    with pytest.raises(UserError, match=r"free_form.log_c must be one row per"):
+        parse_model(bad, "m.json")
+    bad = json.loads(json.dumps(data))
+    del bad["two_part"]
+    with pytest.raises(UserError, match=r"needs the key 'two_part'"):
+        parse_model(bad, "m.json")
+    with pytest.raises(UserError, match=r"form must be one of"):
+        fit_texture([generate_scan("felt", 10.0, 2.0, seed=1)], speeds_mm_s=(10.0,),
+                    order=20, free_form="magic")
+
+
+def test_cli_fit_free_form_flag(tmp_path):
+    parser = argparse.ArgumentParser(prog="fydpad")
+    texture.register(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(["texture", "generate-scans", "--out-dir", str(tmp_path),
+                              "--textures", "felt", "--speeds", "10,30", "--strokes", "1",
+                              "--seconds", "4"])
+    assert args.func(args) == 0
+    scans = [str(tmp_path / f"felt_{v}mms_s1.csv") for v in (10, 30)]
+    for flag, form in ((["--free-form"], "calibrated"), (["--free-form", "free"], "free")):
+        out = tmp_path / f"{form}.json"
+        args = parser.parse_args(["texture", "fit", *scans, "--out", str(out), "--speeds",
+                                  "10,30", "--order", "60", *flag])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            assert args.func(args) == 0
+        assert json.loads(out.read_text())["free_form"]["form"] == form
+
+
+@pytest.fixture(scope="module")
+def target_figures():
+    """test_targets.py's ``figures`` set-up (one 8 s training stroke per speed, held-out
+    8 s strokes seed 100, ceiling seed 200) for the calibrated form:
+    {(texture, speed): (corr, lsd, ceiling)}."""
+    from fydpad.texture.dft321 import preprocess
+    from fydpad.texture.evaluate import compare, evaluate_scan, evaluation_mask
+
+    out = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for name in ("R1", "R2", "felt", "glass"):
+            model, _ = fit_texture([generate_scan(name, s, 8.0, seed=1) for s in SPEEDS],
+                                   free_form="calibrated")
+            for v in (20.0, 25.0):
+                held = generate_scan(name, v, 8.0, seed=100)
+                second = generate_scan(name, v, 8.0, seed=200)
+                mask = evaluation_mask(held, model)
+                ceil, *_ = compare(preprocess(held.acc, 1000.0), preprocess(second.acc, 1000.0),
+                                   1000.0, mask & evaluation_mask(second, model))
+                c, _ = evaluate_scan(model, held, method="stretch", mask=mask)
+                out[(name, v)] = (c.psd_correlation, c.lsd_db, ceil.lsd_db)
+    return out
+
+
+def _check_targets(figures, speed: float) -> None:
+    for name in ("R1", "R2", "felt", "glass"):
+        corr, lsd, ceil = figures[(name, speed)]
+        assert corr >= 0.95, f"{name} at {speed:g} mm/s: correlation {corr:.3f}"
+        assert lsd <= ceil + 0.25, f"{name} at {speed:g} mm/s: LSD {lsd:.2f}, ceiling {ceil:.2f}"
+
+
+@pytest.mark.xfail(strict=True, reason="measured with fit_texture(free_form='calibrated') at "
+                   "25 mm/s: LSD above the ceiling by 0.36 (R1), 0.49 dB (R2); felt +0.14, glass "
+                   "+0.00 meet it; corr 0.968-0.981 (two-part: +0.41, +0.49) (docs/texture.md)")
+def test_targets_between_modelled_speeds_calibrated(target_figures):
+    _check_targets(target_figures, 25.0)
+
+
+@pytest.mark.xfail(strict=True, reason="measured with fit_texture(free_form='calibrated') at "
+                   "20 mm/s: R2 LSD +0.27 dB above the ceiling (R1 -0.12, felt -0.06, glass "
+                   "+0.23; corr >= 0.978); the default meets it (R2 +0.12) (docs/texture.md)")
+def test_targets_at_a_modelled_speed_calibrated(target_figures):
+    _check_targets(target_figures, 20.0)
