@@ -414,6 +414,12 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
         raise UserError("--drive-band needs LO,HI")
     scans = _load_scans(args.scans)
     _check_fit_options(args, scans[0].fs_hz)
+    labels = [sc.meta.get("surface") for sc in scans]
+    if args.surface is None and None not in labels and len(set(labels)) > 1:
+        counts = ", ".join(f"{s} ({labels.count(s)})" for s in dict.fromkeys(labels))
+        print(f"fydpad texture fit: warning: the scans are of {len(set(labels))} surfaces "
+              f"(# surface=: {counts}), pooled into one model labelled {labels[0]}; fit "
+              "each surface on its own, or name the mix with --surface", file=sys.stderr)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         model, reports = fit_texture(
@@ -422,7 +428,8 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
             surface=args.surface, drive_band_hz=tuple(args.drive_band),
             prewhiten_order=args.prewhiten_order, speed_normalise=args.speed_normalise,
             two_part=args.two_part, free_form=args.free_form,
-            wrap=lambda it: progress(it, total=len(scans), desc="fit"))
+            wrap=lambda it: progress(it, total=len(scans), desc="fit", unit="scan"),
+            wrap_iterations=lambda it: progress(it, desc="spectral model", unit="it"))
     _print_warnings("fit", _scan_names(args.scans), caught)
     save_model(model, args.out)
     g2 = 9.80665**2
@@ -435,11 +442,13 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
         from fydpad.texture.plots import plot_spectra
 
         panels = []
+        # The runs the fit used: same high-pass, tolerance and shortest run.
+        pre = [preprocess(sc.acc, sc.fs_hz, model.highpass_hz) for sc in scans]
         for k, s in enumerate(model.speeds_mm_s):
             segs = []
-            for sc in scans:
-                x = preprocess(sc.acc, sc.fs_hz, model.highpass_hz)
-                rs = segment_by_speed(sc.speed_mm_s, sc.fs_hz, [s], args.tolerance)[float(s)]
+            for sc, x in zip(scans, pre, strict=True):
+                rs = segment_by_speed(sc.speed_mm_s, sc.fs_hz, [s], args.tolerance,
+                                      args.min_seconds)[float(s)]
                 mask = np.zeros(x.size, bool)
                 for a, b in rs:
                     mask[a:b] = True

@@ -5,7 +5,7 @@ from __future__ import annotations
 import datetime as _dt
 import warnings
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.signal as ss
@@ -91,11 +91,13 @@ def fit_texture(
     free_form: str | None = None, free_form_options: dict | None = None,
     drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
     wrap: Callable[[Iterable], Iterable] = lambda it: it,
+    wrap_iterations: Callable[[Iterable], Iterable] = lambda it: it,
 ) -> tuple[TextureModel, list[FitReport]]:
     """One model per target speed from every run of every scan near that speed.
 
     Each scan is high-passed at ``highpass_hz`` and reduced by DFT321 as a whole, then
-    cut into speed runs; each speed pools the autocorrelations of its runs.
+    cut into speed runs; each speed pools the autocorrelations of its runs. ``wrap``
+    wraps the scans, ``wrap_iterations`` the two-part model's iterations (progress bars).
 
     ``speed_normalise``: a second pass fits each speed on its runs resampled to that
     constant speed (:func:`speed_warp.normalised_spectrum`, warp exponents from the
@@ -135,6 +137,7 @@ def fit_texture(
             pooled[s].extend(x[a:b] for a, b in rs)
             speeds_of[s].extend(scan.speed_mm_s[a:b] for a, b in rs)
     got_speeds, hs, sig, reports = [], [], [], []
+    short: list[str] = []  # speeds with data, too little for the order
     for s, segs in pooled.items():
         n = sum(seg.size for seg in segs)
         if n == 0:
@@ -142,11 +145,12 @@ def fit_texture(
                           f"{s:g} mm/s: no model at that speed", stacklevel=2)
             continue
         if n < 4 * order:
-            raise UserError(
-                f"{scans[0].path if len(scans) == 1 else 'scans'}: only {n} samples near "
-                f"{s:g} mm/s for an order-{order} model (need at least {4 * order}); "
-                "record longer or lower --order"
-            )
+            # Another speed may still be fitted: this one is skipped and said (the whole
+            # fit fails below only when no speed is left).
+            short.append(f"{scans[0].path if len(scans) == 1 else 'scans'}: only {n} samples "
+                         f"near {s:g} mm/s for an order-{order} model (need at least "
+                         f"{4 * order}); record longer or lower --order")
+            continue
         try:
             a, s2 = fit_speed(segs, order, method, prewhiten_order)
         except ValueError as exc:
@@ -156,6 +160,10 @@ def fit_texture(
         sig.append(s2)
         sv = float(np.mean(np.concatenate(segs) ** 2))
         reports.append(FitReport(s, n, len(segs), s2, sv, True))
+    if not got_speeds and short:
+        raise UserError(short[0])
+    for msg in short:
+        warnings.warn(f"{msg}: no model at that speed", stacklevel=2)
     if not got_speeds:
         raise UserError("no part of the scans is near any target speed (column 'speed_mm_s')")
     label = surface or scans[0].surface
@@ -170,7 +178,7 @@ def fit_texture(
         s_of = None
         if two_part or free_form != "free":
             try:
-                s_of = fit_two_part(runs, traces, fs, (lo, hi))
+                s_of = fit_two_part(runs, traces, fs, (lo, hi), wrap=wrap_iterations)
             except ValueError as exc:
                 raise UserError(f"two-part model: {exc}") from None
             spectrum = s_of.to_json()
@@ -194,6 +202,9 @@ def fit_texture(
     elif speed_normalise and len(got_speeds) > 1:
         hs, sig, normalised = _speed_normalised(got_speeds, hs, sig, pooled, speeds_of, fs,
                                                 highpass_hz, order)
+    # A spectral or speed-normalised model replaced each speed's pooled fit: report what
+    # the file holds, not the fit it replaced.
+    reports = [replace(r, sigma2=float(s2)) for r, s2 in zip(reports, sig, strict=True)]
     model = TextureModel(
         surface=label, fs_hz=fs, speeds_mm_s=np.asarray(got_speeds), h=np.vstack(hs),
         sigma2=np.asarray(sig), highpass_hz=highpass_hz, fit_band_hz=(highpass_hz, fs / 2),

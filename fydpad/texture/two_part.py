@@ -25,7 +25,7 @@ the renderer's speed table: the 1 kHz path is unchanged.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -154,12 +154,14 @@ def _hats(x: Array, nodes: Array) -> Array:
 
 def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
                  speed_range_mm_s: tuple[float, float], iterations: int = ITERATIONS,
-                 chunk: int = CHUNK, knot_step_mm_s: float = 5.0) -> TwoPartSpectrum:
+                 chunk: int = CHUNK, knot_step_mm_s: float = 5.0,
+                 wrap: Callable[[Iterable], Iterable] = lambda it: it) -> TwoPartSpectrum:
     """Fit the module's S(f, v) to preprocessed runs ``runs`` with speed traces ``speeds``.
 
     Chunks whose speeds leave ``speed_range_mm_s`` are not used. The levels g and n are
     log-linear between knots every ``knot_step_mm_s`` (a hand gives few chunks at any
-    one speed: a free level per 1 mm/s would follow the noise).
+    one speed: a free level per 1 mm/s would follow the noise). ``wrap`` wraps the
+    iterations (a progress bar).
     """
     lo, hi = speed_range_mm_s
     p_all, v_all = chunk_periodograms(runs, speeds, fs_hz, chunk)
@@ -196,7 +198,7 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
         wgt = phi * rho[:, None]
         return _mm(wgt.T, np.log(np.maximum(ratio, eps))) / np.maximum(wgt.sum(0), eps)
 
-    for _ in range(iterations):
+    for _ in wrap(range(iterations)):
         g, n = np.exp(_mm(phi, lg)), np.exp(_mm(phi, ln))
         x = (bbig @ surface).reshape(nv, nf)
         m = tool * x * g[:, None] + floor * n[:, None]

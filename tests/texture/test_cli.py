@@ -88,3 +88,18 @@ def test_evaluate_refuses_a_scan_outside_the_models_speeds(workdir, tmp_path):
         f"{k / 1000:.3f},0.1,0.2,{k % 3},80\n" for k in range(3000)))
     with pytest.raises(UserError, match=r"fast\.csv: column 'speed_mm_s'"):
         run("evaluate", str(workdir / "R1.json"), str(fast))
+
+
+def test_fit_warns_when_the_scans_are_of_several_surfaces(workdir, tmp_path, capsys):
+    """Scans labelled R1 and felt (`# surface=`) pooled into one model: said once, on one
+    line; --surface names the mix and silences it."""
+    scans = [str(workdir / "R1_10mms_s1.csv"), str(workdir / "felt_30mms_s1.csv")]
+    assert run("fit", *scans, "--out", str(tmp_path / "mix.json"), "--speeds", "10,30",
+               "--order", "60") == 0
+    err = [ln for ln in capsys.readouterr().err.splitlines() if "surfaces" in ln]
+    assert err == ["fydpad texture fit: warning: the scans are of 2 surfaces (# surface=: R1 "
+                   "(1), felt (1)), pooled into one model labelled R1; fit each surface on its "
+                   "own, or name the mix with --surface"]
+    assert run("fit", *scans, "--out", str(tmp_path / "mix.json"), "--speeds", "10,30",
+               "--order", "60", "--surface", "R1+felt") == 0
+    assert "surfaces" not in capsys.readouterr().err

@@ -93,12 +93,24 @@ def test_all_pole_fit_of_the_spectrum_is_stable_and_close(fitted):
 
 
 @pytest.fixture(scope="module")
-def scan_model():
+def scan_fit():
+    """(model, reports) of fit_texture(two_part=True) on R1 scans."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         scans = [generate_scan("R1", v, 4.0, seed=1) for v in (10.0, 20.0, 30.0)]
-        model, _ = fit_texture(scans, speeds_mm_s=(10.0, 20.0, 30.0), order=60, two_part=True)
-    return model
+        return fit_texture(scans, speeds_mm_s=(10.0, 20.0, 30.0), order=60, two_part=True)
+
+
+@pytest.fixture(scope="module")
+def scan_model(scan_fit):
+    return scan_fit[0]
+
+
+def test_fit_reports_what_the_file_holds(scan_fit):
+    """The fit's per-speed report (printed by `fydpad texture fit`) gives the sigma^2 of
+    the two-part model stored in the file, not of the pooled fit it replaced."""
+    model, reports = scan_fit
+    np.testing.assert_array_equal([r.sigma2 for r in reports], model.sigma2)
 
 
 def test_fit_texture_stores_the_spectrum_and_every_table_filter_is_stable(scan_model):
