@@ -40,6 +40,7 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.fft as sfft
 import scipy.signal as ss
 from numpy.typing import ArrayLike, NDArray
 
@@ -50,7 +51,7 @@ from vision.speed import SpeedState, speed_update
 
 Array = NDArray[np.float64]
 _NOISE_CHUNK = 4096
-_SHORT_RUN = 48  # runs shorter than this are convolved directly, longer ones by FFT
+_DIRECT_MAX = 48  # an entry used on fewer samples of a block chunk: dot products, not FFT
 
 
 class TextureRenderer:
@@ -125,6 +126,10 @@ class TextureRenderer:
             self._n_fir_rows = g.shape[0]
             self.fir = np.ascontiguousarray(g[:, :n_fir])
             self._fir_rev = np.ascontiguousarray(self.fir[:, ::-1])
+            # Block path: FFT size, and each table entry's spectrum once it is first used.
+            self._nfft = sfft.next_fast_len(2 * n_fir)
+            self._gspec = np.empty((g.shape[0], self._nfft // 2 + 1), complex)
+            self._gspec_ok = np.zeros(g.shape[0], bool)
             self._ebuf = np.zeros(2 * n_fir)  # noise, newest first, written twice
             self._epos = 0
         band = drive_band_hz or model.drive_band_hz
@@ -297,30 +302,55 @@ class TextureRenderer:
 
     def _fir_block(self, e: Array, idx: NDArray[np.int64], lam: Array,
                    starts: NDArray[np.int64], stops: NDArray[np.int64]) -> Array:
-        """a(k) = sum_j g_v(j) e(k-j) over each run, the noise history in front; g_v
-        linear between the two table entries around the speed, as in ``tick``."""
+        """a(k) = sum_j g_v(j) e(k-j), the noise history in front; g_v linear between the
+        two table entries around the speed, as in ``tick``.
+
+        Over chunks of up to nfft - n_fir + 1 samples, entry by entry: an entry used on
+        few samples (a fast sweep) by dot products on those samples; one used on more by
+        FFT, the chunk's noise transformed once and multiplied by the entry's cached
+        spectrum (a hand's second uses ~20 entries, each on 40-120 samples: too short
+        for a convolution each, too long for dot products)."""
         n_fir = self.fir.shape[1]
+        nfft = self._nfft
+        step = nfft - n_fir + 1
         pos = self._epos
         full = np.concatenate([self._ebuf[pos:pos + n_fir - 1][::-1], e])
-        y = np.empty(e.size)
-        for a, b in zip(starts, stops, strict=True):
+        y = np.zeros(e.size)
+        for a in range(0, e.size, step):
+            b = min(a + step, e.size)
             x = full[a:b + n_fir - 1]
-            i = idx[a]
-            w = lam[a:b]
-            if b - a < _SHORT_RUN:
-                win = np.lib.stride_tricks.sliding_window_view(x, n_fir)
-                y[a:b] = (1.0 - w) * (win @ self._fir_rev[i]) + w * (win @ self._fir_rev[i + 1])
-            elif w.min() == w.max():  # constant speed: one convolution with the blend
-                g = (1.0 - w[0]) * self.fir[i] + w[0] * self.fir[i + 1]
-                y[a:b] = ss.oaconvolve(x, g, "valid")
-            else:
-                y[a:b] = ((1.0 - w) * ss.oaconvolve(x, self.fir[i], "valid")
-                          + w * ss.oaconvolve(x, self.fir[i + 1], "valid"))
+            spec = None
+            # Every (sample, entry, weight): 1 - lam on the lower entry, lam on the upper,
+            # grouped by entry.
+            m = b - a
+            entry = np.concatenate([idx[a:b], idx[a:b] + 1])
+            order = np.argsort(entry, kind="stable")
+            entry = entry[order]
+            sample = np.concatenate([np.arange(m), np.arange(m)])[order]
+            weight = np.concatenate([1.0 - lam[a:b], lam[a:b]])[order]
+            edges = np.flatnonzero(np.diff(entry)) + 1
+            for lo, hi in zip(np.r_[0, edges], np.r_[edges, entry.size], strict=True):
+                j, k, wj = int(entry[lo]), sample[lo:hi], weight[lo:hi]
+                if hi - lo < _DIRECT_MAX:
+                    win = np.lib.stride_tricks.sliding_window_view(x, n_fir)[k]
+                    y[a + k] += wj * (win @ self._fir_rev[j])
+                    continue
+                if spec is None:
+                    spec = sfft.rfft(x, nfft)
+                z = sfft.irfft(spec * self._entry_spectrum(j), nfft)
+                y[a + k] += wj * z[n_fir - 1 + k]
         newest = full[::-1][:n_fir]
         self._ebuf[:n_fir] = newest
         self._ebuf[n_fir:] = newest
         self._epos = 0
         return y
+
+    def _entry_spectrum(self, j: int) -> NDArray[np.complex128]:
+        """rfft of table entry j's response at the block FFT size (computed once)."""
+        if not self._gspec_ok[j]:
+            self._gspec[j] = sfft.rfft(self.fir[j], self._nfft)
+            self._gspec_ok[j] = True
+        return self._gspec[j]
 
     def _direct_block(self, e: Array, idx: NDArray[np.int64], starts: NDArray[np.int64],
                       stops: NDArray[np.int64]) -> Array:
