@@ -127,7 +127,7 @@ class TextureRenderer:
             self.fir = np.ascontiguousarray(g[:, :n_fir])
             self._fir_rev = np.ascontiguousarray(self.fir[:, ::-1])
             # Block path: FFT size, and each table entry's spectrum once it is first used.
-            self._nfft = sfft.next_fast_len(2 * n_fir)
+            self._nfft = sfft.next_fast_len(n_fir + 1023)  # chunks of >= 1024 samples
             self._gspec = np.empty((g.shape[0], self._nfft // 2 + 1), complex)
             self._gspec_ok = np.zeros(g.shape[0], bool)
             self._ebuf = np.zeros(2 * n_fir)  # noise, newest first, written twice
@@ -332,8 +332,13 @@ class TextureRenderer:
             for lo, hi in zip(np.r_[0, edges], np.r_[edges, entry.size], strict=True):
                 j, k, wj = int(entry[lo]), sample[lo:hi], weight[lo:hi]
                 if hi - lo < _DIRECT_MAX:
-                    win = np.lib.stride_tricks.sliding_window_view(x, n_fir)[k]
-                    y[a + k] += wj * (win @ self._fir_rev[j])
+                    k0, k1 = int(k[0]), int(k[-1]) + 1
+                    if k1 - k0 == k.size:  # one stretch of samples: a direct correlation
+                        y[a + k0:a + k1] += wj * np.correlate(x[k0:k1 + n_fir - 1],
+                                                              self.fir[j, ::-1], "valid")
+                    else:
+                        win = np.lib.stride_tricks.sliding_window_view(x, n_fir)[k]
+                        y[a + k] += wj * (win @ self._fir_rev[j])
                     continue
                 if spec is None:
                     spec = sfft.rfft(x, nfft)
