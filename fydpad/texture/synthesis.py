@@ -321,19 +321,20 @@ class TextureRenderer:
             x = full[a:b + n_fir - 1]
             spec = None
             # Every (sample, entry, weight): 1 - lam on the lower entry, lam on the upper,
-            # grouped by entry.
+            # grouped by entry, each group's samples ascending.
             m = b - a
             entry = np.concatenate([idx[a:b], idx[a:b] + 1])
-            order = np.argsort(entry, kind="stable")
+            sample = np.concatenate([np.arange(m), np.arange(m)])
+            order = np.lexsort((sample, entry))
             entry = entry[order]
-            sample = np.concatenate([np.arange(m), np.arange(m)])[order]
+            sample = sample[order]
             weight = np.concatenate([1.0 - lam[a:b], lam[a:b]])[order]
             edges = np.flatnonzero(np.diff(entry)) + 1
             for lo, hi in zip(np.r_[0, edges], np.r_[edges, entry.size], strict=True):
                 j, k, wj = int(entry[lo]), sample[lo:hi], weight[lo:hi]
                 if hi - lo < _DIRECT_MAX:
                     k0, k1 = int(k[0]), int(k[-1]) + 1
-                    if k1 - k0 == k.size:  # one stretch of samples: a direct correlation
+                    if k1 - k0 == k.size:  # ascending, unique: one stretch of samples
                         y[a + k0:a + k1] += wj * np.correlate(x[k0:k1 + n_fir - 1],
                                                               self.fir[j, ::-1], "valid")
                     else:

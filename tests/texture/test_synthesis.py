@@ -31,8 +31,13 @@ def model() -> TextureModel:
 
 @pytest.mark.parametrize("method", ["stretch", "lsf"])  # FIR and eq. 5 direct form
 def test_tick_and_block_give_the_same_samples(model, method):
-    n = 2500
-    v = np.concatenate([np.linspace(0, 45, 1500), np.full(1000, 25.0)])
+    # A ramp, a hold, a hand's back-and-forth (each table entry visited in several
+    # separate runs) and jumps every 5 ms (the block path groups samples by entry).
+    t = np.arange(1500) / 1000.0
+    jumps = np.repeat(np.random.default_rng(0).uniform(5.0, 45.0, 2000), 5)
+    v = np.concatenate([np.linspace(0, 45, 1500), np.full(1000, 25.0),
+                        25.0 + 15.0 * np.sin(2 * np.pi * 2.0 * t), jumps])
+    n = v.size
     c = np.ones(n, bool)
     c[1700:1800] = False
     with warnings.catch_warnings():
