@@ -14,7 +14,7 @@ import numpy as np
 
 from fydpad.errors import UserError
 from fydpad.progress import progress
-from fydpad.texture.interpolation import METHODS
+from fydpad.texture.interpolation import DEFAULT_METHOD, METHODS
 from vision.recording import CsvRowWriter, RecordingError
 
 #: The interpolation between modelled speeds (fydpad.texture.interpolation, docs/texture.md).
@@ -157,7 +157,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="rate of the audio channel (default 48000)")
     s.add_argument("--x0-mm", type=float,
                    help="position-indexed kinds: start of the stroke (default: the model's)")
-    s.add_argument("--method", choices=METHODS, default="stretch",
+    s.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD,
                    help=INTERPOLATION_HELP)
     s.add_argument("--drive-filter", action="store_true",
                    help="apply the model's drive band filter (e.g. 165-220 Hz) to the output")
@@ -178,7 +178,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     e.add_argument("scan", metavar="SCAN.csv", help="a texture scan recording to compare with")
     e.add_argument("--json", metavar="OUT.json", help="write the figures as JSON")
     e.add_argument("--plot", metavar="FIG.png", help="recorded against synthesized spectra")
-    e.add_argument("--method", choices=METHODS, default="stretch",
+    e.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD,
                    help=INTERPOLATION_HELP)
     e.add_argument("--seed", type=int, default=0, help="noise seed of the synthesis (default 0)")
     e.set_defaults(func=run_evaluate)
@@ -199,7 +199,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     i.add_argument("--json", metavar="OUT.json",
                    help="write {rate, labels, confusion, assignments}")
     i.add_argument("--plot", metavar="FIG.png", help="the confusion matrix")
-    i.add_argument("--method", choices=METHODS, default="stretch",
+    i.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD,
                    help=INTERPOLATION_HELP)
     i.add_argument("--distance", choices=("bands", "lsd"), default="bands",
                    help="between the spectra: bands (default: RMS dB difference of the "
@@ -484,6 +484,8 @@ def run_synth(args: argparse.Namespace) -> int:
 
     if not _is_audio(args.out):
         _check_out(args.out, "--out")
+    if not (math.isfinite(args.speed_mm_s) and args.speed_mm_s >= 0):  # every kind: inf
+        raise UserError(f"--speed-mm-s {args.speed_mm_s:g}: must be a finite speed >= 0 (mm/s)")
     kind = spec_kind(args.model)
     if args.kind is not None and args.kind != kind:
         raise UserError(f"{args.model}: key 'kind' is {kind!r}, not --kind {args.kind}")

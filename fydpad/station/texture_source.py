@@ -66,21 +66,27 @@ def check_render_rate(model: Any, rate_hz: float, where: str) -> None:
 
 
 def check_family_rate(family: Any, rate_hz: float, spec: str) -> None:
-    """``check_render_rate`` for a family that renders an LPC model (its ``model``)."""
+    """``check_render_rate`` for a family that renders an LPC model (its ``model``); a
+    family with its own ``check_rate(rate_hz)`` (a HaTT set: SampleRate a whole multiple
+    of the rate) is checked by it. In the main process, before the station starts."""
     from fydpad.texture.model_file import TextureModel
 
     model = getattr(family, "model", None)
     if isinstance(model, TextureModel):
         check_render_rate(model, rate_hz, spec)
+    check = getattr(family, "check_rate", None)
+    if callable(check):
+        check(rate_hz)
 
 
 def open_texture(spec: str, rate_hz: float, method: str | None = None,
-                 drive_filter: bool = False):
+                 drive_filter: bool = False, lpc_options_only_if_lpc: bool = False):
     """The texture family of ``MODEL.json`` or ``KIND:MODEL.json`` (issue 9), for ``tick``.
 
     Its ``tick`` returns the values of its ``tick_channels`` ("vibration", "tension").
     ``method`` (an LPC model's interpolation) and ``drive_filter`` (its drive band) apply
-    to the families that render an LPC model; another family given them is an error.
+    to the families that render an LPC model; another family given them is an error,
+    unless ``lpc_options_only_if_lpc`` (the experiment's stimuli, a mix of families).
     """
     from fydpad.texture.families import load_family
 
@@ -90,6 +96,8 @@ def open_texture(spec: str, rate_hz: float, method: str | None = None,
         if value is None:
             continue
         if not hasattr(family, name):
+            if lpc_options_only_if_lpc:
+                continue
             flag = "--texture-method" if name == "method" else "--drive-filter"
             raise UserError(f"{spec}: {flag} applies to LPC texture models, this one is "
                             f"{family.kind!r}")

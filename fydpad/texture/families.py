@@ -225,7 +225,10 @@ class LpcFamily:
     def reset(self) -> None:
         self._renderer = None
         if self._source is not None:
+            # A new stimulus starts from no speed, not the last one's (its filter would
+            # play for the low-pass's ~50 ms).
             self._source.renderer.reset()
+            self._source.speed = type(self._source.speed)(cutoff_hz=self._source.speed.cutoff_hz)
 
 
 def _check_channel(family: Any, channel: str) -> None:

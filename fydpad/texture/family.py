@@ -110,3 +110,15 @@ class TickPosition:
         if dt >= self.stop_s:
             self._v = 0.0  # no new centroid for a while: the finger has stopped
         return x_mm + (self._v * min(dt, self.hold_s) if self._v == self._v else 0.0)
+
+
+def hold_finite(x: Array, first: float) -> Array:
+    """``x`` with every non-finite sample replaced by the last finite one before it
+    (``first`` before any): a missing load-cell reading holds the last one."""
+    x = np.asarray(x, float)
+    ok = np.isfinite(x)
+    if ok.all():
+        return x
+    idx = np.where(ok, np.arange(x.size), -1)
+    np.maximum.accumulate(idx, out=idx)
+    return np.where(idx >= 0, x[np.maximum(idx, 0)], first)

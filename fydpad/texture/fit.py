@@ -147,9 +147,8 @@ def fit_texture(
         if n < 4 * order:
             # Another speed may still be fitted: this one is skipped and said (the whole
             # fit fails below only when no speed is left).
-            short.append(f"{scans[0].path if len(scans) == 1 else 'scans'}: only {n} samples "
-                         f"near {s:g} mm/s for an order-{order} model (need at least "
-                         f"{4 * order}); record longer or lower --order")
+            short.append(f"only {n} samples near {s:g} mm/s for an order-{order} model "
+                         f"(need at least {4 * order}); record longer or lower --order")
             continue
         try:
             a, s2 = fit_speed(segs, order, method, prewhiten_order)
@@ -161,7 +160,7 @@ def fit_texture(
         sv = float(np.mean(np.concatenate(segs) ** 2))
         reports.append(FitReport(s, n, len(segs), s2, sv, True))
     if not got_speeds and short:
-        raise UserError(short[0])
+        raise UserError(f"{scans[0].path if len(scans) == 1 else 'scans'}: {short[0]}")
     for msg in short:
         warnings.warn(f"{msg}: no model at that speed", stacklevel=2)
     if not got_speeds:

@@ -22,7 +22,7 @@ import scipy.signal as ss
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.family import FingerBlock
+from fydpad.texture.family import FingerBlock, hold_finite
 from fydpad.texture.mlp import MlpModel, delta_force, velocity_xy
 
 Array = NDArray[np.float64]
@@ -80,7 +80,7 @@ class MlpTexture:
             return np.zeros(0)
         # Fail safe: a missing speed is 0 (silence), a missing force holds the last one.
         speed = np.where(np.isfinite(finger.speed_mm_s), finger.speed_mm_s, 0.0)
-        force = _hold_finite(finger.force_n, self._last_f)
+        force = hold_finite(finger.force_n, self._last_f)
         self._last_f = float(force[-1])
         vx, vy, self._last = velocity_xy(finger.x_mm, finger.y_mm, speed, self._last)
         self._cos, self._sin = math.cos(self._last[2]), math.sin(self._last[2])
@@ -142,14 +142,3 @@ class MlpTexture:
         self._hp_x, self._hp_y = r, y
         on = contact and speed_mm_s >= self.still_mm_s
         return (self.gain * y if on else 0.0,)
-
-
-def _hold_finite(x: Array, last: float) -> Array:
-    """``x`` with every non-finite sample replaced by the last finite one before it."""
-    x = np.asarray(x, float)
-    ok = np.isfinite(x)
-    if ok.all():
-        return x
-    idx = np.where(ok, np.arange(x.size), -1)
-    np.maximum.accumulate(idx, out=idx)
-    return np.where(idx >= 0, x[np.maximum(idx, 0)], last)

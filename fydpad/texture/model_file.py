@@ -267,6 +267,10 @@ def _free_form(d: Any, two_part: Any, where: str) -> dict[str, Any] | None:
         raise UserError(f"{w}.{table} must be one row per free_form.v_mm_s of finite"
                         f"{'' if table == 'log_c' else ', nonnegative'} values"
                         f"{' per free_form.f_hz' if n_col is not None else ''}")
+    taper = d.get("taper_mm_s")
+    if taper is not None and (isinstance(taper, bool) or not isinstance(taper, int | float)
+                              or not math.isfinite(taper) or taper <= 0):
+        raise UserError(f"{w}.taper_mm_s must be a number > 0 or null, not {taper!r}")
     if form != "free":
         if two_part is None:
             raise UserError(f"{w}: form {form!r} needs the key 'two_part', which is missing")

@@ -26,6 +26,7 @@ reader at yours.
 
 from __future__ import annotations
 
+import math
 import warnings
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
@@ -83,6 +84,23 @@ def _num(root: ET.Element, key: str, where: str, default: float | None = None) -
         raise UserError(f"{where}: <{key}> is not a number ({node.text!r})") from None
 
 
+def _count(root: ET.Element, key: str, where: str, default: int | None = None) -> int:
+    """A count element (numARCoeff, numMod, ...): a whole number >= 0, else a UserError
+    naming the file and tag (``int()`` of inf or nan would raise a traceback)."""
+    node = root.find(key)
+    if node is None or node.text is None or not node.text.strip():
+        if default is not None:
+            return default
+        raise UserError(f"{where}: missing element <{key}>")
+    try:
+        v = float(node.text)
+    except ValueError:
+        v = math.nan
+    if not (math.isfinite(v) and v >= 0 and v == round(v)):
+        raise UserError(f"{where}: <{key}> is not a whole number >= 0 ({node.text.strip()!r})")
+    return int(v)
+
+
 def _check_units(root: ET.Element, where: str) -> None:
     for key, ok in _UNITS.items():
         node = root.find(key)
@@ -113,8 +131,8 @@ def read_penn(path: str | Path) -> PennModelSet:
         raise UserError(f"{path}: root element is <{root.tag}>, expected <modelSet>")
     w = str(path)
     _check_units(root, w)
-    p = int(_num(root, "numARCoeff", w))
-    q = int(_num(root, "numMACoeff", w, 0.0))
+    p = _count(root, "numARCoeff", w)
+    q = _count(root, "numMACoeff", w, 0)
     fs = _num(root, "SampleRate", w, DEFAULT_FS_HZ)
     if not fs > 0:
         raise UserError(f"{w}: <SampleRate> must be positive, got {fs:g}")
@@ -122,9 +140,9 @@ def read_penn(path: str | Path) -> PennModelSet:
     if not models:
         raise UserError(f"{w}: no <model> elements")
     n = len(models)
-    num_mod = _num(root, "numMod", w, float(n))
-    if int(num_mod) != n:
-        raise UserError(f"{w}: <numMod> says {int(num_mod)}, the file has {n} <model> elements")
+    num_mod = _count(root, "numMod", w, n)
+    if num_mod != n:
+        raise UserError(f"{w}: <numMod> says {num_mod}, the file has {n} <model> elements")
     sp, fo, ar, ma, var, gain = [], [], [], [], [], []
     for i, m in enumerate(models):
         mw = f"{w}: model {i + 1}"
@@ -192,9 +210,9 @@ def _read_tri(root: ET.Element, n: int, w: str) -> NDArray[np.int64]:
         if bad.size:
             raise UserError(f"{w}: <tri> {k + 1}: index {bad[0]:g} outside 1..{n}")
         rows.append(v.astype(np.int64) - 1)
-    num_tri = root.findtext("numTri")
-    if num_tri is not None and num_tri.strip() and int(float(num_tri)) != len(rows):
-        raise UserError(f"{w}: <numTri> says {int(float(num_tri))}, the file has "
+    num_tri = _count(root, "numTri", w, len(rows))  # absent or empty: not checked
+    if num_tri != len(rows):
+        raise UserError(f"{w}: <numTri> says {num_tri}, the file has "
                         f"{len(rows)} <tri> elements")
     return np.vstack(rows) if rows else np.zeros((0, 3), np.int64)
 

@@ -17,9 +17,12 @@ per step, documented in docs/texture.md).
   (10 for 10 kHz models) through the ARMA recursion and an elliptic low-pass (passband
   0.45 x rate, stopband 0.55 x rate, 60 dB), the last one kept. The whole step is
   linear in the state [y history, e history, low-pass state] and the R noise samples,
-  so it is one precomputed matrix per grid point: one ``np.dot`` a tick, no
-  allocation. The state is physical (past outputs and excitations of the recursion),
-  so a model change carries it as the toolkit does, without a click.
+  so it is one precomputed matrix per grid point: one ``np.dot`` a tick into views
+  made in ``prepare`` (the matrix rows and the noise block are indexed through lists of
+  views), no array allocation; the speed estimate (``CentroidSpeed``) still makes Python
+  floats (32 B median transient per tick, tracemalloc). The state is physical (past
+  outputs and excitations of the recursion), so a model change carries it as the
+  toolkit does, without a click.
 - ``render`` (offline): the same recursion by ``lfilter`` over runs of one grid point
   (``zi`` rebuilt from the histories, state carried across blocks); to an output rate
   that divides the model rate, the same low-pass (state carried) and every R-th sample;
@@ -46,7 +49,7 @@ import scipy.signal as ss
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.family import FingerBlock
+from fydpad.texture.family import FingerBlock, hold_finite
 from fydpad.texture.penn import PennModelSet, barycentric_weights, read_penn
 
 Array = NDArray[np.float64]
@@ -123,7 +126,8 @@ class PennTexture:
     def _fit_grid(self, grid: tuple[int, int]) -> tuple[int, int]:
         ns, nf = max(2, int(grid[0])), max(2, int(grid[1]))
         ratio = max(1, round(self.ms.fs_hz / self.rate_hz))
-        d = self.p + self.q + 2 * 8  # an 8th-order low-pass at most (60 dB, 450/550)
+        # The tick matrix's size (_tick_matrices) with the low-pass prepare() will build.
+        d = self.p + self.q + 2 * decimation_sos(ratio, self.rate_hz).shape[0]
         per_cell = 8 * (d + 1) * (d + ratio)
         while ns * nf * per_cell > _TABLE_BYTES and ns * nf > 64:
             ns, nf = max(8, ns * 3 // 4), max(8, nf * 3 // 4)
@@ -174,22 +178,33 @@ class PennTexture:
         if self._tick_ready:
             self._state[:] = 0.0
 
-    def prepare(self) -> None:
-        """Build the tick path for ``rate_hz`` (the station sets it) before the loop."""
-        ratio = self.ms.fs_hz / self.rate_hz
+    def check_rate(self, rate_hz: float) -> int:
+        """R = SampleRate / ``rate_hz``, a whole number >= 1 for ``tick``, else a UserError
+        (``fydpad run`` calls it before the station starts: check_family_rate)."""
+        ratio = self.ms.fs_hz / rate_hz
         r = round(ratio)
         if r < 1 or abs(ratio - r) > 1e-9 * ratio:
             raise UserError(f"{self.path}: <SampleRate> {self.ms.fs_hz:g} Hz is not a whole "
-                            f"multiple of the render rate {self.rate_hz:g} Hz")
+                            f"multiple of the render rate {rate_hz:g} Hz")
+        return r
+
+    def prepare(self) -> None:
+        """Build the tick path for ``rate_hz`` (the station sets it) before the loop."""
+        r = self.check_rate(self.rate_hz)
         self.channels["vibration"] = self.rate_hz
         self.ratio = r
         self.sos = decimation_sos(r, self.rate_hz)
         self._W = self._tick_matrices(r, self.sos)
-        self._d = self._W.shape[1] - 1
-        self._state = np.zeros(self._d + r)  # [y hist, e hist, low-pass state, R noises]
-        self._out = np.zeros(self._d + 1)
-        self._noise = np.zeros(r * _NOISE_TICKS)
-        self._npos = self._noise.size
+        d = self._d = self._W.shape[1] - 1
+        self._state = np.zeros(d + r)  # [y hist, e hist, low-pass state, R noises]
+        self._out = np.zeros(d + 1)
+        # Views made once: indexing a list of them in tick creates no array object.
+        self._rows = list(self._W)
+        self._hist, self._next = self._state[:d], self._out[:d]
+        self._st_noise = self._state[d:]
+        self._noise = np.zeros((_NOISE_TICKS, r))
+        self._noise_rows = list(self._noise)
+        self._npos = _NOISE_TICKS
         self._dt_s = 1.0 / self.rate_hz
         self._alpha = 1.0 - math.exp(-1.0 / (max(self.ramp_s, 1e-9) * self.rate_hz))
         self._tick_ready = True
@@ -246,19 +261,17 @@ class PennTexture:
         if j >= nf:
             j = nf - 1
             self._warn_clamp(v, f)
-        r = self.ratio
         pos = self._npos
-        if pos + r > self._noise.size:
+        if pos >= _NOISE_TICKS:
             self._rng.standard_normal(out=self._noise)
             pos = 0
-        st, out, d = self._state, self._out, self._d
-        st[d:] = self._noise[pos:pos + r]
-        self._npos = pos + r
-        np.dot(self._W[i * nf + j], st, out=out)
-        st[:d] = out[:d]
+        np.copyto(self._st_noise, self._noise_rows[pos])
+        self._npos = pos + 1
+        np.dot(self._rows[i * nf + j], self._state, out=self._out)
+        np.copyto(self._hist, self._next)
         target = 1.0 if (self.speed.contact and v >= self.still_mm_s) else 0.0
         self._g += self._alpha * (target - self._g)
-        return (self._g * out[d],)
+        return (self._g * self._out.item(self._d),)  # item: a float, not a NumPy scalar
 
     # ------------------------------------------------------------------ offline
     def render(self, finger: FingerBlock, channel: str = "vibration") -> Array:
@@ -270,7 +283,7 @@ class PennTexture:
             return np.zeros(0)
         fs, fo = self.ms.fs_hz, float(finger.fs_hz)
         speed = np.where(np.isfinite(finger.speed_mm_s), finger.speed_mm_s, 0.0)
-        force = _hold_finite(finger.force_n, self._f if self._f == self._f
+        force = hold_finite(finger.force_n, self._f if self._f == self._f
                              else self.default_force_n)
         self._f = float(force[-1])
         bad = (speed > self.ms.max_speed_mm_s) | (force > self.ms.max_force_n)
@@ -336,17 +349,6 @@ class PennTexture:
             if q:
                 self._eh = np.concatenate([e[s0:s1][::-1], self._eh])[:q]
         return y
-
-
-def _hold_finite(x: Array, first: float) -> Array:
-    """``x`` with every non-finite sample replaced by the last finite one before it."""
-    x = np.asarray(x, float)
-    ok = np.isfinite(x)
-    if ok.all():
-        return x
-    idx = np.where(ok, np.arange(x.size), -1)
-    np.maximum.accumulate(idx, out=idx)
-    return np.where(idx >= 0, x[np.maximum(idx, 0)], first)
 
 
 def load_penn_family(path: str | Path) -> PennTexture:

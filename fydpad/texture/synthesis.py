@@ -132,13 +132,30 @@ class TextureRenderer:
             self._gspec_ok = np.zeros(g.shape[0], bool)
             self._ebuf = np.zeros(2 * n_fir)  # noise, newest first, written twice
             self._epos = 0
+        self._tick_views()
         band = drive_band_hz or model.drive_band_hz
         self._sos: Array | None = None
         if drive_filter:
             if band is None:
                 raise ValueError("drive filter requested but no band given")
             self._sos = ss.butter(drive_order, band, "bandpass", fs=self.fs_hz, output="sos")
-            self._zs = np.zeros((self._sos.shape[0], 2))
+            # The per-tick path in plain floats (NumPy scalars cost ~5 us a tick here);
+            # the block path hands the same state to sosfilt.
+            self._sos_rows = [tuple(float(c) for c in row) for row in self._sos]
+            self._zs = [[0.0, 0.0] for _ in self._sos_rows]
+
+    def _tick_views(self) -> None:
+        """The per-sample path's table rows and history windows as views made once."""
+        t = self.table
+        self._v0 = float(t.speeds_mm_s[0])
+        self._inv_step = 1.0 / float(t.step_mm_s)
+        self._sigma = [float(s) for s in t.sigma]
+        self._h_rows = list(t.h)
+        self._bwin = [self._buf[k:k + self.p] for k in range(self.p)]
+        if self.structure == "fir":
+            self._n_fir = self.fir.shape[1]
+            self._fir_rows = list(self.fir)
+            self._ewin = [self._ebuf[k:k + self._n_fir] for k in range(self._n_fir)]
 
     def _replace_unstable(self) -> None:
         t = self.table
@@ -163,7 +180,8 @@ class TextureRenderer:
         self._g = 0.0
         self._last_i = -1
         if self._sos is not None:
-            self._zs[:] = 0.0
+            for z in self._zs:
+                z[0] = z[1] = 0.0
 
     def target_gain(self, speed_mm_s: float, contact: bool) -> float:
         """Output gain for this speed: 0 when still or without contact, fade below v_min."""
@@ -212,15 +230,14 @@ class TextureRenderer:
         is not finite (NaN, inf) is no speed: silence, as a lost track."""
         if not math.isfinite(speed_mm_s):  # else the table index raises (NaN, inf)
             speed_mm_s, contact = 0.0, False
-        t = self.table
-        i = t.index(speed_mm_s)
         if self._noise_pos >= _NOISE_CHUNK:
             self._rng.standard_normal(out=self._noise)
             self._noise_pos = 0
         e = self._noise[self._noise_pos]
         self._noise_pos += 1
+        # Rows and windows are views made once (_tick_views): no view per tick.
         if self.structure == "fir":
-            n_fir = self.fir.shape[1]
+            n_fir = self._n_fir
             pos = self._epos
             pos = pos - 1 if pos > 0 else n_fir - 1
             self._ebuf[pos] = e
@@ -229,19 +246,20 @@ class TextureRenderer:
             # g_v linear between the two entries around the speed: a stepwise g would
             # modulate the output at every step and leak the strong bands into weak ones
             # (measured: 10-20 dB too much power at 250-500 Hz on sandpaper_p80).
-            x = (speed_mm_s - t.speeds_mm_s[0]) / t.step_mm_s
+            x = (speed_mm_s - self._v0) * self._inv_step
             x = min(max(x, 0.0), self._n_fir_rows - 1.0) if x == x else 0.0
             k = min(int(x), self._n_fir_rows - 2)
             w = x - k
-            hist = self._ebuf[pos:pos + n_fir]
-            y = ((1.0 - w) * float(np.dot(self.fir[k], hist))
-                 + w * float(np.dot(self.fir[k + 1], hist)))
+            hist = self._ewin[pos]
+            rows = self._fir_rows
+            y = (1.0 - w) * float(rows[k].dot(hist)) + w * float(rows[k + 1].dot(hist))
         else:
+            i = self.table.index(speed_mm_s)
             if i != self._last_i:
                 self._limit_history(i)
-            p = self.p
             pos = self._pos
-            y = t.sigma[i] * e + float(np.dot(t.h[i], self._buf[pos:pos + p]))
+            p = self.p
+            y = self._sigma[i] * e + float(self._h_rows[i].dot(self._bwin[pos]))
             pos = pos - 1 if pos > 0 else p - 1
             self._buf[pos] = y
             self._buf[pos + p] = y
@@ -253,12 +271,11 @@ class TextureRenderer:
         return out
 
     def _drive_tick(self, x: float) -> float:
-        sos, z = self._sos, self._zs
-        for s in range(sos.shape[0]):  # transposed direct form II, as scipy's sosfilt
-            b0, b1, b2, _, a1, a2 = sos[s]
-            y = b0 * x + z[s, 0]
-            z[s, 0] = b1 * x - a1 * y + z[s, 1]
-            z[s, 1] = b2 * x - a2 * y
+        for (b0, b1, b2, _, a1, a2), z in zip(self._sos_rows, self._zs, strict=True):
+            # transposed direct form II, as scipy's sosfilt
+            y = b0 * x + z[0]
+            z[0] = b1 * x - a1 * y + z[1]
+            z[1] = b2 * x - a2 * y
             x = y
         return x
 
@@ -297,7 +314,8 @@ class TextureRenderer:
             self._g = float(g[-1])
         out = g * y
         if self._sos is not None:
-            out, self._zs[:] = ss.sosfilt(self._sos, out, zi=self._zs)
+            out, zf = ss.sosfilt(self._sos, out, zi=np.asarray(self._zs))
+            self._zs = zf.tolist()
         return out
 
     def _fir_block(self, e: Array, idx: NDArray[np.int64], lam: Array,
@@ -455,15 +473,18 @@ class CentroidSpeed:
             self._vx, self._vy = new.vx_mm_s, new.vy_mm_s
 
     def sample(self, t_s: float, x_mm: float, y_mm: float, contact: bool) -> None:
-        """The newest centroid at a tick: :meth:`position` once per new frame, and again
-        (a zero velocity) once it has stayed put for ``rest_after_s``."""
+        """The newest centroid at a tick: :meth:`position` once per new frame; a zero
+        velocity once it has stayed put for ``rest_after_s``."""
         # Without contact the position is NaN: only the change to "no contact" is news.
         if contact != self._last_contact or (
-                contact and (x_mm != self._last_x_mm or y_mm != self._last_y_mm
-                             or t_s - self._t_new_s >= self.rest_after_s)):
+                contact and (x_mm != self._last_x_mm or y_mm != self._last_y_mm)):
             self.position(t_s, x_mm, y_mm, contact)
             self._last_x_mm, self._last_y_mm, self._last_contact = x_mm, y_mm, contact
             self._t_new_s = t_s
+        elif contact and t_s - self._t_new_s >= self.rest_after_s:
+            # At rest; the next frame is still differentiated from the last real one (a
+            # new time base here would divide its step by too short a time).
+            self._vx = self._vy = 0.0
 
     def tick(self, dt_s: float = 1e-3) -> float:
         """Advance the low-pass by ``dt_s``; the filtered speed in mm/s (0 without contact)."""

@@ -173,6 +173,11 @@ def test_bad_free_form_block_names_the_key(scan_model):
     del bad["two_part"]
     with pytest.raises(UserError, match=r"needs the key 'two_part'"):
         parse_model(bad, "m.json")
+    for taper in (0, -5, "x", float("inf")):  # 0 and "x" were tracebacks, -5 silent
+        bad = json.loads(json.dumps(data))
+        bad["free_form"]["taper_mm_s"] = taper
+        with pytest.raises(UserError, match=r"m.json: free_form.taper_mm_s must be a number"):
+            parse_model(bad, "m.json")
     with pytest.raises(UserError, match=r"form must be one of"):
         fit_texture([generate_scan("felt", 10.0, 2.0, seed=1)], speeds_mm_s=(10.0,),
                     order=20, free_form="magic")

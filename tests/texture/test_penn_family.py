@@ -294,3 +294,111 @@ def test_cli_evaluate_and_identify_take_hatt_files(tmp_path, penn_xml, capsys):
                  "--json", str(tmp_path / "i.json")]) == 0
     ident = json.loads((tmp_path / "i.json").read_text())
     assert ident["kind"] == "penn" and {"tex", "other"} <= set(ident["labels"])
+
+
+def _tick_transient_b(step, n: int = 2000) -> float:
+    """Median over ``n`` calls of tracemalloc's peak minus current across one call."""
+    import gc
+    import tracemalloc
+
+    for k in range(500):
+        step(k)
+    gc.collect()
+    gc.disable()
+    tracemalloc.start()
+    peaks = np.zeros(n)
+    try:
+        for k in range(500, 500 + n):
+            c, _ = tracemalloc.get_traced_memory()
+            tracemalloc.reset_peak()
+            step(k)
+            peaks[k - 500] = tracemalloc.get_traced_memory()[1] - c
+    finally:
+        tracemalloc.stop()
+        gc.enable()
+    return float(np.median(peaks))
+
+
+class _FixedSpeed:
+    """A speed estimator that allocates nothing: isolates PennTexture.tick's own work."""
+
+    contact = True
+
+    def sample(self, t_s, x_mm, y_mm, contact):
+        pass
+
+    def tick(self, dt_s):
+        return 20.0
+
+
+def test_tick_creates_no_arrays(penn_xml):
+    """tick's own step (grid point, noise, matrix, gate) allocates nothing: the noise
+    block and the matrices are indexed through views made in prepare. The speed
+    estimator (CentroidSpeed, synthesis.py) is replaced by a constant here."""
+    fam = load_family(penn_xml)
+    fam.prepare()
+    fam.speed = _FixedSpeed()
+    ts = (np.arange(3000) / 1000.0).tolist()
+    fs = (1.0 + 0.5 * np.sin(np.arange(3000) / 300)).tolist()  # grid points change
+    got = _tick_transient_b(lambda k: fam.tick(ts[k], True, 10.0, 5.0, 20.0, fs[k]))
+    assert got == 0.0  # the old tick's slice views: 224 B
+    assert fam._npos > 0  # the noise block was redrawn in the loop (512 ticks each)
+
+
+def test_table_budget_uses_the_real_low_pass(tmp_path):
+    """ARMA(25, 5) at 10 kHz: the tick matrices of the full 64 x 32 grid (4 low-pass
+    sections, 30.7 MB) fit the 32 MiB budget; AR(60) shrinks the grid to fit it."""
+    from fydpad.texture.penn_family import _TABLE_BYTES, decimation_sos
+
+    assert decimation_sos(10, 1000.0).shape[0] == 4
+    rng = np.random.default_rng(0)
+    ms = _model_set((120, 260, 180, 340))
+    for p, q, grid in ((25, 5, (64, 32)), (60, 0, None)):
+        ms.ar_lsf = np.sort(rng.uniform(0.05, 3.0, (4, p)), axis=1)
+        ms.ma_lsf = np.sort(rng.uniform(0.05, 3.0, (4, q)), axis=1)
+        fam = PennTexture(ms, "m.xml")
+        if grid is not None:
+            assert fam._grid == grid
+        else:
+            assert fam._grid[0] * fam._grid[1] < 64 * 32
+        fam.prepare()
+        assert fam._W.nbytes <= _TABLE_BYTES
+        assert fam._W.shape[0] == fam._grid[0] * fam._grid[1]
+
+
+def test_cli_synth_refuses_a_non_finite_speed(tmp_path, penn_xml, capsys):
+    """--speed-mm-s inf or -1: one line naming the flag, for every kind (penn wrote
+    silence with a RuntimeWarning)."""
+    from fydpad.cli import main
+
+    for speed in ("inf", "nan", "-1"):
+        rc = main(["texture", "synth", f"penn:{penn_xml}", "--speed-mm-s", speed,
+                   "--force-n", "1", "--seconds", "1", "--out", str(tmp_path / "o.csv")])
+        err = capsys.readouterr().err
+        assert rc == 2 and "--speed-mm-s" in err and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "o.csv").exists()
+
+
+def test_run_checks_the_model_rate_before_the_station_starts(tmp_path, monkeypatch, capsys):
+    """A set at 10.5 kHz cannot tick at 1 kHz: ``fydpad run`` says so in one line from
+    check_family_rate, before a Station (and its render process) exists."""
+    import fydpad.commands.run as run_cmd
+    from fydpad.cli import main
+    from fydpad.station.texture_source import check_family_rate
+
+    ms = _model_set((120, 260, 180, 340))
+    ms.fs_hz = 10_500.0
+    xml = write_penn(tmp_path / "Models_Odd.xml", ms)
+    with pytest.raises(UserError, match=r"Models_Odd\.xml: <SampleRate> 10500 Hz is not a whole"):
+        check_family_rate(load_family(xml), 1000.0, f"penn:{xml}")
+    check_family_rate(load_family(xml), 500.0, f"penn:{xml}")  # 21 x 500 Hz: fine
+
+    def no_station(*a, **k):
+        raise AssertionError("the station was started")
+
+    monkeypatch.setattr(run_cmd, "Station", no_station)
+    rc = main(["run", "--synthetic", "--duration", "1", "--motors", "sim",
+               "--texture", f"penn:{xml}"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "<SampleRate> 10500 Hz is not a whole multiple" in err, err
+    assert len(err.strip().splitlines()) == 1

@@ -172,6 +172,41 @@ def test_command_line_bad_model_is_one_line_exit_2(files, tmp_path):
     assert "m.json: missing key 'mu'" in r.stderr
 
 
+def test_reset_starts_the_next_stimulus_from_no_speed(files):
+    """Switching stimuli resets an LPC model's speed estimate too: 1 s at 40 mm/s, then
+    reset and a finger at 10 mm/s: the estimate rises towards 10, never from 40."""
+    fam = open_texture(str(files / "lpc.json"), 1000.0)
+    for k in range(1000):
+        t = k / 1000.0
+        fam.tick(t, True, 40.0 * np.floor(t * 30) / 30, 0.0, 40.0, 1.0)
+    fam.reset()
+    for k in range(1000, 1060):
+        t = k / 1000.0
+        fam.tick(t, True, 10.0 * np.floor(t * 30) / 30, 0.0, 10.0, 1.0)
+        assert fam.source.speed.tick(0.0) < 10.5
+
+
+def test_lpc_options_reach_lpc_stimuli_and_pass_over_the_others(files):
+    """An experiment's stimuli mix families: --drive-filter and --texture-method apply to
+    its LPC models and pass over a grating (they stopped the station at start)."""
+    from fydpad.config import StationConfig
+    from fydpad.station.chains import build_render_chain
+    from fydpad.station.render import RenderSpec
+
+    spec = RenderSpec(texture=str(files / "lpc.json"),
+                      textures=(f"grating:{files / 'grating.json'}", str(files / "lpc.json")),
+                      motors="sim", config=StationConfig(), drive_filter=True,
+                      texture_method="linear")
+    chain = build_render_chain(spec)
+    try:
+        lpc0, grating, lpc2 = (m.family for m in chain.models)
+        for fam in (lpc0, lpc2):
+            assert fam.source.renderer.method == "linear" and fam.source.renderer._sos is not None
+        assert grating.kind == "grating"
+    finally:
+        chain.safe_stop()
+
+
 def test_drive_chain_plays_vibration_and_scales_stiffness_by_tension(files):
     """The station's render chain on the simulated motors: the grating's tension channel
     moves the softness request around the specimen's stiffness, by position."""
