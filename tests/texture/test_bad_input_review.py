@@ -5,29 +5,22 @@ and the key, option or line."""
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 
 import numpy as np
 import pytest
 
-from fydpad.commands import texture
 from fydpad.errors import UserError
 from fydpad.station.texture_source import TextureSource, open_texture
 from fydpad.texture.model_file import TextureModel, load_model, model_to_json
 from fydpad.texture.scan_generator import generate_scan, save_generated
 from fydpad.texture.scan_io import read_scan
 from fydpad.texture.synthesis import TextureRenderer
+from tests.texture_families.helpers import run_cli
 from vision.recording import RecordingError
 
-
-def run(*argv: str) -> int:
-    parser = argparse.ArgumentParser(prog="fydpad")
-    sub = parser.add_subparsers(dest="command")
-    texture.register(sub)
-    args = parser.parse_args(["texture", *argv])
-    return args.func(args)
+run = run_cli  # ``fydpad texture ...`` in this process
 
 
 def _model(fs_hz: float = 1000.0, surface: str = "R1") -> TextureModel:

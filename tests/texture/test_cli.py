@@ -2,23 +2,16 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 
 import numpy as np
 import pytest
 
-from fydpad.commands import texture
 from fydpad.errors import UserError
+from tests.texture_families.helpers import run_cli
 from vision.recording import read_csv_columns
 
-
-def run(*argv: str) -> int:
-    parser = argparse.ArgumentParser(prog="fydpad")
-    sub = parser.add_subparsers(dest="command")
-    texture.register(sub)
-    args = parser.parse_args(["texture", *argv])
-    return args.func(args)
+run = run_cli  # ``fydpad texture ...`` in this process
 
 
 @pytest.fixture(scope="module")
