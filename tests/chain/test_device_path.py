@@ -43,11 +43,7 @@ def device(table: Path, tmp_path: Path):
     dev = EmulatedDevice()
     cfg = tmp_path / "station.toml"
     # A stall timeout other than the default 0.5 s: the stall test sees it reach the reader.
-    # The emulated QB board shares this loaded 2-core machine: its 4 ms per-tick deadline
-    # would measure the load, not the chain (under load it missed 4 in a row before the
-    # load cell's stall); 50 ms as in tests/motors/test_qb.py.
-    cfg.write_text(f'[qb]\nport = "{dev.qb_port}"\ntick_timeout_s = 0.05\n'
-                   f'[softness]\ntable = "{table}"\n'
+    cfg.write_text(f'[qb]\nport = "{dev.qb_port}"\n[softness]\ntable = "{table}"\n'
                    "[accel]\nserial_timeout_s = 0.3\n[ir]\nserial_timeout_s = 0.3\n")
     yield dev, cfg
     dev.stop()
@@ -180,6 +176,10 @@ def test_accelerometer_that_stalls_mid_run_is_one_line(device, tmp_path: Path, c
 
 def test_load_cell_that_stops_mid_run_is_one_line(device, tmp_path: Path, capsys):
     dev, cfg = device
+    # The emulated QB board shares this loaded 2-core machine: its 4 ms per-tick deadline
+    # measures the load, not the load cell (under load it missed 4 replies in a row
+    # before the sensor board's stall): 50 ms here, as in tests/motors/test_qb.py.
+    cfg.write_text(cfg.read_text().replace("[qb]\n", "[qb]\ntick_timeout_s = 0.05\n", 1))
     stop_when(dev, 1200, dev.pause_board)  # the sensor board hangs mid-excitation
     assert identify(dev, cfg, tmp_path / "tf.npz") == 2
     err = capsys.readouterr().err.strip()
