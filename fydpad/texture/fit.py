@@ -97,7 +97,7 @@ def fit_texture(
 
     Each scan is high-passed at ``highpass_hz`` and reduced by DFT321 as a whole, then
     cut into speed runs; each speed pools the autocorrelations of its runs. ``wrap``
-    wraps the scans, ``wrap_iterations`` the two-part model's iterations (progress bars).
+    wraps the scans, ``wrap_iterations`` the spectral models' iterations (progress bars).
 
     ``speed_normalise``: a second pass fits each speed on its runs resampled to that
     constant speed (:func:`speed_warp.normalised_spectrum`, warp exponents from the
@@ -187,9 +187,10 @@ def fit_texture(
                 by = {v: list(zip(pooled[v], speeds_of[v], strict=True)) for v in got_speeds}
                 s_of = fit_calibrated(by, fs, s_of, **opts)
             elif free_form == "surface":
-                s_of = fit_surface_resolved(runs, traces, fs, (lo, hi), s_of, **opts)
+                s_of = fit_surface_resolved(runs, traces, fs, (lo, hi), s_of,
+                                            wrap=wrap_iterations, **opts)
             elif free_form == "free":
-                s_of = fit_free_form(runs, traces, fs, (lo, hi), **opts)
+                s_of = fit_free_form(runs, traces, fs, (lo, hi), wrap=wrap_iterations, **opts)
         except (ValueError, TypeError) as exc:
             raise UserError(f"free-form model ({free_form}): {exc}") from None
         if free_form:

@@ -26,7 +26,7 @@ S averaged over v +- 1 mm/s; the 1 kHz path unchanged):
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -190,7 +190,8 @@ def _chunks_in(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
 
 def fit_free_form(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
                   speed_range_mm_s: tuple[float, float], *, knot_step_mm_s: float = 2.5,
-                  iterations: int = 100, chunk: int = CHUNK) -> FreeFormSpectrum:
+                  iterations: int = 100, chunk: int = CHUNK,
+                  wrap: Callable[[Iterable], Iterable] = lambda it: it) -> FreeFormSpectrum:
     """The ``"free"`` form (module docstring) on preprocessed ``runs`` with speed traces
     ``speeds``. Starts from each knot's weighted chunk mean (knots without data take
     their neighbours'); the IS updates converge within ~50 iterations here."""
@@ -216,7 +217,7 @@ def fit_free_form(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
         return out
 
     s = fill(np.maximum(s, _EPS))
-    for _ in range(iterations):
+    for _ in wrap(range(iterations)):
         pred = np.maximum(m @ s, _EPS)
         top, bottom = m.T @ (p / pred**2), m.T @ (1.0 / pred)
         s[have] *= (top[have] / np.maximum(bottom[have], _EPS)) ** STEP
@@ -227,7 +228,9 @@ def fit_free_form(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
 def fit_surface_resolved(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
                          speed_range_mm_s: tuple[float, float], two: TwoPartSpectrum, *,
                          knot_step_mm_s: float = 5.0, prior_weight: float = 1.0,
-                         iterations: int = 100, chunk: int = CHUNK) -> SurfaceResolvedSpectrum:
+                         iterations: int = 100, chunk: int = CHUNK,
+                         wrap: Callable[[Iterable], Iterable] = lambda it: it
+                         ) -> SurfaceResolvedSpectrum:
     """The ``"surface"`` form: Q(k, v_knot) starts at U(k) g(v_knot) of the fitted ``two``
     and is refined by IS updates on the chunks, with a pseudo-observation of U g of
     weight ``prior_weight`` at every knot; T, N and n stay."""
@@ -244,7 +247,7 @@ def fit_surface_resolved(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: 
     prior = np.maximum(prior, 1e-30 * prior.max())  # U may hold exact zeros
     q = prior.copy()
     floor_part = two.floor[None, :] * two.n[:, None]
-    for _ in range(iterations):
+    for _ in wrap(range(iterations)):
         x = np.einsum("vfk,vk->vf", (bbig @ q.T).reshape(nv, nf, knots.size), phi)
         s = np.maximum(w @ (two.tool * x + floor_part), _EPS)
         gn, gp = w.T @ (p / s**2), w.T @ (1.0 / s)
