@@ -206,8 +206,8 @@ def target_figures():
     """test_targets.py's ``figures`` set-up (one 8 s training stroke per speed, held-out
     8 s strokes seed 100, ceiling seed 200) for the calibrated form:
     {(texture, speed): (corr, lsd, ceiling)}."""
-    from fydpad.texture.dft321 import preprocess
-    from fydpad.texture.evaluate import compare, evaluate_scan, evaluation_mask
+    from fydpad.texture.evaluate import evaluate_scan
+    from tests.texture.heldout import held_out
 
     out = {}
     with warnings.catch_warnings():
@@ -216,11 +216,7 @@ def target_figures():
             model, _ = fit_texture([generate_scan(name, s, 8.0, seed=1) for s in SPEEDS],
                                    free_form="calibrated")
             for v in (20.0, 25.0):
-                held = generate_scan(name, v, 8.0, seed=100)
-                second = generate_scan(name, v, 8.0, seed=200)
-                mask = evaluation_mask(held, model)
-                ceil, *_ = compare(preprocess(held.acc, 1000.0), preprocess(second.acc, 1000.0),
-                                   1000.0, mask & evaluation_mask(second, model))
+                held, mask, ceil = held_out(name, v, model)
                 c, _ = evaluate_scan(model, held, method="stretch", mask=mask)
                 out[(name, v)] = (c.psd_correlation, c.lsd_db, ceil.lsd_db)
     return out

@@ -29,6 +29,7 @@ from fydpad.texture.evaluate import compare, evaluate_scan, evaluation_mask
 from fydpad.texture.fit import fit_texture
 from fydpad.texture.identify import identify
 from fydpad.texture.scan_generator import TEXTURES, generate_scan
+from tests.texture.heldout import held_out
 
 TARGET_TEXTURES = ("R1", "R2", "felt", "glass")
 SPEEDS = (10.0, 20.0, 30.0, 40.0)
@@ -50,11 +51,7 @@ def figures():
             # The two-part model: fixed tool part, surface part moving with speed.
             two, _ = fit_texture(train, two_part=True)
             for v in (20.0, 25.0):
-                held = generate_scan(name, v, 8.0, seed=100)
-                second = generate_scan(name, v, 8.0, seed=200)
-                mask = evaluation_mask(held, model)
-                ceil, *_ = compare(preprocess(held.acc, 1000.0), preprocess(second.acc, 1000.0),
-                                   1000.0, mask & evaluation_mask(second, model))
+                held, mask, ceil = held_out(name, v, model)
                 for method in ("stretch", "lsf", "linear"):
                     c, _ = evaluate_scan(model, held, method=method, mask=mask)
                     out[(name, v, method)] = (c.psd_correlation, c.lsd_db, ceil.lsd_db)

@@ -1,0 +1,19 @@
+"""The held-out protocol of test_targets.py's ``figures`` set-up, shared by the tests
+that score a model form on it: held-out 8 s stroke seed 100, second recording seed 200."""
+
+from __future__ import annotations
+
+from fydpad.texture.dft321 import preprocess
+from fydpad.texture.evaluate import compare, evaluation_mask
+from fydpad.texture.scan_generator import generate_scan
+
+
+def held_out(name: str, speed_mm_s: float, model):
+    """(held-out scan, its evaluation mask, the ceiling: a second recording scored
+    against it over the same mask)."""
+    held = generate_scan(name, speed_mm_s, 8.0, seed=100)
+    second = generate_scan(name, speed_mm_s, 8.0, seed=200)
+    mask = evaluation_mask(held, model)
+    ceil, *_ = compare(preprocess(held.acc, 1000.0), preprocess(second.acc, 1000.0), 1000.0,
+                       mask & evaluation_mask(second, model))
+    return held, mask, ceil
