@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import re
+import time
 from pathlib import Path
 
 import numpy as np
@@ -323,3 +324,36 @@ def test_the_documented_example_lines_parse():
     assert len(examples) == 2
     parsed = [parse_accel_line(ln.encode()) for ln in examples]
     assert parsed[0].counts == (12, -5, 256) and parsed[1].part == "ADXL345"
+
+
+def test_a_clocked_part_never_sends_a_sample_before_its_time():
+    # A sample sent before its time on the device's clock gives an older value a later
+    # time: the send loop's catch-up used to run 1-2 samples ahead (1.2-1.4 ms early),
+    # which held the device-path identification's coherence at 0.02-0.3.
+    sent: list[tuple[int, float]] = []
+    emu = AccelEmulator(clocked=True)
+
+    def recording(k: int) -> tuple[float, float, float]:
+        sent.append((k, time.monotonic()))
+        return counting(k)
+
+    emu.signal_fn = recording
+    with emu.start(), SerialAccelerometer(emu.port, timeout_s=DATA_TIMEOUT_S) as acc:
+        read_n(acc, 300)
+    early_s = [emu.sample_time_s(k) - t for k, t in sent]
+    assert max(early_s) <= 0.0, f"{sum(e > 0 for e in early_s)} samples sent early"
+
+
+@pytest.mark.parametrize("stall_ms, lost", [(20, 0), (80, "overflow")])
+def test_a_starved_clocked_part_drains_its_fifo_and_loses_only_the_overflow(stall_ms, lost):
+    emu = AccelEmulator(counting, clocked=True, fifo_depth=32)
+    with emu.start(), SerialAccelerometer(emu.port, timeout_s=DATA_TIMEOUT_S) as acc:
+        before = read_n(acc, 50)
+        with emu._lock:  # the emulator's thread cannot send: a starved microcontroller
+            time.sleep(stall_ms / 1000)
+        a = np.vstack([before, read_n(acc, stall_ms + 50)])
+    gaps = np.rint(np.diff(a[:, 0]) * 1000).astype(int) - 1
+    if lost == 0:
+        assert acc.stats.dropped == 0 and gaps.max() == 0
+    else:  # 80 ms late with a 32-sample FIFO: ~48 samples overflowed, one counted gap
+        assert acc.stats.dropped == gaps.sum() and 80 - 32 - 10 <= gaps.max() <= 80 - 32 + 10

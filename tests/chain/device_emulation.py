@@ -54,6 +54,9 @@ class WallClockPlant:
         object.__setattr__(self, "_lock", threading.RLock())
         object.__setattr__(self, "_t0", time.monotonic())
         object.__setattr__(self, "_n", 0)
+        #: Monotonic time each duty was applied (a packet's arrival), for the tests that
+        #: measure the emulation's own delivery delay.
+        object.__setattr__(self, "applied_t", [])
 
     def __getattr__(self, name: str):
         return getattr(self._p, name)
@@ -69,8 +72,10 @@ class WallClockPlant:
 
     def set_duty(self, d0: float, d1: float) -> None:
         with self._lock:
-            self._advance(time.monotonic())
+            now = time.monotonic()
+            self._advance(now)
             self._p.set_duty(d0, d1)
+            self.applied_t.append(now)
 
     def step(self, n: int = 1) -> None:
         """The QB emulator's tick: the plant runs on the wall clock, not per packet."""
@@ -110,6 +115,8 @@ def _serve(conn) -> None:
             conn.send({"set_inputs": qb.received.count(CMD_SET_INPUTS),
                        "control_mode": qb.control_mode, "activation": qb.activation,
                        "powered": plant.powered, "accel_commands": list(acc.commands)})
+        elif cmd == "applied-times":
+            conn.send(list(plant.applied_t))
         elif cmd == "pause-accel":
             acc.pause()
             conn.send(None)
@@ -147,6 +154,10 @@ class EmulatedDevice:
 
     def state(self) -> dict:
         return self._call("state")
+
+    def applied_times(self) -> list[float]:
+        """Monotonic time of every duty the board applied (one per SET_INPUTS packet)."""
+        return self._call("applied-times")
 
     def pause_accel(self) -> None:
         self._call("pause-accel")

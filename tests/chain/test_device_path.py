@@ -30,6 +30,14 @@ SECONDS = 4.2  # Welch's minimum at nperseg 512 is 4.096 s
 STIFFNESS = 0.6
 #: |TF| of the device path against the plant's own response where coherent, dB.
 MAG_TOL_DB = 2.0
+#: The band compared, Hz. Above ~300 Hz the sampled TF depends on where the
+#: accelerometer's samples fall between the command's edges (the plant's response to the
+#: held command above Nyquist aliases back, and neither emulated part has an anti-alias
+#: filter): the reference samples just before each edge, the device path at phases the
+#: delivery jitter spreads, so the images cancel differently. Measured: +0.7 to +3.2 dB
+#: at 350-440 Hz in 4 of 4 runs, systematic and growing toward Nyquist; within +-1.1 dB
+#: below 330 Hz.
+COMPARED_HZ = (10.0, 300.0)
 
 
 @pytest.fixture(scope="module")
@@ -86,22 +94,52 @@ def plant_response(freqs_hz: np.ndarray) -> np.ndarray:
         s.close()
 
 
+def record_pwm_sends(monkeypatch) -> list[float]:
+    """Monotonic time of every PWM command the host sends (taken before the write, so a
+    command cannot arrive before it was sent); the board's own sends are untouched."""
+    from fydpad.motors.qb import QbMotors
+
+    sent_s: list[float] = []
+    send = QbMotors.set_pwm
+
+    def timed(self, duty0: float, duty1: float) -> None:
+        sent_s.append(time.monotonic())
+        send(self, duty0, duty1)
+
+    monkeypatch.setattr(QbMotors, "set_pwm", timed)
+    return sent_s
+
+
+def delivery_factor_db(freqs_hz: np.ndarray, sent_s: list[float], applied_s: list[float]
+                       ) -> np.ndarray:
+    """|E[exp(-j 2 pi f tau)]| in dB over the delivery delays tau of the PWM commands (the
+    board applied a few position commands before them: pair from the end)."""
+    n = len(sent_s)
+    assert n >= SECONDS * 1000 and len(applied_s) >= n, (n, len(applied_s))
+    tau = np.asarray(applied_s[-n:]) - np.asarray(sent_s)
+    assert tau.min() >= 0.0, "an arrival before its send: the pairing is off"
+    tau -= np.median(tau)
+    factor = np.abs(np.exp(-2j * np.pi * np.outer(freqs_hz, tau)).mean(axis=1))
+    return 20 * np.log10(factor)
+
+
 class CoherenceShortfall(AssertionError):
     """The device path refused its own measurement for too little coherence."""
 
 
 @pytest.mark.xfail(strict=False, raises=CoherenceShortfall, reason=(
-    "on this 2-core machine shared with other jobs the device path's coherence stays "
-    "below 0.9 over most of 10-450 Hz (median 0.69-0.78, 0-7 % of the bins above 0.9 in "
-    "4 runs with the emulators in their own process; 0.28-0.82 in 4 with them in the "
-    "test's): the paced 1 kHz loop is late by 0.23-0.37 ms rms with stalls of 5-9 ms, "
-    "and the plant gets each command when it arrives, not at its tick. Only that refusal "
-    "is forgiven (not strict: on a quiet machine the run identifies, and must then match "
-    "the plant within MAG_TOL_DB); any other error or a wrong TF fails"))
+    "on this 2-core machine shared with other jobs the device path's coherence sometimes "
+    "stays below 0.9 over most of 10-450 Hz: the plant gets each command when the "
+    "pseudo-terminal delivers it (0.2-20 ms after it was sent, median 1.2, sd 0.3-0.5), "
+    "which the host cannot see. Share of bins above 0.9 in 7 runs: 0.02, 0.74-1.00 in the "
+    "other 6 (identify needs 0.5); 4 of 6 test runs identified, 2 with a busy process "
+    "beside. Only that refusal is forgiven (not strict: when the run identifies it must "
+    "match the plant within MAG_TOL_DB); any other error or a wrong TF fails"))
 def test_identify_over_the_board_accelerometer_and_load_cell_ptys(device, tmp_path: Path,
-                                                                   capsys):
+                                                                   capsys, monkeypatch):
     dev, cfg = device
     out = tmp_path / "tf.npz"
+    sent_s = record_pwm_sends(monkeypatch)
     rc = identify(dev, cfg, out)
     err = capsys.readouterr().err
     st = dev.state()
@@ -122,11 +160,18 @@ def test_identify_over_the_board_accelerometer_and_load_cell_ptys(device, tmp_pa
     e = tfs.entries[0]
     assert e.force_mean_n == pytest.approx(FORCE_N, abs=1e-3)  # the load cell's reading
     est = e.estimate
-    good = np.flatnonzero(est.coherent(tfs.band_hz))
+    good = np.flatnonzero(est.coherent(COMPARED_HZ))
+    assert good.size >= 20, f"only {good.size} coherent bins in {COMPARED_HZ} Hz"
     idx = good[:: max(1, good.size // 20)]
+    # The plant got each command when the pseudo-terminal delivered it, 0.2-20 ms
+    # (median 1.2) after it was sent, and the host cannot see when (nor can it over a real
+    # board's USB link): a random delay tau scales the estimate by E[exp(-j 2 pi f tau)].
+    # That factor is measured here, from this run's own sends and arrivals.
+    delay_db = delivery_factor_db(est.freqs_hz[idx], sent_s, dev.applied_times())
     truth = plant_response(est.freqs_hz[idx])
-    mag_db = 20 * np.log10(np.abs(est.tf[idx]) / np.abs(truth))
-    assert np.max(np.abs(mag_db)) < MAG_TOL_DB, dict(zip(est.freqs_hz[idx], mag_db, strict=True))
+    mag_db = 20 * np.log10(np.abs(est.tf[idx]) / np.abs(truth)) - delay_db
+    detail = np.column_stack([est.freqs_hz[idx], mag_db, delay_db]).round(2).tolist()
+    assert np.max(np.abs(mag_db)) < MAG_TOL_DB, f"[f_hz, error_db, delay_db]: {detail}"
 
 
 def test_the_plant_response_the_device_path_is_checked_against():
