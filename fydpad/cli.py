@@ -8,7 +8,7 @@ import sys
 from collections.abc import Sequence
 
 from fydpad import __version__
-from fydpad.errors import UserError
+from fydpad.errors import UserError, one_line_warnings
 from vision.recording import RecordingError
 
 #: Subcommand modules, in the order ``--help`` lists them.
@@ -49,6 +49,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    one_line_warnings(f"fydpad {args.command}")
     try:
         return int(args.func(args) or 0)
     except (UserError, RecordingError) as exc:

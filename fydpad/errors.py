@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -21,3 +22,14 @@ def read_json(path: str | Path, what: str = "JSON") -> Any:
         raise UserError(f"{path}: missing") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise UserError(f"{path}: not a readable {what} ({exc})") from None
+
+
+def one_line_warnings(prefix: str) -> None:
+    """Print this process's warnings as ``{prefix}: warning: message`` on one line (the
+    default format adds the source file, line and code on a second line)."""
+
+    def fmt(message, category, filename, lineno, line=None) -> str:
+        text = " ".join(str(message).split())
+        return f"{prefix}: warning: {text}\n"
+
+    warnings.formatwarning = fmt

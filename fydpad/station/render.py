@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
+from fydpad.errors import one_line_warnings
 from fydpad.pacing import LatencyHistogram, LoopTimer
 from fydpad.station.shared import SharedFingerState, SharedRecord
 from teleop.realtime import request_realtime
@@ -121,6 +122,7 @@ def render_main(
     ready_event=None,
 ) -> None:
     """Entry point of the render process; posts ("stats", dict) and maybe ("fault", text)."""
+    one_line_warnings("fydpad run")  # this process's warnings (a clamped speed) as one line
     scheduling = request_realtime(50, cpu=-1) if spec.realtime else "normal"
     timer = LoopTimer(spec.rate_hz, "render")
     latency = LatencyHistogram()

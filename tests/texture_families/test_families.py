@@ -261,3 +261,20 @@ def test_tick_position_extrapolates_between_frames_and_rests_when_the_finger_sto
     moving = (t > 0.07) & (t < 0.099)  # from the third frame on: a velocity
     assert np.max(np.abs(out[moving] - 100.0 * t[moving])) < 1.0  # runs on, not steps
     assert np.all(out[t > 0.5] == 10.0)  # at rest: exactly where the finger stopped
+
+
+def test_the_render_process_warns_on_one_line(tmp_path):
+    """A warning from the render process (a speed above the fastest model's range) is one
+    line naming the command, not Python's file:line and code line."""
+    scans = [generate_scan("canvas", 10.0, 3.0, seed=1, friction=True)]
+    model, _ = fit_texture(scans, order=40, speeds_mm_s=[10.0])
+    save_model(model, tmp_path / "slow.json")  # clamped above 15 mm/s; the circle is faster
+    r = subprocess.run([sys.executable, "-m", "fydpad.cli", "run", "--synthetic", "circle",
+                        "--motors", "sim", "--texture", str(tmp_path / "slow.json"),
+                        "--duration", "4"], capture_output=True, text=True, cwd=REPO,
+                       timeout=120)
+    assert r.returncode == 0, r.stderr
+    warned = [ln for ln in r.stderr.splitlines() if "clamped" in ln]
+    assert len(warned) == 1 and warned[0].startswith("fydpad run: warning: canvas: speed "), \
+        r.stderr
+    assert "Warning:" not in r.stderr and "texture_source.py" not in r.stderr, r.stderr
