@@ -71,12 +71,12 @@ def modelled(speed: float, names: list[str]) -> None:
         t3 = t1 + [generate_scan(n, s, 5.0, seed=k) for s in SPEEDS for k in (2, 3)]
         held = generate_scan(n, speed, 4.0, seed=50)
         second = generate_scan(n, speed, 4.0, seed=51)
-        base = fit_texture(t1)[0]
+        base = fit_texture(t1, free_form=None)[0]
         mask = evaluation_mask(held, base)
         ceil, *_ = compare(preprocess(held.acc, 1000.0), preprocess(second.acc, 1000.0),
                            1000.0, mask & evaluation_mask(second, base))
         row = []
-        for label, model in (("default", base), ("3x data", fit_texture(t3)[0]),
+        for label, model in (("pooled", base), ("3x data", fit_texture(t3, free_form=None)[0]),
                              ("two-part", fit_texture(t1, two_part=True)[0]),
                              ("two-part 3x", fit_texture(t3, two_part=True)[0])):
             c, _ = evaluate_scan(model, held, method="stretch", mask=mask)
@@ -137,7 +137,8 @@ def _render_exact_s(model, speed_mm_s, seed: int = 0):
 
 def identification(train_seed: int, held_seed: int, speeds: list[float],
                    train_s: float = 5.0, held_s: float = 4.0) -> None:
-    models = [fit_texture([generate_scan(n, s, train_s, seed=train_seed) for s in SPEEDS])[0]
+    models = [fit_texture([generate_scan(n, s, train_s, seed=train_seed) for s in SPEEDS],
+                          free_form=None)[0]
               for n in TEXTURES]
     scans = [generate_scan(n, v, held_s, seed=held_seed) for n in TEXTURES for v in speeds]
     for method in ("stretch", "lsf", "linear"):
@@ -158,7 +159,8 @@ def identification(train_seed: int, held_seed: int, speeds: list[float],
 
 def lengths(speed: float, seconds: list[float], held_seed: int = 50,
             second_seed: int = 51) -> None:
-    ref = fit_texture([generate_scan("R1", s, 5.0, seed=1) for s in SPEEDS])[0]  # its mask only
+    ref = fit_texture([generate_scan("R1", s, 5.0, seed=1) for s in SPEEDS],
+                      free_form=None)[0]  # its mask only
     for n in TEXTURES:
         row = []
         for length in seconds:
@@ -197,7 +199,8 @@ def choose(train: list, n_per_speed: int) -> tuple[str, float, float]:
         for k in (0, 1):
             fit_on = [s for s, f in zip(train, fold, strict=True) if f != k]
             test = [s for s, f in zip(train, fold, strict=True) if f == k]
-            got += _score(fit_texture(fit_on, two_part=form == "two-part")[0], test)
+            got += _score(fit_texture(fit_on, two_part=form == "two-part", free_form=None)[0],
+                              test)
         lsd[form] = float(np.mean(got))
     return min(lsd, key=lsd.get), lsd["pooled"], lsd["two-part"]
 
@@ -209,7 +212,8 @@ def protocol(speed: float, held_s: float, train: str, held_seed: int, second_see
                                  "paper linear": []}
     for n in names:
         t = [generate_scan(n, s, train_s, seed=train_seed + j) for s in SPEEDS for j in range(k)]
-        models = {"pooled": fit_texture(t)[0], "two-part": fit_texture(t, two_part=True)[0]}
+        models = {"pooled": fit_texture(t, free_form=None)[0],
+                  "two-part": fit_texture(t, two_part=True)[0]}
         form, cv_p, cv_t = choose(t, k) if k > 1 else ("pooled", np.nan, np.nan)
         models["chosen"] = models[form]
         held = generate_scan(n, speed, held_s, seed=held_seed)
@@ -239,7 +243,7 @@ def methods(train_seed: int, held_seed: int, second_seed: int) -> None:
         for how in ("stretch", "linear"):
             got = []
             for k in (0, 1):
-                m = fit_texture(t[1 - k::2])[0]
+                m = fit_texture(t[1 - k::2], free_form=None)[0]
                 r = TextureRenderer(m, method=how, seed=0, ramp_s=1e-6)
                 for sc in t[k::2]:
                     r.reset()
@@ -250,7 +254,7 @@ def methods(train_seed: int, held_seed: int, second_seed: int) -> None:
                                        evaluation_mask(sc, m))[0].lsd_db)
             cv[how] = float(np.mean(got))
         chosen = min(cv, key=cv.get)
-        model = fit_texture(t)[0]
+        model = fit_texture(t, free_form=None)[0]
         row = []
         for v in (30.0, 25.0):
             h = generate_scan(n, v, 12.0, seed=held_seed)
@@ -271,9 +275,10 @@ def methods(train_seed: int, held_seed: int, second_seed: int) -> None:
     print("met at 30 mm/s:", met)
 
 
-FORM_FIT = {"pooled": {}, "two-part": {"two_part": True}, "linear": {},
+FORM_FIT = {"pooled": {"free_form": None}, "two-part": {"two_part": True},
+            "linear": {"free_form": None},
             "calibrated": {"free_form": "calibrated"}, "free": {"free_form": "free"},
-            "surface": {"free_form": "surface"}, "hold5": {}}
+            "surface": {"free_form": "surface"}, "hold5": {"free_form": None}}
 
 
 def _evaluate(model, held, mask, form: str):

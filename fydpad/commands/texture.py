@@ -14,6 +14,7 @@ import numpy as np
 
 from fydpad.errors import UserError
 from fydpad.progress import progress
+from fydpad.texture.free_form import AUTO
 from fydpad.texture.interpolation import DEFAULT_METHOD, METHODS
 from vision.recording import CsvRowWriter, RecordingError
 
@@ -63,9 +64,13 @@ def register(sub: argparse._SubParsersAction) -> None:
             "scan's three axes are high-passed at --highpass-hz (hand motion, gravity), "
             "reduced to one signal by DFT321, cut into runs whose speed stays within "
             "--tolerance of each target speed, and an LPC model of --order is fitted per "
-            "speed up to Nyquist (autocorrelation/Levinson-Durbin or Burg). Every model's "
-            "stability is checked. The 165-220 Hz band of the paper is stored as the "
-            "output drive filter, not used for fitting."),
+            "speed up to Nyquist (autocorrelation/Levinson-Durbin or Burg). By default a "
+            "speed-resolved spectrum is fitted too (--free-form calibrated: the two-part "
+            "S(f,v) of every 0.5 s chunk, corrected to the recorded spectrum at each fitted "
+            "speed), which the renderer follows between the fitted speeds; --pooled keeps "
+            "the per-speed LPC fit alone (the paper's model). Every model's stability is "
+            "checked. The 165-220 Hz band of the paper is stored as the output drive "
+            "filter, not used for fitting."),
     )
     f.add_argument("scans", nargs="*", metavar="SCAN.csv", help="texture scan recordings")
     f.add_argument("--out", required=True, metavar="MODEL.json", help="model file to write")
@@ -115,12 +120,17 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "scans: a fixed tool/floor part and a surface part that moves with speed; "
                    "rendered at every speed by the 'stretch' method. Option, not default: "
                    "better between speeds, R2 0.2 dB worse at 20 mm/s (docs/texture.md)")
-    f.add_argument("--free-form", nargs="?", const="calibrated", default=None,
+    f.add_argument("--free-form", nargs="?", const="calibrated", default=AUTO,
                    choices=("calibrated", "free", "surface"),
-                   help="a speed-resolved spectrum (free_form.py): 'calibrated' (the default "
-                   "form: the two-part S times a correction measured at each fitted speed), "
-                   "'free' (S free in f, piecewise linear in v) or 'surface'; rendered by the "
-                   "'stretch' method. Option, not default (docs/texture.md)")
+                   help="the speed-resolved spectrum (free_form.py): 'calibrated' (the "
+                   "default: the two-part S times a correction measured at each fitted "
+                   "speed; on scans too short for it the pooled fit, with a warning), 'free' "
+                   "(S free in f, piecewise linear in v) or 'surface'; rendered by the "
+                   "'stretch' method (docs/texture.md)")
+    f.add_argument("--pooled", dest="free_form", action="store_const", const=None,
+                   help="the per-speed LPC fit alone, pooled over each speed's runs (the "
+                   "paper's model; the default before the calibrated spectrum: 10x faster "
+                   "to fit, worse between the fitted speeds)")
     f.add_argument("--surface", help="surface label (default: the scans' # surface= or name)")
     f.add_argument("--drive-band", type=_floats, default=[165.0, 220.0], metavar="LO,HI",
                    help="output drive filter band stored in the model (default 165,220 Hz)")

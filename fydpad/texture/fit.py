@@ -14,6 +14,9 @@ from numpy.typing import NDArray
 from fydpad.errors import UserError
 from fydpad.texture.dft321 import preprocess
 from fydpad.texture.free_form import (
+    AUTO,
+    BASE_ITERATIONS,
+    DEFAULT_FORM,
     FORMS,
     fit_calibrated,
     fit_free_form,
@@ -34,7 +37,7 @@ from fydpad.texture.speed_warp import (
     log_psd,
     normalised_spectrum,
 )
-from fydpad.texture.two_part import fit_two_part
+from fydpad.texture.two_part import ITERATIONS, fit_two_part
 
 Array = NDArray[np.float64]
 
@@ -88,7 +91,7 @@ def fit_texture(
     tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S, highpass_hz: float = 10.0,
     min_seconds: float = 0.25, method: str = "autocorrelation", surface: str | None = None,
     prewhiten_order: int = 8, speed_normalise: bool = False, two_part: bool = False,
-    free_form: str | None = None, free_form_options: dict | None = None,
+    free_form: str | None = AUTO, free_form_options: dict | None = None,
     drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
     wrap: Callable[[Iterable], Iterable] = lambda it: it,
     wrap_iterations: Callable[[Iterable], Iterable] = lambda it: it,
@@ -118,7 +121,15 @@ def fit_texture(
     surface part freed in speed); ``free_form_options`` go to its fit function. Stored
     in ``model.free_form`` (with the two-part factors it builds on); the ``"stretch"``
     method renders it; each speed's (h, sigma^2) is the all-pole fit of its S.
+    ``None``: the pooled per-speed LPC fit alone (the paper's model). The default,
+    ``"auto"``: ``"calibrated"`` (it meets the targets on more textures at and between
+    the fitted speeds: docs/texture.md), or None with ``two_part`` or
+    ``speed_normalise``; where the scans are too short for it (no 0.5 s chunk within the
+    modelled speeds) the pooled fit, with a warning saying why.
     """
+    auto = free_form == AUTO
+    if auto:
+        free_form = None if (two_part or speed_normalise) else DEFAULT_FORM
     scans = list(scans)
     if not scans:
         raise UserError("no scans to fit")
@@ -166,10 +177,43 @@ def fit_texture(
     if not got_speeds:
         raise UserError("no part of the scans is near any target speed (column 'speed_mm_s')")
     label = surface or scans[0].surface
-    normalised = spectrum = None
-    free = None
     if free_form is not None and free_form not in FORMS:
         raise UserError(f"free-form model: form must be one of {FORMS}, not {free_form!r}")
+    if auto and free_form:
+        try:
+            return _fit_spectral_model(
+                scans, got_speeds, hs, sig, reports, pooled, speeds_of, whole, fs, order,
+                tolerance_mm_s, free_form, free_form_options, wrap_iterations, two_part,
+                label, highpass_hz, drive_band_hz, method, prewhiten_order)
+        except UserError as exc:
+            warnings.warn(f"{_scan_names(scans)}: no {free_form} spectrum ({exc}): the pooled "
+                          "per-speed fit only (record longer strokes, or --pooled to say so)",
+                          stacklevel=2)
+            free_form = None
+    return _fit_spectral_model(
+        scans, got_speeds, hs, sig, reports, pooled, speeds_of, whole, fs, order,
+        tolerance_mm_s, free_form, free_form_options, wrap_iterations, two_part, label,
+        highpass_hz, drive_band_hz, method, prewhiten_order, speed_normalise)
+
+
+def _scan_names(scans: list[Scan]) -> str:
+    names = [str(s.path) for s in scans]
+    return names[0] if len(names) == 1 else f"{names[0]} and {len(names) - 1} more scans"
+
+
+def _fit_spectral_model(
+    scans: list[Scan], got_speeds: list[float], hs: list[Array], sig: list[float],
+    reports: list[FitReport], pooled: dict[float, list[Array]],
+    speeds_of: dict[float, list[Array]], whole: list[tuple[Array, Array]], fs: float,
+    order: int, tolerance_mm_s: float, free_form: str | None,
+    free_form_options: dict | None, wrap_iterations: Callable[[Iterable], Iterable],
+    two_part: bool, label: str, highpass_hz: float,
+    drive_band_hz: tuple[float, float] | None, method: str, prewhiten_order: int,
+    speed_normalise: bool = False,
+) -> tuple[TextureModel, list[FitReport]]:
+    """The model from the pooled per-speed fits, replaced by a spectral (two-part or
+    free-form) or speed-normalised model's all-pole fits where one is asked for."""
+    normalised = spectrum = free = None
     if two_part or free_form:
         lo = max(min(got_speeds) - tolerance_mm_s, 0.5)
         hi = max(got_speeds) + tolerance_mm_s
@@ -177,7 +221,8 @@ def fit_texture(
         s_of = None
         if two_part or free_form != "free":
             try:
-                s_of = fit_two_part(runs, traces, fs, (lo, hi), wrap=wrap_iterations)
+                its = BASE_ITERATIONS if free_form == "calibrated" else ITERATIONS
+                s_of = fit_two_part(runs, traces, fs, (lo, hi), its, wrap=wrap_iterations)
             except ValueError as exc:
                 raise UserError(f"two-part model: {exc}") from None
             spectrum = s_of.to_json()

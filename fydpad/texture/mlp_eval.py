@@ -11,6 +11,9 @@
    strokes at a modelled speed (20 mm/s) and between modelled speeds (25 mm/s), on the
    LPC family's own signal (DFT321), with the ceiling of a second recording.
 
+The LPC family here is the pooled per-speed fit (``fit_texture(..., free_form=None)``, the
+paper's model), as the figures of docs/texture_mlp.md were measured.
+
 Force: the generator's own ``force_n`` (``friction=True``); for comparison also
 ``synthetic_force``, whose load follows the surface profile (the network's best case).
 """
@@ -112,7 +115,8 @@ def thesis_vs_lpc(texture: str, cfg: TrainConfig | None = None, seconds: float =
         return {"texture": texture, "stop": "diverged"}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        lpc, _ = fit_texture([_third(s, 0, z_only=True) for s in scans], speeds_mm_s=speeds)
+        lpc, _ = fit_texture([_third(s, 0, z_only=True) for s in scans], speeds_mm_s=speeds,
+                             free_form=None)
     rec_all, net_all, lpc_all, mask_all = [], [], [], []
     m_net, m_lpc = [], []
     for i, scan in enumerate(scans):
@@ -164,7 +168,7 @@ def spectrum_vs_lpc(texture: str, seconds: float = 8.0, speeds: Sequence[float] 
     scans = [generate_scan(texture, s, seconds, seed=1) for s in speeds]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        lpc, _ = fit_texture(scans, speeds_mm_s=speeds)
+        lpc, _ = fit_texture(scans, speeds_mm_s=speeds, free_form=None)
         net = fit_spectrum_net(scans, order=order,
                                cfg=cfg or SpectrumTrainConfig()).texture_model()
         rows = []
@@ -199,7 +203,8 @@ def plot_figures(out_dir: str) -> list[str]:
     model, _, _ = fit_mlp(scans, TrainConfig())
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        lpc, _ = fit_texture([_third(s, 0, z_only=True) for s in scans], speeds_mm_s=SPEEDS)
+        lpc, _ = fit_texture([_third(s, 0, z_only=True) for s in scans], speeds_mm_s=SPEEDS,
+                             free_form=None)
     scan = scans[1]
     s = thirds(scan.t_s.size)[2]
     rec = scan_features(scan).y[s]
@@ -215,7 +220,7 @@ def plot_figures(out_dir: str) -> list[str]:
     held = generate_scan("R1", 25.0, 8.0, seed=100)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        lpc, _ = fit_texture(train, speeds_mm_s=SPEEDS)
+        lpc, _ = fit_texture(train, speeds_mm_s=SPEEDS, free_form=None)
         netm = fit_spectrum_net(train).texture_model()
         mask = evaluation_mask(held, lpc)
         panels = []

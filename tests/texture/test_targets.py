@@ -3,9 +3,11 @@
 Targets: power-spectrum correlation >= 0.95 (Welch 4 Hz bins, 20-500 Hz) and a
 log-spectral distance within 0.25 dB of what a second recording of the same surface
 scores against the same held-out stroke (the ceiling), at a modelled speed (20 mm/s)
-and between modelled speeds (25 mm/s); identification 100 % over every texture. The
-default interpolation ("stretch") is checked; LSF and the paper's linear way are
-measured beside it.
+and between modelled speeds (25 mm/s); identification 100 % over every texture. On the
+4-texture set the pooled per-speed fit (``free_form=None``) is checked with the default
+interpolation ("stretch"), LSF and the paper's linear way beside it, and the options;
+the default fit (the calibrated spectrum) on the same set is in test_free_form.py; the
+14-texture target and identification use the default fit.
 
 The thresholds are the issue's and are not loosened. Where the code does not meet a
 target yet, the test is marked ``xfail(strict=True)`` with the measured figures: it
@@ -45,7 +47,7 @@ def figures():
         warnings.simplefilter("ignore")
         for name in TARGET_TEXTURES:
             train = [generate_scan(name, s, 8.0, seed=1) for s in SPEEDS]
-            model, _ = fit_texture(train)
+            model, _ = fit_texture(train, free_form=None)  # the pooled fit
             # The option: every 5 mm/s, each speed fitted on runs moved to it in space.
             norm, _ = fit_texture(train, speeds_mm_s=NORMALISED_GRID, speed_normalise=True)
             # The two-part model: fixed tool part, surface part moving with speed.
@@ -70,12 +72,14 @@ def _check(figures, speed: float, method: str) -> None:
 
 
 def test_targets_at_a_modelled_speed(figures):
-    """Met with "stretch" (corr/LSD - ceiling: R1 0.984/-0.14, R2 0.989/+0.12, felt
-    0.990/-0.05, glass 0.985/+0.22); LSF missed it (R1 corr 0.946, R2/felt +0.26)."""
+    """Met by the pooled fit with "stretch" (corr/LSD - ceiling: R1 0.984/-0.14, R2
+    0.989/+0.12, felt 0.990/-0.05, glass 0.985/+0.22); LSF missed it (R1 corr 0.946,
+    R2/felt +0.26). The default fit (calibrated) misses R2 by 0.03 dB here:
+    test_free_form.py."""
     _check(figures, 20.0, "stretch")
 
 
-@pytest.mark.xfail(strict=True, reason="measured at 25 mm/s with 'stretch': LSD above the "
+@pytest.mark.xfail(strict=True, reason="measured at 25 mm/s, pooled fit, 'stretch': LSD above the "
                    "ceiling by 1.50 (R1), 1.50 (R2), 1.02 dB (felt), glass +0.12 meets it; corr "
                    "0.894 (R1), 0.919 (R2) (LSF: +2.36, +2.15, +1.71 dB, corr 0.683, 0.855): the "
                    "spectrum between fitted speeds is not a stretch of its neighbours' "
@@ -96,7 +100,7 @@ def test_speed_normalised_fit_closes_most_of_the_gap_between_speeds(figures):
 @pytest.mark.xfail(strict=True, reason="measured with fit_texture(speed_normalise=True), "
                    "speeds every 5 mm/s: at 25 mm/s LSD above the ceiling by 0.59 (R1), 0.88 "
                    "(R2), 0.26 dB (felt), glass +0.06; corr 0.960-0.980; at 20 mm/s R2 +0.35, "
-                   "glass +0.28 (the default meets 20 mm/s) (docs/texture.md)")
+                   "glass +0.28 (the pooled fit meets 20 mm/s) (docs/texture.md)")
 def test_targets_between_modelled_speeds_speed_normalised(figures):
     _check(figures, 25.0, "normalised")
 
@@ -125,7 +129,7 @@ def test_targets_between_modelled_speeds_two_part(figures):
 
 @pytest.mark.xfail(strict=True, reason="measured with fit_texture(two_part=True) at 20 mm/s: "
                    "R2 LSD +0.29 dB above the ceiling (R1 -0.07, felt -0.08, glass +0.17; corr "
-                   ">= 0.971); the default meets it (R2 +0.12), so two-part is an option")
+                   ">= 0.971); the pooled fit meets it (R2 +0.12), so two-part is an option")
 def test_targets_at_a_modelled_speed_two_part(figures):
     _check(figures, 20.0, "two_part")
 
@@ -223,12 +227,13 @@ def _misses(models, scans, speed: float) -> list[str]:
     return out
 
 
-@pytest.mark.xfail(strict=True, reason="measured at 30 mm/s with 'stretch' (12 s held-out "
-                   "strokes, two 10 s training strokes per speed): 7 of 14 textures meet both; "
-                   "LSD above the ceiling by 0.44-3.67 dB on sandpaper_p80 3.67, aluminum_knurl "
-                   "1.68, brick 1.62, canvas 1.39, cork 0.52, mesh_steel 0.45 (corr 0.940), "
-                   "corduroy 0.44; the same on a second seed (7/14); the two-part model meets "
-                   "11/14 (8/14 on the second seed): causes per texture in docs/texture.md")
+@pytest.mark.xfail(strict=True, reason="measured at 30 mm/s with the default fit (the "
+                   "calibrated spectrum; 12 s held-out strokes, two 10 s training strokes per "
+                   "speed): 10 of 14 textures meet both; LSD above the ceiling by canvas 0.37, "
+                   "cork 0.27, corduroy 0.26, aluminum_knurl 0.90 (corr 0.955); 8/14 and 12/14 "
+                   "on two more seed sets; the pooled fit meets 7/14 (sandpaper_p80 +3.67, "
+                   "aluminum_knurl +1.68, brick +1.62, canvas +1.39 ...): causes per texture "
+                   "in docs/texture.md")
 def test_targets_at_a_modelled_speed_over_every_texture(every_texture_long):
     misses = _misses(*every_texture_long, 30.0)
     assert not misses, misses

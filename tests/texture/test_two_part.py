@@ -152,8 +152,9 @@ def test_cli_fit_two_part_and_speed_normalise_flags(tmp_path, capsys):
                               "--seconds", "4"])
     assert args.func(args) == 0
     scans = [str(tmp_path / f"felt_{v}mms_s1.csv") for v in (10, 30)]
+    # No flag: the calibrated spectrum (on its two-part base); --pooled: neither.
     for flag, key in (("--two-part", "two_part"), ("--speed-normalise", "speed_normalised"),
-                      ("", "")):
+                      ("", "calibrated"), ("--pooled", "pooled")):
         out = tmp_path / f"{key}.json"
         args = parser.parse_args(["texture", "fit", *scans, "--out", str(out), "--speeds",
                                   "10,30", "--order", "60", *([flag] if flag else [])])
@@ -161,5 +162,7 @@ def test_cli_fit_two_part_and_speed_normalise_flags(tmp_path, capsys):
             warnings.simplefilter("ignore")
             assert args.func(args) == 0
         m = json.loads(out.read_text())
-        assert ("two_part" in m) == (key == "two_part")
+        assert ("two_part" in m) == (key in ("two_part", "calibrated")), key
+        assert ("free_form" in m) == (key == "calibrated"), key
+        assert key != "calibrated" or m["free_form"]["form"] == "calibrated"
         assert ("speed_normalised" in m["provenance"]) == (key == "speed_normalised")

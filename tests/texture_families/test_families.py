@@ -98,11 +98,6 @@ def test_spec_kind_must_match(files):
         fit_family("nope", [])
 
 
-def _band_share(y: np.ndarray, lo_hz: float, hi_hz: float) -> float:
-    f, p = ss.welch(y, fs=1000.0, nperseg=256)
-    return float(p[(f >= lo_hz) & (f <= hi_hz)].sum() / p[(f >= 20) & (f <= 500)].sum())
-
-
 def _ticks(source, n: int = 3000) -> np.ndarray:
     # A finger crossing at 20 mm/s, a new camera centroid every 33 ms (30 frames/s).
     out = np.empty(n)
@@ -126,8 +121,19 @@ def test_station_renders_the_evaluated_method_and_the_drive_band(files):
     assert not np.allclose(linear.source.renderer.table.polys, table.polys)
     band = open_texture(model_path, 1000.0, drive_filter=True)
     lo, hi = plain.model.drive_band_hz
-    share_plain, share_band = _band_share(_ticks(plain), lo, hi), _band_share(_ticks(band), lo, hi)
-    assert share_band > 0.8 and share_band > 2.0 * share_plain, (share_plain, share_band)
+    # Power through the drive filter against without it, per band (dB). The share of power
+    # in band depends on the model's spectrum on the filter's skirts (0.82-0.87 with the
+    # pooled fit, 0.70-0.82 with the calibrated spectrum, noise draw to noise draw); the
+    # filter's own work does not: measured -31 to -35 dB out of band, -1.8 to +0.7 in it.
+    f, p_plain = ss.welch(_ticks(plain), fs=1000.0, nperseg=256)
+    _, p_band = ss.welch(_ticks(band), fs=1000.0, nperseg=256)
+
+    def gain_db(a: float, b: float) -> float:
+        m = (f >= a) & (f <= b)
+        return float(10 * np.log10(p_band[m].sum() / p_plain[m].sum()))
+
+    gains = {"below": gain_db(20, 120), "in": gain_db(lo, hi), "above": gain_db(300, 500)}
+    assert abs(gains["in"]) < 3.0 and gains["below"] < -20 and gains["above"] < -20, gains
 
 
 def test_station_texture_falls_silent_when_the_finger_stops(files):
