@@ -30,6 +30,7 @@ def one_line_warnings(prefix: str) -> None:
 
     def fmt(message, category, filename, lineno, line=None) -> str:
         text = " ".join(str(message).split())
-        return f"{prefix}: warning: {text}\n"
+        kind = "" if category is UserWarning else f" ({category.__name__})"
+        return f"{prefix}: warning{kind}: {text}\n"
 
     warnings.formatwarning = fmt

@@ -64,11 +64,12 @@ def register(sub: argparse._SubParsersAction) -> None:
             "scan's three axes are high-passed at --highpass-hz (hand motion, gravity), "
             "reduced to one signal by DFT321, cut into runs whose speed stays within "
             "--tolerance of each target speed, and an LPC model of --order is fitted per "
-            "speed up to Nyquist (autocorrelation/Levinson-Durbin or Burg). By default a "
-            "speed-resolved spectrum is fitted too (--free-form calibrated: the two-part "
-            "S(f,v) of every 0.5 s chunk, corrected to the recorded spectrum at each fitted "
-            "speed), which the renderer follows between the fitted speeds; --pooled keeps "
-            "the per-speed LPC fit alone (the paper's model). Every model's stability is "
+            "speed up to Nyquist (autocorrelation/Levinson-Durbin or Burg). With two or "
+            "more speeds a speed-resolved spectrum is fitted too by default (--free-form "
+            "calibrated: the two-part S(f,v) of every 0.5 s chunk, corrected to the "
+            "recorded spectrum at each fitted speed), which the renderer follows between "
+            "the fitted speeds; --pooled keeps the per-speed LPC fit alone (the paper's "
+            "model). Every model's stability is "
             "checked. The 165-220 Hz band of the paper is stored as the output drive "
             "filter, not used for fitting."),
     )
@@ -106,28 +107,34 @@ def register(sub: argparse._SubParsersAction) -> None:
     f.add_argument("--highpass-hz", type=float, default=10.0,
                    help="high-pass removing the tool's motion (default 10 Hz)")
     f.add_argument("--method", choices=("autocorrelation", "burg"), default="autocorrelation",
-                   help="LPC estimator (default autocorrelation)")
+                   help="LPC estimator of the per-speed fit (default autocorrelation); "
+                   "burg selects the pooled fit (a spectral model's models are all-pole "
+                   "fits of its S)")
     f.add_argument("--prewhiten-order", type=int, default=8, metavar="Q",
                    help="order of the first, spectrum-flattening LPC stage (default 8; 0 for "
-                   "a one-stage fit); the model's total order stays --order")
+                   "a one-stage fit; another than 8 selects the pooled fit); the model's "
+                   "total order stays --order")
     f.add_argument("--speed-normalise", action="store_true",
                    help="fit each speed on its runs resampled to that exact speed (not pooled "
                    "over the +-tolerance a hand wanders); best with --speeds every 5 mm/s. "
-                   "Option, not default: better between speeds, 0.1-0.2 dB worse at them "
-                   "(docs/texture.md)")
+                   "Against the pooled fit: better between speeds, 0.1-0.2 dB worse at "
+                   "them (docs/texture.md)")
     f.add_argument("--two-part", action="store_true",
                    help="fit S(f,v) = T(f) U(f/v) g(v) + N(f) n(v) on every chunk of the "
                    "scans: a fixed tool/floor part and a surface part that moves with speed; "
-                   "rendered at every speed by the 'stretch' method. Option, not default: "
+                   "rendered at every speed by the 'stretch' method. Against the pooled fit: "
                    "better between speeds, R2 0.2 dB worse at 20 mm/s (docs/texture.md)")
-    f.add_argument("--free-form", nargs="?", const="calibrated", default=AUTO,
-                   choices=("calibrated", "free", "surface"),
-                   help="the speed-resolved spectrum (free_form.py): 'calibrated' (the "
-                   "default: the two-part S times a correction measured at each fitted "
-                   "speed; on scans too short for it the pooled fit, with a warning), 'free' "
-                   "(S free in f, piecewise linear in v) or 'surface'; rendered by the "
-                   "'stretch' method (docs/texture.md)")
-    f.add_argument("--pooled", dest="free_form", action="store_const", const=None,
+    form = f.add_mutually_exclusive_group()
+    form.add_argument("--free-form", nargs="?", const="calibrated", default=AUTO,
+                      choices=("calibrated", "free", "surface"),
+                      help="the speed-resolved spectrum (free_form.py): 'calibrated' (the two-"
+                      "part S times a correction measured at each fitted speed; the default "
+                      "when no form is named and two or more speeds are fitted, which on "
+                      "scans too short for it falls back to the pooled fit with a warning; "
+                      "named, such scans are an error), "
+                      "'free' (S free in f, piecewise linear in v) or 'surface'; rendered by "
+                      "the 'stretch' method (docs/texture.md)")
+    form.add_argument("--pooled", dest="free_form", action="store_const", const=None,
                    help="the per-speed LPC fit alone, pooled over each speed's runs (the "
                    "paper's model; the default before the calibrated spectrum: 10x faster "
                    "to fit, worse between the fitted speeds)")

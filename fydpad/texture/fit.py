@@ -37,7 +37,7 @@ from fydpad.texture.speed_warp import (
     log_psd,
     normalised_spectrum,
 )
-from fydpad.texture.two_part import ITERATIONS, fit_two_part
+from fydpad.texture.two_part import ITERATIONS, TooLittleData, fit_two_part
 
 Array = NDArray[np.float64]
 
@@ -123,13 +123,18 @@ def fit_texture(
     method renders it; each speed's (h, sigma^2) is the all-pole fit of its S.
     ``None``: the pooled per-speed LPC fit alone (the paper's model). The default,
     ``"auto"``: ``"calibrated"`` (it meets the targets on more textures at and between
-    the fitted speeds: docs/texture.md), or None with ``two_part`` or
-    ``speed_normalise``; where the scans are too short for it (no 0.5 s chunk within the
-    modelled speeds) the pooled fit, with a warning saying why.
+    the fitted speeds: docs/texture.md) when two or more speeds are fitted, else None;
+    None with ``two_part``, ``speed_normalise``
+    or a ``method``/``prewhiten_order`` other than the default (options of the per-speed
+    fit, which a spectral model's all-pole fits do not use); where the scans are too
+    short for it (no 0.5 s chunk within the modelled speeds) the pooled fit, with a
+    warning saying why. A form named explicitly is an error on such scans.
     """
     auto = free_form == AUTO
     if auto:
-        free_form = None if (two_part or speed_normalise) else DEFAULT_FORM
+        # The options of the pooled fit's own estimator, or a model of its own, ask for it.
+        own = two_part or speed_normalise or method != "autocorrelation" or prewhiten_order != 8
+        free_form = None if own else DEFAULT_FORM
     scans = list(scans)
     if not scans:
         raise UserError("no scans to fit")
@@ -179,16 +184,20 @@ def fit_texture(
     label = surface or scans[0].surface
     if free_form is not None and free_form not in FORMS:
         raise UserError(f"free-form model: form must be one of {FORMS}, not {free_form!r}")
+    if auto and len(got_speeds) < 2:
+        # Nothing lies between fitted speeds to resolve; within one speed's wander a
+        # spectrum following the finger fitted on that little data did worse (one 6 s
+        # stroke per surface: sandpaper_p80 identified 1 of 3 times against 3 of 3).
+        free_form = None
     if auto and free_form:
         try:
             return _fit_spectral_model(
                 scans, got_speeds, hs, sig, reports, pooled, speeds_of, whole, fs, order,
                 tolerance_mm_s, free_form, free_form_options, wrap_iterations, two_part,
                 label, highpass_hz, drive_band_hz, method, prewhiten_order)
-        except UserError as exc:
-            warnings.warn(f"{_scan_names(scans)}: no {free_form} spectrum ({exc}): the pooled "
-                          "per-speed fit only (record longer strokes, or --pooled to say so)",
-                          stacklevel=2)
+        except ScansTooShort as exc:
+            warnings.warn(f"no {free_form} spectrum ({exc}): the pooled per-speed fit only; "
+                          "record longer strokes for it", stacklevel=2)
             free_form = None
     return _fit_spectral_model(
         scans, got_speeds, hs, sig, reports, pooled, speeds_of, whole, fs, order,
@@ -196,9 +205,13 @@ def fit_texture(
         highpass_hz, drive_band_hz, method, prewhiten_order, speed_normalise)
 
 
-def _scan_names(scans: list[Scan]) -> str:
-    names = [str(s.path) for s in scans]
-    return names[0] if len(names) == 1 else f"{names[0]} and {len(names) - 1} more scans"
+class ScansTooShort(UserError):
+    """A spectral model asked for by default cannot be fitted on these scans (no 0.5 s
+    chunk within the modelled speeds): the pooled fit stands in for it."""
+
+
+def _spectrum_error(exc: Exception) -> type[UserError]:
+    return ScansTooShort if isinstance(exc, TooLittleData) else UserError
 
 
 def _fit_spectral_model(
@@ -224,7 +237,7 @@ def _fit_spectral_model(
                 its = BASE_ITERATIONS if free_form == "calibrated" else ITERATIONS
                 s_of = fit_two_part(runs, traces, fs, (lo, hi), its, wrap=wrap_iterations)
             except ValueError as exc:
-                raise UserError(f"two-part model: {exc}") from None
+                raise _spectrum_error(exc)(f"two-part model: {exc}") from None
             spectrum = s_of.to_json()
         opts = dict(free_form_options or {})
         try:
@@ -237,7 +250,7 @@ def _fit_spectral_model(
             elif free_form == "free":
                 s_of = fit_free_form(runs, traces, fs, (lo, hi), wrap=wrap_iterations, **opts)
         except (ValueError, TypeError) as exc:
-            raise UserError(f"free-form model ({free_form}): {exc}") from None
+            raise _spectrum_error(exc)(f"free-form model ({free_form}): {exc}") from None
         if free_form:
             free = s_of.to_json()
         polys = [s_of.ar(s, order, fs) for s in got_speeds]
@@ -267,9 +280,14 @@ def _fit_spectral_model(
     if spectrum is not None:
         model.two_part = spectrum
         model.provenance["spectral_model"] = "two-part"
+        model.provenance["two_part_iterations"] = its
     if free is not None:
         model.free_form = free
         model.provenance["spectral_model"] = "free-form"
+    if spectrum is not None or free is not None:
+        # models[] are the all-pole fits of S at the fitted speeds, not the LPC estimator's.
+        model.provenance["method"] = "two-stage all-pole fit of S(f, v)"
+        model.provenance["prewhiten_order"] = 8
     return model, reports
 
 

@@ -38,6 +38,7 @@ from fydpad.texture.speed_warp import NFFT
 from fydpad.texture.two_part import (
     CHUNK,
     RENDER_SMEAR_MM_S,
+    TooLittleData,
     TwoPartSpectrum,
     _hats,
     _resample_matrix,
@@ -184,7 +185,7 @@ def fit_calibrated(runs_by_speed: dict[float, list[tuple[Array, Array]]], fs_hz:
         rows.append(np.log(np.maximum(p[:, 1:].mean(axis=0), _EPS) / np.maximum(e, _EPS)))
         speeds.append(s)
     if not speeds:
-        raise ValueError("no speed has a run as long as one 0.5 s chunk")
+        raise TooLittleData("no speed has a run as long as one 0.5 s chunk")
     return CalibratedSpectrum(two, np.asarray(speeds), np.vstack(rows), taper_mm_s)
 
 
@@ -197,7 +198,7 @@ def _chunks_in(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     p_all, v_all = chunk_periodograms(runs, speeds, fs_hz, chunk)
     keep = [i for i, v in enumerate(v_all) if v.min() >= lo and v.max() <= hi]
     if not keep:
-        raise ValueError("no 0.5 s chunk of the scans stays within the modelled speeds")
+        raise TooLittleData("no 0.5 s chunk of the scans stays within the modelled speeds")
     return p_all[keep][:, 1:], [v_all[i] for i in keep], np.fft.rfftfreq(chunk, 1 / fs_hz)[1:]
 
 

@@ -117,6 +117,11 @@ def chunk_periodograms(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: fl
     return (np.vstack(ps) if ps else np.zeros((0, chunk // 2 + 1))), vs
 
 
+class TooLittleData(ValueError):
+    """The scans hold no 0.5 s chunk within the modelled speeds (or no run that long):
+    a spectral model cannot be fitted on them, the pooled per-speed fit still can."""
+
+
 def _resample_matrix(f_hz: Array, v: float, k: Array, sub: int = 8) -> sp.csr_matrix:
     """Rows: f bins; columns: k nodes; U(f / v) averaged over each bin's width.
 
@@ -175,7 +180,7 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     p_all, v_all = chunk_periodograms(runs, speeds, fs_hz, chunk)
     keep = [i for i, v in enumerate(v_all) if v.min() >= lo and v.max() <= hi]
     if not keep:
-        raise ValueError("no 0.5 s chunk of the scans stays within the modelled speeds")
+        raise TooLittleData("no 0.5 s chunk of the scans stays within the modelled speeds")
     p = p_all[keep][:, 1:]  # no DC
     f = np.fft.rfftfreq(chunk, 1.0 / fs_hz)[1:]
     vgrid = np.arange(np.floor(lo), np.ceil(hi) + SPEED_STEP_MM_S / 2, SPEED_STEP_MM_S)

@@ -344,16 +344,22 @@ def test_a_clocked_part_never_sends_a_sample_before_its_time():
     assert max(early_s) <= 0.0, f"{sum(e > 0 for e in early_s)} samples sent early"
 
 
-@pytest.mark.parametrize("stall_ms, lost", [(20, 0), (80, "overflow")])
-def test_a_starved_clocked_part_drains_its_fifo_and_loses_only_the_overflow(stall_ms, lost):
-    emu = AccelEmulator(counting, clocked=True, fifo_depth=32)
+@pytest.mark.parametrize("fifo_depth", [1000, 32])
+def test_a_starved_clocked_part_drains_its_fifo_and_loses_only_the_overflow(fifo_depth):
+    """The emulator's thread held off for 80 ms (a starved microcontroller): with a FIFO
+    deeper than that (1000 samples: slack for a loaded machine) nothing is lost; with the
+    ADXL345's 32 the samples due while it was held, less the 32, are one counted gap."""
+    emu = AccelEmulator(counting, clocked=True, fifo_depth=fifo_depth)
     with emu.start(), SerialAccelerometer(emu.port, timeout_s=DATA_TIMEOUT_S) as acc:
         before = read_n(acc, 50)
-        with emu._lock:  # the emulator's thread cannot send: a starved microcontroller
-            time.sleep(stall_ms / 1000)
-        a = np.vstack([before, read_n(acc, stall_ms + 50)])
+        with emu._lock:  # the emulator's thread cannot send
+            t0 = time.monotonic()
+            time.sleep(0.08)
+            held_ms = 1000 * (time.monotonic() - t0)
+        a = np.vstack([before, read_n(acc, 150)])
     gaps = np.rint(np.diff(a[:, 0]) * 1000).astype(int) - 1
-    if lost == 0:
-        assert acc.stats.dropped == 0 and gaps.max() == 0
-    else:  # 80 ms late with a 32-sample FIFO: ~48 samples overflowed, one counted gap
-        assert acc.stats.dropped == gaps.sum() and 80 - 32 - 10 <= gaps.max() <= 80 - 32 + 10
+    assert acc.stats.dropped == gaps.sum()
+    if fifo_depth > 500:
+        assert gaps.max() == 0, gaps.max()
+    else:  # at least what the hold alone made overflow; the thread's wake-up may add
+        assert held_ms - 32 - 2 <= gaps.max() <= held_ms - 32 + 200, (gaps.max(), held_ms)

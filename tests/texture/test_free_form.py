@@ -253,25 +253,50 @@ def test_the_default_fit_is_the_calibrated_spectrum_and_pooled_is_one_option_awa
     assert default.free_form["form"] == "calibrated" and default.two_part is not None
     pooled, _ = fit_texture(scans, speeds_mm_s=(10.0, 30.0), order=60, free_form=None)
     assert pooled.free_form is None and pooled.two_part is None
-    # The options that are spectral models of their own keep their meaning.
+    assert default.provenance["method"] == "two-stage all-pole fit of S(f, v)"
+    # A failure of the spectral model other than too little data is an error, not a quiet
+    # fallback to the pooled fit.
+    with pytest.raises(UserError, match="unexpected keyword argument 'bogus'"):
+        fit_texture(scans, speeds_mm_s=(10.0, 30.0), order=60, free_form_options={"bogus": 1})
+    # The options that are spectral models of their own keep their meaning; the per-speed
+    # estimator's options ask for the per-speed fit.
     two, _ = fit_texture(scans, speeds_mm_s=(10.0, 30.0), order=60, two_part=True)
     assert two.free_form is None and two.two_part is not None
+    burg, _ = fit_texture(scans, speeds_mm_s=(10.0, 30.0), order=60, method="burg")
+    assert burg.free_form is None and burg.provenance["method"] == "burg"
 
 
 def test_scans_too_short_for_the_spectrum_fall_back_to_the_pooled_fit_and_say_so():
-    """Runs near the speeds long enough for an order-40 LPC (0.45 s) but not one 0.5 s
+    """Runs near each speed long enough for an order-40 LPC (0.45 s) but not one 0.5 s
     chunk within the modelled speeds: the default fit keeps the pooled per-speed models
-    and warns once, naming the scan; asked for by name, the calibrated form is an error."""
-    scan = generate_scan("felt", 20.0, 3.0, seed=1)
-    v = np.full_like(scan.speed_mm_s, 60.0)  # far outside 15-25 mm/s ...
-    v[1000:1450] = scan.speed_mm_s[1000:1450]  # ... but for 0.45 s
-    short = replace(scan, path="short.csv", speed_mm_s=v)
+    and warns once (the command line names the scans); asked for by name, the calibrated
+    form is an error."""
+    short = []
+    for s in (20.0, 30.0):
+        scan = generate_scan("felt", s, 3.0, seed=1)
+        v = np.full_like(scan.speed_mm_s, 60.0)  # far outside the modelled speeds ...
+        v[1000:1450] = scan.speed_mm_s[1000:1450]  # ... but for 0.45 s
+        short.append(replace(scan, path=f"short{s:g}.csv", speed_mm_s=v))
+    speeds = (20.0, 30.0)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        model, _ = fit_texture([short], speeds_mm_s=(20.0,), order=40)
-    assert model.free_form is None and model.two_part is None and model.h.shape == (1, 40)
+        model, _ = fit_texture(short, speeds_mm_s=speeds, order=40)
+    assert model.free_form is None and model.two_part is None and model.h.shape == (2, 40)
     said = [str(w.message) for w in caught]
-    assert len(said) == 1 and said[0].startswith("short.csv: no calibrated spectrum ("), said
+    assert len(said) == 1 and said[0].startswith("no calibrated spectrum (two-part model: "
+                                                 "no 0.5 s chunk"), said
     assert "the pooled per-speed fit only" in said[0]
     with pytest.raises(UserError, match=r"two-part model: no 0\.5 s chunk"):
-        fit_texture([short], speeds_mm_s=(20.0,), order=40, free_form="calibrated")
+        fit_texture(short, speeds_mm_s=speeds, order=40, free_form="calibrated")
+
+
+def test_one_fitted_speed_gets_the_pooled_fit_by_default():
+    """Nothing lies between fitted speeds to resolve: the default is the pooled fit,
+    without a warning; the calibrated form named explicitly is still fitted."""
+    scans = [generate_scan("felt", 20.0, 6.0, seed=1)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        model, _ = fit_texture(scans, speeds_mm_s=(20.0,), order=60)
+    assert model.free_form is None and model.two_part is None
+    named, _ = fit_texture(scans, speeds_mm_s=(20.0,), order=60, free_form="calibrated")
+    assert named.free_form["form"] == "calibrated"

@@ -203,6 +203,25 @@ def _expected_welch(g: np.ndarray, nper: int = 250, fs: float = 1000.0) -> np.nd
     return 2 * np.fft.rfft(np.concatenate([r, [0.0], r[:0:-1]])).real[::2] / fs
 
 
+@pytest.fixture(scope="module")
+def sandpaper_calibrated() -> TextureModel:
+    """The same scans fitted by default (the calibrated spectrum)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model, _ = fit_texture([generate_scan("sandpaper_p80", s, 3.0, seed=1)
+                                for s in (10.0, 20.0, 30.0, 40.0)], order=200)
+    return model
+
+
+@pytest.mark.xfail(strict=True, reason="measured with the default (calibrated) fit: LSD 2.20 dB "
+                   "(1.99 with noise seed 2), +3.1 dB at 320-420 Hz over the filters' average "
+                   "(the pooled fit's table +0.4-0.8): its table changes faster with speed, "
+                   "and the per-sample FIR interpolation between entries leaks the strong low "
+                   "band into the weak top one (docs/texture.md)")
+def test_fir_spectrum_of_the_default_fit_along_a_hands_stroke(sandpaper_calibrated):
+    test_fir_spectrum_along_a_hands_stroke_has_no_switching_leak(sandpaper_calibrated)
+
+
 def test_fir_spectrum_along_a_hands_stroke_has_no_switching_leak(sandpaper):
     """Along a hand's stroke (22-28 mm/s) the spectrum is the filters' average: no leak
     of the strong low band into the weak top one. Measured LSD 0.9-1.2 dB (the Welch
