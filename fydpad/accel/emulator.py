@@ -59,6 +59,8 @@ class AccelEmulator(BoardEmulator):
         self.start_us = int(start_us)
         self.counter0 = int(counter0)
         self.clocked = bool(clocked)
+        if int(fifo_depth) < 1:
+            raise ValueError(f"fifo_depth {fifo_depth}: must be at least one sample")
         self.fifo_depth = int(fifo_depth)
         self._t0_s: float | None = None
 
@@ -112,6 +114,8 @@ class AccelEmulator(BoardEmulator):
             self.k = 0
             self.start_us = 0
             self.counter0 = 0
+            if self._t0_s is not None:  # the device's clock restarts with its counter
+                self._t0_s = time.monotonic()
             self._write(self._hello())
 
     def _hello(self) -> bytes:
