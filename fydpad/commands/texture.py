@@ -354,6 +354,20 @@ def _ratio(text: str | None) -> tuple[int, int] | None:
     return v, f
 
 
+def _fitted_form(model) -> str:
+    """What the models are, in the words of `fit --help`."""
+    prov = model.provenance
+    if model.free_form is not None:
+        its = prov.get("two_part_iterations")
+        base = f" on its two-part base ({its} iterations)" if its else ""
+        return f"{model.free_form['form']} spectrum{base}"
+    if model.two_part is not None:
+        return "two-part spectrum"
+    if "speed_normalised" in prov:
+        return "speed-normalised per-speed LPC"
+    return "per-speed LPC pooled over each speed's runs"
+
+
 def run_fit(args: argparse.Namespace) -> int:
     _check_out(args.out, "--out")
     _check_out(args.plot, "--plot")
@@ -450,7 +464,8 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
     _print_warnings("fit", _scan_names(args.scans), caught)
     save_model(model, args.out)
     g2 = 9.80665**2
-    print(f"{args.out}: surface {model.surface}, order {model.order}, {model.fs_hz:g} Hz")
+    print(f"{args.out}: surface {model.surface}, order {model.order}, {model.fs_hz:g} Hz, "
+          f"{_fitted_form(model)}")
     for r in reports:
         print(f"  {r.speed_mm_s:5.1f} mm/s: {r.n_samples} samples in {r.n_segments} runs, "
               f"sigma2 {r.sigma2:.3g} (m/s^2)^2 = {r.sigma2 / g2:.3g} g^2, "

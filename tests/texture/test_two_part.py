@@ -161,6 +161,10 @@ def test_cli_fit_two_part_and_speed_normalise_flags(tmp_path, capsys):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             assert args.func(args) == 0
+        said = {"two_part": "two-part spectrum", "speed_normalised": "speed-normalised",
+                "calibrated": "calibrated spectrum on its two-part base (150 iterations)",
+                "pooled": "per-speed LPC pooled over each speed's runs"}[key]
+        assert said in capsys.readouterr().out.splitlines()[-3], key  # the file's line
         m = json.loads(out.read_text())
         assert ("two_part" in m) == (key in ("two_part", "calibrated")), key
         assert ("free_form" in m) == (key == "calibrated"), key
