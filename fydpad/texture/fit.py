@@ -189,74 +189,20 @@ def fit_texture(
         # spectrum following the finger fitted on that little data did worse (one 6 s
         # stroke per surface: sandpaper_p80 identified 1 of 3 times against 3 of 3).
         free_form = None
-    if auto and free_form:
+    spectral = None
+    if two_part or free_form:
         try:
-            return _fit_spectral_model(
-                scans, got_speeds, hs, sig, reports, pooled, speeds_of, whole, fs, order,
-                tolerance_mm_s, free_form, free_form_options, wrap_iterations, two_part,
-                label, highpass_hz, drive_band_hz, method, prewhiten_order)
+            spectral = _fit_spectrum(whole, pooled, speeds_of, got_speeds, fs, order,
+                                     tolerance_mm_s, two_part, free_form, free_form_options,
+                                     wrap_iterations)
         except ScansTooShort as exc:
+            if not auto:
+                raise
             warnings.warn(f"no {free_form} spectrum ({exc}): the pooled per-speed fit only; "
                           "record longer strokes for it", stacklevel=2)
-            free_form = None
-    return _fit_spectral_model(
-        scans, got_speeds, hs, sig, reports, pooled, speeds_of, whole, fs, order,
-        tolerance_mm_s, free_form, free_form_options, wrap_iterations, two_part, label,
-        highpass_hz, drive_band_hz, method, prewhiten_order, speed_normalise)
-
-
-class ScansTooShort(UserError):
-    """A spectral model asked for by default cannot be fitted on these scans (no 0.5 s
-    chunk within the modelled speeds): the pooled fit stands in for it."""
-
-
-def _spectrum_error(exc: Exception) -> type[UserError]:
-    return ScansTooShort if isinstance(exc, TooLittleData) else UserError
-
-
-def _fit_spectral_model(
-    scans: list[Scan], got_speeds: list[float], hs: list[Array], sig: list[float],
-    reports: list[FitReport], pooled: dict[float, list[Array]],
-    speeds_of: dict[float, list[Array]], whole: list[tuple[Array, Array]], fs: float,
-    order: int, tolerance_mm_s: float, free_form: str | None,
-    free_form_options: dict | None, wrap_iterations: Callable[[Iterable], Iterable],
-    two_part: bool, label: str, highpass_hz: float,
-    drive_band_hz: tuple[float, float] | None, method: str, prewhiten_order: int,
-    speed_normalise: bool = False,
-) -> tuple[TextureModel, list[FitReport]]:
-    """The model from the pooled per-speed fits, replaced by a spectral (two-part or
-    free-form) or speed-normalised model's all-pole fits where one is asked for."""
-    normalised = spectrum = free = None
-    if two_part or free_form:
-        lo = max(min(got_speeds) - tolerance_mm_s, 0.5)
-        hi = max(got_speeds) + tolerance_mm_s
-        runs, traces = [w[0] for w in whole], [w[1] for w in whole]
-        s_of = None
-        if two_part or free_form != "free":
-            try:
-                its = BASE_ITERATIONS if free_form == "calibrated" else ITERATIONS
-                s_of = fit_two_part(runs, traces, fs, (lo, hi), its, wrap=wrap_iterations)
-            except ValueError as exc:
-                raise _spectrum_error(exc)(f"two-part model: {exc}") from None
-            spectrum = s_of.to_json()
-        opts = dict(free_form_options or {})
-        try:
-            if free_form == "calibrated":
-                by = {v: list(zip(pooled[v], speeds_of[v], strict=True)) for v in got_speeds}
-                s_of = fit_calibrated(by, fs, s_of, **opts)
-            elif free_form == "surface":
-                s_of = fit_surface_resolved(runs, traces, fs, (lo, hi), s_of,
-                                            wrap=wrap_iterations, **opts)
-            elif free_form == "free":
-                s_of = fit_free_form(runs, traces, fs, (lo, hi), wrap=wrap_iterations, **opts)
-        except (ValueError, TypeError) as exc:
-            raise _spectrum_error(exc)(f"free-form model ({free_form}): {exc}") from None
-        if free_form:
-            free = s_of.to_json()
-        polys = [s_of.ar(s, order, fs) for s in got_speeds]
-        if not all(is_stable(a) for a, _ in polys):
-            raise UserError("spectral model: an all-pole fit of S(f, v) is unstable")
-        hs, sig = [h_from_poly(a) for a, _ in polys], [s2 for _, s2 in polys]
+    normalised = None
+    if spectral is not None:
+        hs, sig = spectral.hs, spectral.sigma2
     elif speed_normalise and len(got_speeds) > 1:
         hs, sig, normalised = _speed_normalised(got_speeds, hs, sig, pooled, speeds_of, fs,
                                                 highpass_hz, order)
@@ -277,18 +223,78 @@ def _fit_spectral_model(
     )
     if normalised is not None:
         model.provenance["speed_normalised"] = normalised
-    if spectrum is not None:
-        model.two_part = spectrum
-        model.provenance["spectral_model"] = "two-part"
-        model.provenance["two_part_iterations"] = its
-    if free is not None:
-        model.free_form = free
-        model.provenance["spectral_model"] = "free-form"
-    if spectrum is not None or free is not None:
+    if spectral is not None:
+        if spectral.two_part is not None:
+            model.two_part = spectral.two_part
+            model.provenance["spectral_model"] = "two-part"
+            model.provenance["two_part_iterations"] = spectral.iterations
+        if spectral.free_form is not None:
+            model.free_form = spectral.free_form
+            model.provenance["spectral_model"] = "free-form"
         # models[] are the all-pole fits of S at the fitted speeds, not the LPC estimator's.
         model.provenance["method"] = "two-stage all-pole fit of S(f, v)"
         model.provenance["prewhiten_order"] = 8
     return model, reports
+
+
+class ScansTooShort(UserError):
+    """A spectral model asked for by default cannot be fitted on these scans (no 0.5 s
+    chunk within the modelled speeds): the pooled fit stands in for it."""
+
+
+def _spectrum_error(exc: Exception) -> type[UserError]:
+    return ScansTooShort if isinstance(exc, TooLittleData) else UserError
+
+
+@dataclass
+class _Spectrum:
+    """A spectral model's all-pole fits at the fitted speeds and its file blocks."""
+
+    hs: list[Array]
+    sigma2: list[float]
+    two_part: dict | None  # the two-part factors (the calibrated/surface forms' base too)
+    free_form: dict | None
+    iterations: int | None  # of the two-part fit
+
+
+def _fit_spectrum(
+    whole: list[tuple[Array, Array]], pooled: dict[float, list[Array]],
+    speeds_of: dict[float, list[Array]], got_speeds: list[float], fs: float, order: int,
+    tolerance_mm_s: float, two_part: bool, free_form: str | None,
+    free_form_options: dict | None, wrap_iterations: Callable[[Iterable], Iterable],
+) -> _Spectrum:
+    """The two-part and/or free-form spectrum of ``fit_texture`` and its all-pole fits;
+    ScansTooShort where the scans hold too little for it, UserError on other failures."""
+    lo = max(min(got_speeds) - tolerance_mm_s, 0.5)
+    hi = max(got_speeds) + tolerance_mm_s
+    runs, traces = [w[0] for w in whole], [w[1] for w in whole]
+    s_of = spectrum = free = its = None
+    if two_part or free_form != "free":
+        its = BASE_ITERATIONS if free_form == "calibrated" else ITERATIONS
+        try:
+            s_of = fit_two_part(runs, traces, fs, (lo, hi), its, wrap=wrap_iterations)
+        except ValueError as exc:
+            raise _spectrum_error(exc)(f"two-part model: {exc}") from None
+        spectrum = s_of.to_json()
+    opts = dict(free_form_options or {})
+    try:
+        if free_form == "calibrated":
+            by = {v: list(zip(pooled[v], speeds_of[v], strict=True)) for v in got_speeds}
+            s_of = fit_calibrated(by, fs, s_of, **opts)
+        elif free_form == "surface":
+            s_of = fit_surface_resolved(runs, traces, fs, (lo, hi), s_of,
+                                        wrap=wrap_iterations, **opts)
+        elif free_form == "free":
+            s_of = fit_free_form(runs, traces, fs, (lo, hi), wrap=wrap_iterations, **opts)
+    except (ValueError, TypeError) as exc:
+        raise _spectrum_error(exc)(f"free-form model ({free_form}): {exc}") from None
+    if free_form:
+        free = s_of.to_json()
+    polys = [s_of.ar(s, order, fs) for s in got_speeds]
+    if not all(is_stable(a) for a, _ in polys):
+        raise UserError("spectral model: an all-pole fit of S(f, v) is unstable")
+    return _Spectrum([h_from_poly(a) for a, _ in polys], [s2 for _, s2 in polys], spectrum,
+                     free, its)
 
 
 def _speed_normalised(speeds: list[float], hs: list[Array], sig: list[float],
