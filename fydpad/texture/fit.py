@@ -135,6 +135,8 @@ def fit_texture(
         # The options of the pooled fit's own estimator, or a model of its own, ask for it.
         own = two_part or speed_normalise or method != "autocorrelation" or prewhiten_order != 8
         free_form = None if own else DEFAULT_FORM
+    if free_form is not None and free_form not in FORMS:  # before the work, not after
+        raise UserError(f"free-form model: form must be one of {FORMS}, not {free_form!r}")
     scans = list(scans)
     if not scans:
         raise UserError("no scans to fit")
@@ -182,8 +184,6 @@ def fit_texture(
     if not got_speeds:
         raise UserError("no part of the scans is near any target speed (column 'speed_mm_s')")
     label = surface or scans[0].surface
-    if free_form is not None and free_form not in FORMS:
-        raise UserError(f"free-form model: form must be one of {FORMS}, not {free_form!r}")
     if auto and len(got_speeds) < 2:
         # Nothing lies between fitted speeds to resolve; within one speed's wander a
         # spectrum following the finger fitted on that little data did worse (one 6 s
