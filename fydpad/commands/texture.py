@@ -138,6 +138,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="the per-speed LPC fit alone, pooled over each speed's runs (the "
                    "paper's model; the default before the calibrated spectrum: 10x faster "
                    "to fit, worse between the fitted speeds)")
+    f.add_argument("--lines", default="auto", metavar="auto|off|PERIOD_MM",
+                   help="a periodic surface's harmonics (a grating, mesh, weave, knurl) as "
+                   "lines at n v / period that follow the finger, beside the LPC model of "
+                   "the rest: 'auto' (default) finds the period in the scans' spatial "
+                   "spectrum and keeps the lines if they hold 5 %% of the power or more; a "
+                   "number is the period in mm (refined within 2 %%, kept whatever their "
+                   "share); 'off' fits none (the paper's model). Needs each scan's speed "
+                   "column (or positions) to integrate the position (docs/texture.md)")
     f.add_argument("--surface", help="surface label (default: the scans' # surface= or name)")
     f.add_argument("--drive-band", type=_floats, default=[165.0, 220.0], metavar="LO,HI",
                    help="output drive filter band stored in the model (default 165,220 Hz)")
@@ -354,6 +362,19 @@ def _ratio(text: str | None) -> tuple[int, int] | None:
     return v, f
 
 
+def _lines_option(text: str) -> str | float:
+    """``--lines``: 'auto', 'off' or a period in mm (a one-line error otherwise)."""
+    if text in ("auto", "off"):
+        return text
+    try:
+        period = float(text)
+    except ValueError:
+        raise UserError(f"--lines {text}: 'auto', 'off' or a period in mm") from None
+    if not (math.isfinite(period) and period > 0):
+        raise UserError(f"--lines {text}: the period must be a number of mm > 0")
+    return period
+
+
 def _fitted_form(model) -> str:
     """What the models are, in the words of `fit --help`."""
     prov = model.provenance
@@ -458,7 +479,7 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
             highpass_hz=args.highpass_hz, min_seconds=args.min_seconds, method=args.method,
             surface=args.surface, drive_band_hz=tuple(args.drive_band),
             prewhiten_order=args.prewhiten_order, speed_normalise=args.speed_normalise,
-            two_part=args.two_part, free_form=args.free_form,
+            two_part=args.two_part, free_form=args.free_form, lines=_lines_option(args.lines),
             wrap=lambda it: progress(it, total=len(scans), desc="fit", unit="scan"),
             wrap_iterations=lambda it: progress(it, desc="spectral model", unit="it"))
     _print_warnings("fit", _scan_names(args.scans), caught)
@@ -466,6 +487,10 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
     g2 = 9.80665**2
     print(f"{args.out}: surface {model.surface}, order {model.order}, {model.fs_hz:g} Hz, "
           f"{_fitted_form(model)}")
+    lines = model.provenance.get("lines")
+    if lines is not None:
+        print(f"  lines: {lines['note']}" + ("; the LPC models below are fitted on what they "
+                                             "leave" if model.lines is not None else ""))
     for r in reports:
         print(f"  {r.speed_mm_s:5.1f} mm/s: {r.n_samples} samples in {r.n_segments} runs, "
               f"sigma2 {r.sigma2:.3g} (m/s^2)^2 = {r.sigma2 / g2:.3g} g^2, "
@@ -474,6 +499,12 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
         from fydpad.texture.plots import plot_spectra
 
         panels = []
+        voice = None
+        if model.lines is not None:  # the lines rendered along the same runs' speeds
+            from fydpad.texture.line_voice import LineVoice
+            from fydpad.texture.lines import LineSpectrum
+
+            voice = LineVoice(LineSpectrum.from_json(model.lines, args.out), model.fs_hz)
         # The runs the fit used: same high-pass, tolerance and shortest run.
         pre = [preprocess(sc.acc, sc.fs_hz, model.highpass_hz) for sc in scans]
         for k, s in enumerate(model.speeds_mm_s):
@@ -488,9 +519,14 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
             x = np.concatenate([a for a, _ in segs])
             m = np.concatenate([b for _, b in segs])
             fr, pr = welch_psd(x, model.fs_hz, m)
-            panels.append((f"{s:g} mm/s", fr, pr, ar_psd(model.poly(k), model.sigma2[k], fr,
-                                                           model.fs_hz)))
-        plot_spectra(args.plot, panels, f"{model.surface}: recorded vs LPC model")
+            pm = ar_psd(model.poly(k), model.sigma2[k], fr, model.fs_hz)
+            if voice is not None:
+                voice.reset()
+                lines = np.concatenate([voice.block(sc.speed_mm_s) for sc in scans])
+                pm = pm + welch_psd(lines, model.fs_hz, m)[1]
+            panels.append((f"{s:g} mm/s", fr, pr, pm))
+        plot_spectra(args.plot, panels, f"{model.surface}: recorded vs LPC model"
+                     + (" + lines" if voice is not None else ""))
     return 0
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime as _dt
+import math
 import warnings
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, replace
@@ -22,6 +23,7 @@ from fydpad.texture.free_form import (
     fit_free_form,
     fit_surface_resolved,
 )
+from fydpad.texture.lines import LineFit, fit_lines
 from fydpad.texture.lpc import h_from_poly, is_stable, lpc_autocorrelation, lpc_burg
 from fydpad.texture.model_file import TextureModel
 from fydpad.texture.scan_io import Scan
@@ -29,6 +31,9 @@ from fydpad.texture.segment import (
     DEFAULT_SPEEDS_MM_S,
     DEFAULT_TOLERANCE_MM_S,
     segment_by_speed,
+)
+from fydpad.texture.segment import (
+    runs as segment_runs,
 )
 from fydpad.texture.speed_warp import NFFT as _NFFT
 from fydpad.texture.speed_warp import (
@@ -92,6 +97,7 @@ def fit_texture(
     min_seconds: float = 0.25, method: str = "autocorrelation", surface: str | None = None,
     prewhiten_order: int = 8, speed_normalise: bool = False, two_part: bool = False,
     free_form: str | None = AUTO, free_form_options: dict | None = None,
+    lines: str | float | None = "auto",
     drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
     wrap: Callable[[Iterable], Iterable] = lambda it: it,
     wrap_iterations: Callable[[Iterable], Iterable] = lambda it: it,
@@ -141,19 +147,28 @@ def fit_texture(
     if not scans:
         raise UserError("no scans to fit")
     fs = scans[0].fs_hz
-    pooled: dict[float, list[Array]] = {float(s): [] for s in speeds_mm_s}
-    whole: list[tuple[Array, Array]] = []
-    speeds_of: dict[float, list[Array]] = {float(s): [] for s in speeds_mm_s}
+    prepared: list[tuple[Array, Array]] = []
     for scan in wrap(scans):
         if abs(scan.fs_hz - fs) > 1e-6 * fs:
             raise UserError(f"{scan.path}: column 't_s': sample rate {scan.fs_hz:g} Hz differs "
                             f"from the first scan's {fs:g} Hz")
-        x = preprocess(scan.acc, fs, highpass_hz)
-        whole.append((x, scan.speed_mm_s))
-        for s, rs in segment_by_speed(scan.speed_mm_s, fs, speeds_mm_s, tolerance_mm_s,
-                                      min_seconds).items():
-            pooled[s].extend(x[a:b] for a, b in rs)
-            speeds_of[s].extend(scan.speed_mm_s[a:b] for a, b in rs)
+        prepared.append((preprocess(scan.acc, fs, highpass_hz), scan.speed_mm_s))
+    line_fit = _fit_lines(prepared, fs, speeds_mm_s, tolerance_mm_s, lines)
+    pooled: dict[float, list[Array]] = {float(s): [] for s in speeds_mm_s}
+    whole: list[tuple[Array, Array]] = []
+    speeds_of: dict[float, list[Array]] = {float(s): [] for s in speeds_mm_s}
+    for i, (x, v) in enumerate(prepared):
+        pieces = [(0, x.size)]
+        if line_fit.spectrum is not None:
+            # What the lines leave, where they could be taken out (see lines.fit_lines).
+            x = line_fit.residuals[i]
+            pieces = segment_runs(line_fit.keep[i], 1)
+        for a, b in pieces:
+            whole.append((x[a:b], v[a:b]))
+            for s, rs in segment_by_speed(v[a:b], fs, speeds_mm_s, tolerance_mm_s,
+                                          min_seconds).items():
+                pooled[s].extend(x[a + r0:a + r1] for r0, r1 in rs)
+                speeds_of[s].extend(v[a + r0:a + r1] for r0, r1 in rs)
     got_speeds, hs, sig, reports = [], [], [], []
     short: list[str] = []  # speeds with data, too little for the order
     for s, segs in pooled.items():
@@ -184,6 +199,11 @@ def fit_texture(
     if not got_speeds:
         raise UserError("no part of the scans is near any target speed (column 'speed_mm_s')")
     label = surface or scans[0].surface
+    if auto and line_fit.spectrum is not None:
+        # What the lines leave (sensor noise, slips, the incoherent rest) does not stretch
+        # with speed as a surface does: the two-part base has nothing to resolve there and
+        # its extrapolation between speeds cost R1 and R2 0.3-3 dB (docs/texture.md).
+        free_form = None
     if auto and len(got_speeds) < 2:
         # Nothing lies between fitted speeds to resolve; within one speed's wander a
         # spectrum following the finger fitted on that little data did worse (one 6 s
@@ -223,6 +243,12 @@ def fit_texture(
     )
     if normalised is not None:
         model.provenance["speed_normalised"] = normalised
+    if line_fit.period_mm is not None or lines not in (None, "off"):
+        model.provenance["lines"] = {
+            "period_mm": line_fit.period_mm, "share": round(line_fit.share, 4),
+            "note": line_fit.note}
+    if line_fit.spectrum is not None:
+        model.lines = line_fit.spectrum.to_json()
     if spectral is not None:
         if spectral.two_part is not None:
             model.two_part = spectral.two_part
@@ -235,6 +261,28 @@ def fit_texture(
         model.provenance["method"] = "two-stage all-pole fit of S(f, v)"
         model.provenance["prewhiten_order"] = 8
     return model, reports
+
+
+def _fit_lines(prepared: list[tuple[Array, Array]], fs: float, speeds_mm_s: Sequence[float],
+               tolerance_mm_s: float, lines: str | float | None) -> LineFit:
+    """fit_texture's line spectrum: ``"auto"`` finds the period, a number is the period
+    in mm, None or ``"off"`` fits none."""
+    signals = [x for x, _ in prepared]
+    if lines is None or lines == "off":
+        return LineFit(None, signals, [np.ones(x.size, bool) for x in signals], None, 0.0,
+                       "not fitted (lines off)")
+    if lines == "auto":
+        period = None
+    else:
+        try:
+            period = float(lines)
+        except (TypeError, ValueError):
+            raise UserError(f"lines: 'auto', 'off' or a period in mm, not {lines!r}") from None
+        if not (math.isfinite(period) and period > 0):
+            raise UserError(f"lines: the period must be a number of mm > 0, not {lines!r}")
+    lo = max(min(speeds_mm_s) - tolerance_mm_s, 0.5)
+    hi = max(speeds_mm_s) + tolerance_mm_s
+    return fit_lines(signals, [v for _, v in prepared], fs, (lo, hi), period_mm=period)
 
 
 class ScansTooShort(UserError):

@@ -15,7 +15,12 @@ from fydpad.errors import UserError, read_json
 from fydpad.texture.lpc import is_stable, poly_from_h
 
 FORMAT = "fydpad-texture-model"
-FORMAT_VERSION = 1
+#: Written when the model has a ``lines`` block (its residual models[] alone would render a
+#: periodic surface without its lines: an older reader must refuse it, not play that).
+FORMAT_VERSION = 2
+#: Written without one: every reader since the first reads it.
+PLAIN_VERSION = 1
+READ_VERSIONS = (1, 2)
 Array = NDArray[np.float64]
 
 
@@ -36,6 +41,9 @@ class TextureModel:
     provenance: dict[str, Any] = field(default_factory=dict)
     two_part: dict[str, Any] | None = None  # two_part.TwoPartSpectrum.to_json(), if fitted
     free_form: dict[str, Any] | None = None  # free_form.FreeFormSpectrum.to_json(), if fitted
+    #: lines.LineSpectrum.to_json(): a periodic surface's harmonics, rendered beside the
+    #: process of models[] (which is then fitted on what the lines leave).
+    lines: dict[str, Any] | None = None
 
     @property
     def order(self) -> int:
@@ -49,7 +57,7 @@ class TextureModel:
 def model_to_json(model: TextureModel) -> dict[str, Any]:
     return {
         "format": FORMAT,
-        "format_version": FORMAT_VERSION,
+        "format_version": PLAIN_VERSION if model.lines is None else FORMAT_VERSION,
         "surface": model.surface,
         "sample_rate_hz": model.fs_hz,
         "order": model.order,
@@ -67,6 +75,7 @@ def model_to_json(model: TextureModel) -> dict[str, Any]:
         "provenance": model.provenance,
         **({} if model.two_part is None else {"two_part": model.two_part}),
         **({} if model.free_form is None else {"free_form": model.free_form}),
+        **({} if model.lines is None else {"lines": model.lines}),
     }
 
 
@@ -167,10 +176,10 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise UserError(f"{where}: not a fydpad texture model (key 'format' must be '{FORMAT}')")
     version = data.get("format_version")
-    if version != FORMAT_VERSION:
+    if isinstance(version, bool) or version not in READ_VERSIONS:
         raise UserError(
-            f"{where}: key 'format_version' is {version!r}; this fydpad reads version "
-            f"{FORMAT_VERSION} only (refit the model with 'fydpad texture fit')"
+            f"{where}: key 'format_version' is {version!r}; this fydpad reads versions "
+            f"{', '.join(map(str, READ_VERSIONS))} (refit the model with 'fydpad texture fit')"
         )
     fs, head = _header(data, where)
     models = _get(data, "models", where)
@@ -204,7 +213,21 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
         **head,
         two_part=_two_part(data.get("two_part"), where),
         free_form=_free_form(data.get("free_form"), data.get("two_part"), where),
+        lines=_lines(data.get("lines"), version, where),
     )
+
+
+def _lines(d: Any, version: Any, where: str) -> dict[str, Any] | None:
+    """The optional line spectrum (lines.py), checked; only in a version-2 file."""
+    if d is None:
+        return None
+    if version < FORMAT_VERSION:
+        raise UserError(f"{where}: key 'lines' needs 'format_version' {FORMAT_VERSION}, "
+                        f"the file says {version}")
+    from fydpad.texture.lines import LineSpectrum
+
+    LineSpectrum.from_json(d, where)
+    return dict(d)
 
 
 _TWO_PART_KEYS = ("f_hz", "k_per_mm", "tool", "surface", "floor", "v_mm_s", "g", "n")

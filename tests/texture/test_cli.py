@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -27,11 +28,35 @@ def workdir(tmp_path_factory):
 
 
 def test_fit_writes_documented_model_and_plot(workdir):
+    """R1, a grating, gets its lines (a version-2 file); felt, random roughness, none (a
+    version-1 file, as before the lines)."""
     m = json.loads((workdir / "R1.json").read_text())
-    assert m["format_version"] == 1 and m["sample_rate_hz"] == 1000.0
+    assert m["format_version"] == 2 and m["sample_rate_hz"] == 1000.0
+    assert m["lines"]["period_mm"] == pytest.approx(3.9, rel=1e-3)
     assert [x["speed_mm_s"] for x in m["models"]] == [10.0, 30.0]
     assert m["drive_band_hz"] == [165.0, 220.0] and m["provenance"]["scans"]
     assert (workdir / "R1_fit.png").stat().st_size > 1000
+    felt = json.loads((workdir / "felt.json").read_text())
+    assert felt["format_version"] == 1 and "lines" not in felt
+
+
+def test_fit_lines_option(workdir, tmp_path, capsys):
+    """--lines off: the paper's model alone; a period: used (refined); the summary says
+    what was found; a bad value is a one-line error."""
+    scans = [str(workdir / "R1_10mms_s1.csv"), str(workdir / "R1_30mms_s1.csv")]
+    assert run("fit", *scans, "--out", str(tmp_path / "off.json"), "--speeds", "10,30",
+               "--order", "60", "--lines", "off") == 0
+    assert "lines" not in json.loads((tmp_path / "off.json").read_text())
+    capsys.readouterr()
+    assert run("fit", *scans, "--out", str(tmp_path / "p.json"), "--speeds", "10,30",
+               "--order", "60", "--lines", "3.92") == 0
+    said = capsys.readouterr().out
+    period = re.search(r"lines: period ([0-9.]+) mm", said)
+    assert period and float(period.group(1)) == pytest.approx(3.9, rel=1e-3), said
+    assert "fitted on what they leave" in said
+    for bad in ("often", "-1", "nan"):
+        with pytest.raises(UserError, match=f"--lines {bad}"):
+            run("fit", *scans, "--out", str(tmp_path / "b.json"), "--lines", bad)
 
 
 def test_synth_writes_t_a_at_1khz(workdir, tmp_path):
@@ -61,7 +86,7 @@ def test_evaluate_and_identify_json(workdir, tmp_path):
 def test_bad_input_is_a_user_error(workdir, tmp_path):
     bad = tmp_path / "m.json"
     m = json.loads((workdir / "R1.json").read_text())
-    m["format_version"] = 2
+    m["format_version"] = 3
     bad.write_text(json.dumps(m))
     with pytest.raises(UserError, match="format_version"):
         run("synth", str(bad), "--speed-mm-s", "20", "--seconds", "1", "--out",

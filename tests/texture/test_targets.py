@@ -47,11 +47,15 @@ def figures():
         warnings.simplefilter("ignore")
         for name in TARGET_TEXTURES:
             train = [generate_scan(name, s, 8.0, seed=1) for s in SPEEDS]
-            model, _ = fit_texture(train, free_form=None)  # the pooled fit
+            # The per-speed forms on the whole signal (lines off: with them, R1 and R2's
+            # forms would model only what their lines leave; the lines: test_lines.py and
+            # the default fit below).
+            model, _ = fit_texture(train, free_form=None, lines="off")  # the pooled fit
             # The option: every 5 mm/s, each speed fitted on runs moved to it in space.
-            norm, _ = fit_texture(train, speeds_mm_s=NORMALISED_GRID, speed_normalise=True)
+            norm, _ = fit_texture(train, speeds_mm_s=NORMALISED_GRID, speed_normalise=True,
+                                  lines="off")
             # The two-part model: fixed tool part, surface part moving with speed.
-            two, _ = fit_texture(train, two_part=True)
+            two, _ = fit_texture(train, two_part=True, lines="off")
             for v in (20.0, 25.0):
                 held, mask, ceil = held_out(name, v, model)
                 for method in ("stretch", "lsf", "linear"):

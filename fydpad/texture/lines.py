@@ -1,0 +1,756 @@
+"""Periodic surfaces: the harmonics of a spatial period, following the finger.
+
+A grating, a mesh, a weave or a knurl is periodic along the stroke, so part of its
+vibration is a set of lines at n v / lambda that move with the finger's speed v. An
+all-pole model fitted per speed pools the hand's +-5 mm/s of wander and smears those
+lines into bands (docs/texture.md, "The combs"); here they are modelled as what they
+are, deterministic in the position along the stroke:
+
+    a_lines(t) = sum_n A_n(v(t)) cos(2 pi n s(t) / lambda + psi_n),   s(t) = int v dt
+
+beside the paper's eq. 5 process, which is fitted on what the lines leave (the
+residual). The synthesis integrates the same speed it is given, so a held-out stroke's
+lines spread exactly as its hand's speed spread them.
+
+Fit (:func:`fit_lines`), on the preprocessed (high-passed, DFT321) signal of each stroke:
+
+1. The period (:func:`estimate_period`): each stroke resampled on its arc length s,
+   where the lines are at fixed spatial frequencies n / lambda whatever the speed; the
+   candidate that puts significant peaks on the most harmonics wins, then lambda is
+   refined on the coherent power of its strongest harmonics (the high harmonics need it
+   to 1e-5: their phase over a 100 mm stroke).
+2. Per stroke and harmonic, the complex amplitude as a quadratic in speed, by least
+   squares on the signal demodulated at the harmonic's phase 2 pi n s / lambda (the
+   harmonics are orthogonal over a stroke of many periods). The same fit at the
+   half-integer harmonics n + 1/2, where no line is, measures what noise alone gives.
+3. Per 0.5 mm/s speed bin, pooled over strokes: the amplitude^2 less the noise's; a
+   harmonic is kept at a speed where it stands ``snr`` times above that noise. Between
+   bins with data, log-linear in speed (linear in power where one side has no line);
+   beyond them, the edge value.
+4. The residual: each stroke less its kept harmonics. Only the samples within a
+   stroke's fitted speed range (+-45 % of its median) have their lines removed, so only
+   they go to the stochastic fit (a ramp at the ends of a stroke does not).
+
+The phases psi_n are those of the slowest stroke (where every harmonic is in band):
+they give the waveform its shape (a rectangular grating's edges), not its spectrum.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.ndimage as ndi
+import scipy.signal as ss
+import scipy.sparse as sparse
+import scipy.sparse.linalg as spla
+from numpy.typing import NDArray
+
+from fydpad.errors import UserError
+
+Array = NDArray[np.float64]
+Mask = NDArray[np.bool_]
+
+#: A stroke's samples within this fraction of its median speed carry its line fit.
+SPEED_SPAN = 0.45
+#: Samples where the speed changes faster than this (per second, relative) carry no fit,
+#: nor those within EDGE_S of them or of a stroke's ends (a hand's sway: 0.5 /s at most;
+#: a stroke's start: 3 /s and more).
+MAX_SPEED_RATE = 1.5
+EDGE_S = 0.25
+#: Speed grid of the amplitude table (mm/s).
+GRID_STEP_MM_S = 0.5
+#: Harmonics up to this fraction of Nyquist (the scans' anti-alias filter ends there);
+#: the renderer tapers them from TAPER_START of Nyquist so none drops out with a click.
+BAND_TOP = 0.99
+TAPER_START = 0.96
+#: A kept harmonic's power over the noise's at the half-integer harmonics.
+DEFAULT_SNR = 3.0
+#: A stroke's own fit this many times over ``snr`` takes its line out of it.
+OWN_SNR_FACTOR = 4.0
+#: Less of the in-band power than this in the lines: no line model (the all-pole
+#: model holds such weak lines as well).
+MIN_SHARE = 0.05
+#: A bin needs this much data (seconds, pooled) to say something about a harmonic.
+MIN_BIN_S = 0.25
+#: The comb's teeth must hold this much more of the spatial power than their share of
+#: the band (a smooth spectrum: 0).
+MIN_COMB_SCORE = 0.2
+#: Knot spacing of a harmonic's amplitude along speed, in Hz of the harmonic's frequency:
+#: the scale on which a tool resonance changes it (a mode of Q 10 at 300 Hz is 30 Hz wide).
+KNOT_HZ = 20.0
+_CHUNK = 64  # harmonics per matrix product (memory: samples x chunk complex)
+
+
+@dataclass
+class LineSpectrum:
+    """Harmonic amplitudes of a period over a speed grid (the model file's ``lines``)."""
+
+    period_mm: float
+    v_mm_s: Array  # (m,) ascending, GRID_STEP_MM_S apart
+    amplitude: Array  # (m, N) peak amplitude of harmonic n = 1..N, m/s^2
+    phase_rad: Array  # (N,)
+
+    @property
+    def harmonics(self) -> int:
+        return int(self.amplitude.shape[1])
+
+    def amplitudes_at(self, speed_mm_s: float) -> Array:
+        """A_n at a speed: linear between grid rows, the edge rows beyond."""
+        v = self.v_mm_s
+        x = float(np.clip((speed_mm_s - v[0]) / (v[1] - v[0]) if v.size > 1 else 0.0,
+                          0.0, v.size - 1))
+        k = min(int(x), v.size - 2) if v.size > 1 else 0
+        w = x - k
+        if v.size == 1:
+            return self.amplitude[0].copy()
+        return (1 - w) * self.amplitude[k] + w * self.amplitude[k + 1]
+
+    def power_at(self, speed_mm_s: float) -> float:
+        """Mean power of the lines at a constant speed, (m/s^2)^2."""
+        a = self.amplitudes_at(speed_mm_s)
+        return float(0.5 * np.dot(a, a))
+
+    def wavetable(self, points: int | None = None) -> Array:
+        """One period of the waveform at every grid speed: (m, points + 1), the last
+        column repeating the first (so a linear interpolation needs no wrap)."""
+        n = self.harmonics
+        top = int(np.max(np.nonzero(self.amplitude.any(axis=0))[0], initial=-1)) + 1
+        if points is None:  # 32 points per cycle of the highest harmonic: images < -30 dB
+            points = int(min(max(256, 2 ** math.ceil(math.log2(max(32 * top, 1)))), 16384))
+        spec = np.zeros((self.v_mm_s.size, points // 2 + 1), complex)
+        m = min(n, points // 2 - 1)
+        spec[:, 1:m + 1] = self.amplitude[:, :m] * np.exp(1j * self.phase_rad[:m])
+        table = np.fft.irfft(spec, points, axis=1) * (points / 2)
+        return np.concatenate([table, table[:, :1]], axis=1)
+
+    def to_json(self) -> dict:
+        return {
+            "period_mm": float(self.period_mm),
+            "v_mm_s": [round(float(v), 6) for v in self.v_mm_s],
+            "phase_rad": [round(float(p), 6) for p in self.phase_rad],
+            "amplitude": [[float(f"{a:.6g}") for a in row] for row in self.amplitude],
+            "units": {"amplitude": "m/s^2 (peak)", "v_mm_s": "mm/s", "period_mm": "mm"},
+        }
+
+    @classmethod
+    def from_json(cls, d: object, where: str) -> LineSpectrum:
+        """Checked: each error names ``lines.<key>`` in ``where`` (the file)."""
+        if not isinstance(d, dict):
+            raise UserError(f"{where}: key 'lines' must be an object")
+
+        def arr(key: str, ndim: int) -> Array:
+            if key not in d:
+                raise UserError(f"{where}: missing key 'lines.{key}'")
+            try:
+                a = np.asarray(d[key], float)
+            except (TypeError, ValueError):
+                raise UserError(f"{where}: key 'lines.{key}' must be numbers") from None
+            if a.ndim != ndim or a.size == 0 or not np.all(np.isfinite(a)):
+                raise UserError(f"{where}: key 'lines.{key}' must be a non-empty "
+                                f"{'list' if ndim == 1 else 'table'} of finite numbers")
+            return a
+
+        period = d.get("period_mm")
+        if isinstance(period, bool) or not isinstance(period, int | float) or not (
+                math.isfinite(period) and period > 0):
+            raise UserError(f"{where}: key 'lines.period_mm' must be a number > 0, "
+                            f"not {period!r}")
+        v, phase, amp = arr("v_mm_s", 1), arr("phase_rad", 1), arr("amplitude", 2)
+        if np.any(np.diff(v) <= 0) or v[0] < 0:
+            raise UserError(f"{where}: key 'lines.v_mm_s' must be ascending speeds >= 0")
+        if amp.shape != (v.size, phase.size):
+            raise UserError(f"{where}: key 'lines.amplitude' must have one row per "
+                            f"'lines.v_mm_s' ({v.size}) and one column per 'lines.phase_rad' "
+                            f"({phase.size}), not {amp.shape[0]} x {amp.shape[1]}")
+        if np.any(amp < 0):
+            raise UserError(f"{where}: key 'lines.amplitude' must be >= 0")
+        return cls(float(period), v, amp, phase)
+
+
+@dataclass
+class LineFit:
+    """What :func:`fit_lines` found: the spectrum (None: no periodic part worth it),
+    each stroke's residual, and the samples the stochastic fit may use."""
+
+    spectrum: LineSpectrum | None
+    residuals: list[Array]
+    keep: list[Mask]
+    period_mm: float | None
+    share: float  # of the kept samples' power, in the lines
+    note: str
+
+
+def arc_length_mm(speed_mm_s: Array, fs_hz: float) -> Array:
+    """s(t) = int v dt as the renderer integrates it (one step of v / fs per sample)."""
+    return np.cumsum(np.asarray(speed_mm_s, float)) / fs_hz
+
+
+def _stroke_span(v: Array, speed_range: tuple[float, float], fs_hz: float
+                 ) -> tuple[float, Mask] | None:
+    """(median speed, the samples that carry the stroke's line fit), or None: within
+    SPEED_SPAN of the median and within the range, and not where the speed changes faster
+    than MAX_SPEED_RATE of itself per second (a stroke's start and end: the tool's
+    resonance does not follow lines that sweep that fast, and the DFT321 window smears
+    them), nor within a window of that or of the stroke's ends."""
+    lo, hi = speed_range
+    inr = (v >= lo) & (v <= hi) & (v > 0)
+    if inr.sum() < 16:
+        return None
+    med = float(np.median(v[inr]))
+    fast = np.abs(np.gradient(v) * fs_hz) > MAX_SPEED_RATE * np.maximum(v, 1.0)
+    guard = max(1, round(EDGE_S * fs_hz))
+    fast[:guard] = fast[-guard:] = True
+    fast = ndi.binary_dilation(fast, np.ones(2 * guard + 1, bool))
+    return med, inr & ~fast & (np.abs(v - med) < SPEED_SPAN * med)
+
+
+def _longest_run(mask: Mask) -> tuple[int, int]:
+    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    a, b = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    if a.size == 0:
+        return 0, 0
+    i = int(np.argmax(b - a))
+    return int(a[i]), int(b[i])
+
+
+@dataclass
+class _Stroke:
+    index: int  # of the signal it comes from
+    y: Array
+    v: Array
+    s: Array  # arc length, mm
+    med: float
+    valid: Mask
+
+
+@dataclass
+class _Spectrum:
+    """A stroke's spatial periodogram and its peaks (sub-bin interpolated)."""
+
+    k: Array  # cycles/mm
+    ratio: Array  # power over the running median of its neighbours
+    k_lo: float  # the harmonics' band for every sample of the run
+    k_hi: float
+    power: Array
+    peaks_k: Array  # strongest first
+
+
+_PAD = 2  # zero padding of the spatial periodogram
+_TOL_BINS = 1.5 * _PAD  # a peak matches a harmonic within this many padded bins
+
+
+def _spatial_spectrum(st: _Stroke, f_lo: float, f_hi: float) -> _Spectrum | None:
+    """Hann periodogram of the stroke's longest valid run on a uniform arc-length grid,
+    where the harmonics stand at n / lambda whatever the speed."""
+    a, b = _longest_run(st.valid)
+    if b - a < 256:
+        return None
+    s, y, v = st.s[a:b], st.y[a:b], st.v[a:b]
+    ds = 0.5 * float(np.median(np.diff(s)))  # twice the samples: no harmonic folds
+    if not ds > 0:
+        return None
+    su = np.arange(s[0], s[-1], ds)
+    yu = np.interp(su, s, y) * np.hanning(su.size)
+    n = su.size * _PAD
+    k = np.fft.rfftfreq(n, ds)
+    p = np.abs(np.fft.rfft(yu, n)) ** 2 + 1e-300
+    ratio = p / (ndi.median_filter(p, size=20 * _PAD + 1, mode="nearest") + 1e-300)
+    k_lo, k_hi = f_lo / float(v.min()), f_hi / float(v.max())
+    sel = np.zeros(k.size, bool)
+    sel[1:-1] = (p[1:-1] >= p[:-2]) & (p[1:-1] >= p[2:])
+    sel &= (ratio > 30.0) & (k >= k_lo) & (k <= k_hi)
+    j = np.flatnonzero(sel)
+    j = j[np.argsort(p[j])[::-1][:40]]
+    # Parabola through the log power of the peak and its neighbours: the sub-bin k.
+    lp = np.log(p)
+    den = lp[j - 1] - 2 * lp[j] + lp[j + 1]
+    off = np.where(den < 0, 0.5 * (lp[j - 1] - lp[j + 1]) / np.where(den < 0, den, -1.0), 0.0)
+    return _Spectrum(k, ratio, k_lo, k_hi, p, k[j] + np.clip(off, -0.5, 0.5) * (k[1] - k[0]))
+
+
+def _comb_fit(specs: Sequence[_Spectrum], lam: float, rounds: int = 3
+              ) -> tuple[float, list[int]]:
+    """A comb n / lambda fitted to the peaks from a first guess by least squares on the
+    peaks it matches (k_i = n_i / lambda): (lambda, matched peaks per stroke)."""
+    dk = min(float(sp.k[1] - sp.k[0]) for sp in specs)
+    k_all = np.concatenate([sp.peaks_k for sp in specs])
+    for _ in range(rounds):
+        n_all = np.rint(k_all * lam)
+        good = (n_all >= 1) & (np.abs(k_all - n_all / lam) <= _TOL_BINS * dk)
+        if not good.any():
+            break
+        lam = float(np.sum(n_all[good] ** 2) / np.sum(n_all[good] * k_all[good]))
+    hits = []
+    for sp in specs:
+        n = np.rint(sp.peaks_k * lam)
+        hits.append(int(np.sum((n >= 1) & (np.abs(sp.peaks_k - n / lam) <= _TOL_BINS * dk))))
+    return lam, hits
+
+
+def _comb_score(specs: Sequence[_Spectrum], lam: float) -> float:
+    """The share of each stroke's in-band spatial power within the comb's teeth less the
+    share of the band they cover (what a comb of that density catches of a smooth
+    spectrum), averaged over strokes."""
+    score = 0.0
+    tol = math.ceil(_TOL_BINS)
+    for sp in specs:
+        step = float(sp.k[1] - sp.k[0])
+        i_lo, i_hi = math.ceil(sp.k_lo / step), math.floor(sp.k_hi / step)
+        if i_hi - i_lo < 8:
+            continue
+        harm = np.arange(max(1, math.ceil(sp.k_lo * lam)), math.floor(sp.k_hi * lam) + 1)
+        centre = np.rint(harm / lam / step).astype(int)
+        i = (centre[:, None] + np.arange(-tol, tol + 1)[None, :]).ravel()
+        teeth = np.zeros(sp.k.size, bool)
+        teeth[i[(i >= i_lo) & (i <= i_hi)]] = True
+        band = slice(i_lo, i_hi + 1)
+        p = sp.power[band]
+        score += float(p[teeth[band]].sum() / p.sum()) - float(teeth[band].mean())
+    return score / len(specs)
+
+
+def estimate_period(strokes: Sequence[_Stroke], f_lo: float, f_hi: float,
+                    period_mm: float | None = None) -> tuple[float, int] | None:
+    """The spatial period (mm) and the median number of comb peaks per stroke, or None
+    without a comb. ``period_mm``: a given period, refined (within 2 %)."""
+    specs = [sp for st in strokes if (sp := _spatial_spectrum(st, f_lo, f_hi)) is not None]
+    if not specs or not any(sp.peaks_k.size for sp in specs):
+        return None
+    if period_mm is not None:
+        candidates = {float(period_mm)}
+    else:
+        candidates = set()
+        for sp in specs:
+            top = sp.peaks_k[:12]
+            candidates |= {m / kp for kp in top[:5] for m in range(1, 13)}
+            diff = np.abs(top[:, None] - top[None, :])
+            candidates |= {d / float(x) for x in diff[diff > 0] for d in (1, 2, 3)}
+        candidates = {lam for lam in candidates if 0.05 <= lam <= 50.0}
+    if not candidates:
+        return None
+    # Each guess fitted to the peaks (cheap); the distinct combs with the most matched
+    # peaks then scored on the spectra's power.
+    fitted: dict[float, tuple[float, list[int]]] = {}
+    for guess in sorted(candidates):
+        lam, hits = _comb_fit(specs, guess)
+        if 0.05 <= lam <= 50.0:
+            fitted.setdefault(round(math.log(lam), 4), (lam, hits))
+    if not fitted:
+        return None
+    # Ranked by matches less those a comb that dense would make by chance.
+    dk = min(float(sp.k[1] - sp.k[0]) for sp in specs)
+    peaks = sum(sp.peaks_k.size for sp in specs)
+    top = sorted(fitted.values(),
+                 key=lambda t: -(sum(t[1]) - peaks * min(1.0, 2 * _TOL_BINS * dk * t[0])))[:12]
+    score, lam, hits = max(((_comb_score(specs, lam), lam, hits) for lam, hits in top),
+                           key=lambda t: t[0])
+    if period_mm is None and (score < MIN_COMB_SCORE or np.median(hits) < 3):
+        return None
+    span = 0.02 if period_mm is not None else 2e-3
+    return _refine(strokes, lam, f_lo, f_hi, span), int(np.median(hits))
+
+
+def _refine(strokes: Sequence[_Stroke], lam: float, f_lo: float, f_hi: float,
+            span: float) -> float:
+    """lambda maximising the coherent power of each stroke's strongest harmonics, within
+    +-span (relative), then finer (a parabola through the best three of 21 points).
+
+    At lambda_0 / (1 + eps) harmonic n's phase gains 2 pi n s eps / lambda_0, slow along
+    the stroke: the demodulated signal is summed over blocks short enough for that
+    phase to stay put, and each eps costs one small matrix product."""
+    pieces = []
+    for st in strokes:
+        a, b = _longest_run(st.valid)
+        if b - a < 256:
+            continue
+        s, y, v = st.s[a:b] - st.s[a], st.y[a:b], st.v[a:b]
+        n = np.arange(max(1, math.ceil(f_lo * lam / v.min())),
+                      math.floor(f_hi * lam / v.max()) + 1, dtype=float)
+        if n.size == 0:
+            continue
+        if n.size > 24:  # the strongest harmonics carry the fit
+            z = np.abs(np.exp(-2j * np.pi * np.outer(n / lam, s)) @ y)
+            n = np.sort(n[np.argsort(z)[::-1][:24]])
+        pieces.append((s, y, n))
+    if not pieces:
+        return lam
+    for _ in range(5):
+        grid = np.linspace(-span, span, 21)
+        total = np.zeros(grid.size)
+        for s, y, n in pieces:
+            z = y[:, None] * np.exp(-2j * np.pi * np.outer(s, n / lam))  # (T, N)
+            # Block length: the correction's phase moves < 0.05 cycle within a block.
+            ds = float(s[-1] - s[0]) / max(s.size - 1, 1)
+            blk = max(1, int(0.05 * lam / (n.max() * max(ds, 1e-12) * span)))
+            blk = min(blk, max(1, s.size // 64))  # enough blocks to see the phase ramp
+            m = (s.size // blk) * blk
+            zb = z[:m].reshape(-1, blk, n.size).sum(axis=1)
+            sb = s[:m].reshape(-1, blk).mean(axis=1)
+            ph = np.exp(-2j * np.pi * np.outer(grid, sb)[:, :, None] * (n / lam)[None, None])
+            total += np.sum(np.abs(np.einsum("gbn,bn->gn", ph, zb)) ** 2, axis=1)
+        i = int(np.clip(np.argmax(total), 1, grid.size - 2))
+        y0, y1, y2 = total[i - 1], total[i], total[i + 1]
+        den = y0 - 2 * y1 + y2
+        step = grid[1] - grid[0]
+        eps = grid[i] + (0.5 * step * (y0 - y2) / den if den < 0 else 0.0)
+        lam = lam / (1.0 + eps)
+        span = 2 * step
+    return lam
+
+
+K_MAX = 12  # knots of one harmonic's amplitude along speed
+
+
+@dataclass
+class _Harmonics:
+    """One stroke's harmonics: each one's complex amplitude, piecewise linear in speed
+    over ``knots[n]`` uniform knots from ``lo[n]`` to ``hi[n]`` (0 knots: no data)."""
+
+    lo: Array  # (N,)
+    hi: Array  # (N,)
+    knots: NDArray[np.int64]  # (N,)
+    coef: NDArray[np.complex128]  # (N, K_MAX), the knots' values
+    samples: NDArray[np.int64]  # (N,) the fit's samples (those with the harmonic in band)
+    ginv: Array  # (N, K_MAX, K_MAX) the inverse normal matrices
+    med: float  # the stroke's median speed: the basis is hat(v) (v / med)^2
+
+    def _hats(self, v: Array, sl: slice) -> tuple[NDArray[np.int64], Array]:
+        """(lower knot index, weight of the upper) of each speed for each harmonic."""
+        lo, hi, k = self.lo[sl], self.hi[sl], self.knots[sl]
+        span = np.where(hi > lo, hi - lo, 1.0)
+        top = np.maximum(k - 1, 0).astype(float)
+        x = np.clip((v[:, None] - lo[None, :]) / span[None, :] * top[None, :], 0.0,
+                    top[None, :])
+        i0 = np.minimum(x.astype(np.int64), np.maximum(k - 2, 0)[None, :])
+        return i0, x - i0
+
+    def at(self, v: Array, first: int = 0, count: int | None = None
+           ) -> NDArray[np.complex128]:
+        """Complex amplitudes (len(v), count) of harmonics first.. at speeds v (the edge
+        knots' values beyond)."""
+        sl = slice(first, None if count is None else first + count)
+        i0, w = self._hats(v, sl)
+        c = self.coef[sl]
+        rows = np.arange(c.shape[0])[None, :]
+        out = (1 - w) * c[rows, i0] + w * c[rows, np.minimum(i0 + 1, K_MAX - 1)]
+        out *= ((v / self.med) ** 2)[:, None]
+        return np.where((self.knots[sl] > 0)[None, :], out, 0.0)
+
+    def noise_gain(self, v: Array) -> Array:
+        """b(v)^T G^-1 b(v) (len(v), N): the fit's variance at v per unit of noise (b the
+        hat weights at v, G the normal matrix): large where the stroke had few samples."""
+        i0, w = self._hats(v, slice(None))
+        rows = np.arange(self.knots.size)[None, :]
+        i1 = np.minimum(i0 + 1, K_MAX - 1)
+        g = self.ginv
+        return ((1 - w) ** 2 * g[rows, i0, i0] + 2 * w * (1 - w) * g[rows, i0, i1]
+                + w ** 2 * g[rows, i1, i1]) * ((v / self.med) ** 4)[:, None]
+
+
+def _phasors(s: Array, n0: float, count: int, lam: float) -> NDArray[np.complex128]:
+    """exp(-j 2 pi n s / lambda) for n = n0, n0 + 1, ..: (len(s), count), by a running
+    product of the first harmonic's phasor (cheaper than exp; exact to ~count x 1e-16)."""
+    e1 = np.exp(-2j * np.pi * s / lam)
+    out = np.empty((s.size, count), complex)
+    out[:, 0] = np.exp(-2j * np.pi * n0 * s / lam)
+    for j in range(1, count):
+        np.multiply(out[:, j - 1], e1, out=out[:, j])
+    return out
+
+
+def _fit_stroke(st: _Stroke, lam: float, n_max: int, f_top: float, knot_hz: float
+                ) -> _Harmonics:
+    """Per harmonic n = 1..n_max, its complex amplitude as a function of
+    speed by least squares: (v / med)^2 (an acceleration's v^2) times a piecewise linear
+    function between knots spaced so that the harmonic's frequency moves ``knot_hz`` from
+    one to the next (the scale on which a tool's resonance changes it), 3 to K_MAX knots
+    over the stroke's speeds.
+
+    y ~ Re{c(v) e^{j theta}} with theta = 2 pi n s / lambda: the demodulated
+    y e^{-j theta} ~ c(v) / 2 + terms at 2 theta, which average out over many periods, so
+    each harmonic is a small real-basis least squares on it (a tridiagonal system)."""
+    idx = np.flatnonzero(st.valid)
+    order = np.argsort(st.v[idx], kind="stable")  # speeds ascending: each band a prefix
+    idx = idx[order]
+    v, y, s = st.v[idx], st.y[idx], st.s[idx]
+    lo_all, hi_all = np.zeros(n_max), np.zeros(n_max)
+    kn_all = np.zeros(n_max, np.int64)
+    m_all = np.zeros(n_max, np.int64)
+    coef = np.zeros((n_max, K_MAX), complex)
+    ginv = np.zeros((n_max, K_MAX, K_MAX))
+    for c0 in range(0, n_max, _CHUNK):
+        cnt = min(_CHUNK, n_max - c0)
+        n = np.arange(c0, c0 + cnt) + 1.0
+        z = _phasors(s, n[0], cnt, lam) * y[:, None]  # (T, c): y e^{-j theta}
+        for j in range(cnt):
+            m = int(np.searchsorted(v, f_top * lam / n[j], side="right"))  # in band
+            if m < 64:
+                continue
+            vj = v[:m]
+            # The knots span all but the sparse 1 % tails of the speeds (clamped beyond):
+            # a knot out there would rest on a handful of samples.
+            lo, hi = float(vj[m // 100]), float(vj[m - 1 - m // 100])
+            k = (int(np.clip(1 + math.ceil((hi - lo) * n[j] / lam / knot_hz), 3, K_MAX))
+                 if hi > lo else 1)
+            zj = z[:m, j]
+            if k > 1:
+                x = np.clip((vj - lo) / (hi - lo) * (k - 1), 0.0, k - 1 - 1e-9)
+                i0 = x.astype(np.int64)
+                grow = (vj / st.med) ** 2  # an acceleration's lines grow as v^2
+                w1 = (x - i0) * grow
+                w0 = (1 - (x - i0)) * grow
+                # Normal equations of the hat basis: a tridiagonal G, right side B^T z.
+                diag = np.bincount(i0, w0 * w0, k) + np.bincount(i0 + 1, w1 * w1, k)
+                off = np.bincount(i0, w0 * w1, k)[:-1]
+                g = np.diag(diag) + np.diag(off, 1) + np.diag(off, -1)
+                g += np.eye(k) * 1e-6 * diag.sum() / k  # a knot with little data near it
+                rhs = (np.bincount(i0, w0 * zj.real, k) + np.bincount(i0 + 1, w1 * zj.real, k)
+                       + 1j * (np.bincount(i0, w0 * zj.imag, k)
+                               + np.bincount(i0 + 1, w1 * zj.imag, k)))
+                gi = np.linalg.inv(g)
+                c = 2.0 * (gi @ rhs)
+            else:
+                grow = (vj / st.med) ** 2
+                gi = np.array([[1.0 / float(np.dot(grow, grow))]])
+                c = np.array([2.0 * float(np.dot(grow, zj.real)) * gi[0, 0]
+                              + 2j * float(np.dot(grow, zj.imag)) * gi[0, 0]])
+            ginv[c0 + j, :k, :k] = gi
+            lo_all[c0 + j], hi_all[c0 + j], kn_all[c0 + j], m_all[c0 + j] = lo, hi, k, m
+            coef[c0 + j, :k] = c
+            coef[c0 + j, k:] = c[-1]
+    return _Harmonics(lo_all, hi_all, kn_all, coef, m_all, ginv, st.med)
+
+
+def _spread(values: Array, has: Mask) -> Array:
+    """Each row without data takes the nearest row with data (index along axis 0)."""
+    out = values.copy()
+    j = np.flatnonzero(has)
+    if j.size == 0:
+        return out
+    near = j[np.argmin(np.abs(np.arange(values.shape[0])[:, None] - j[None, :]), axis=1)]
+    return out[near]
+
+
+def _factor_model(power: Array, present: Mask, grid: Array, lam: float, fs_hz: float,
+                  smooth: float = 1.0) -> Array:
+    """log P_n(v) ~ u_n + t(n v / lambda) + g(v), the two-part picture of a periodic
+    surface seen through a tool (docs/texture.md): a level per harmonic (the surface's
+    shape), a function of frequency (the tool's response, piecewise linear every 10 Hz)
+    and one of speed (the drive, one value per grid row), fitted by least squares to the
+    log power of the harmonics present, second differences of t and g penalised (so g is
+    linear across speeds without data). Returns exp of the fit at every (row, harmonic)."""
+    nb, n_h = power.shape
+    rows, harm = np.nonzero(present)
+    if rows.size == 0:
+        return np.zeros_like(power)
+    f_knots = np.arange(0.0, fs_hz / 2 + 10.0, 10.0)
+    nf = f_knots.size
+    freq = grid[rows] * (harm + 1) / lam
+    x = np.clip(freq / 10.0, 0.0, nf - 1 - 1e-9)
+    i0 = x.astype(int)
+    w1 = x - i0
+    m = rows.size
+    r = np.arange(m)
+    # Columns: u (n_h), t (nf), g (nb).
+    a = sparse.csr_matrix((np.concatenate([np.ones(m), 1 - w1, w1, np.ones(m)]),
+                       (np.concatenate([r, r, r, r]),
+                        np.concatenate([harm, n_h + i0, n_h + i0 + 1, n_h + nf + rows]))),
+                      shape=(m, n_h + nf + nb))
+
+    def second_diff(k: int, start: int) -> sparse.csr_matrix:
+        d = sparse.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(max(k - 2, 0), k))
+        return sparse.hstack([sparse.csr_matrix((d.shape[0], start)), d,
+                          sparse.csr_matrix((d.shape[0], n_h + nf + nb - start - k))])
+
+    pen = sparse.vstack([second_diff(nf, n_h), second_diff(nb, n_h + nf)])
+    lhs = (a.T @ a + smooth * m / max(pen.shape[0], 1) * (pen.T @ pen)
+           + 1e-6 * sparse.identity(n_h + nf + nb)).tocsc()
+    sol = spla.spsolve(lhs, a.T @ np.log(power[rows, harm]))
+    u, t, g = sol[:n_h], sol[n_h:n_h + nf], sol[n_h + nf:]
+    f_all = np.outer(grid, np.arange(1, n_h + 1) / lam)
+    return np.exp(u[None, :] + np.interp(f_all, f_knots, t) + g[:, None])
+
+
+def _fill(power: Array, present: Mask, data: Mask, model: Array) -> Array:
+    """One harmonic's power at every grid row. Rows with data: the measured line (0 where
+    it was below the noise). Rows without: the factor model times its error at the
+    nearest rows with the line (interpolated between two), going linearly to 0 towards a
+    row with data and no line; 0 if the harmonic has no line anywhere."""
+    out = np.where(data, power, 0.0)
+    if not present.any():
+        return out
+    x = np.arange(power.size, dtype=float)
+    rows = np.flatnonzero(present)
+    err = np.interp(x, rows, np.log(power[rows] / model[rows]))
+    pred = model * np.exp(err)
+    drows = np.flatnonzero(data)
+    nxt = np.searchsorted(drows, x)  # the first row with data at or after each row
+    for i in np.flatnonzero(~data):
+        j = nxt[i]
+        left = drows[j - 1] if j > 0 else None
+        right = drows[j] if j < drows.size else None
+        on_l = left is not None and present[left]
+        on_r = right is not None and present[right]
+        if (left is None or on_l) and (right is None or on_r):
+            out[i] = pred[i]
+        elif on_l or on_r:  # between a row with the line and one without: fade
+            w = (i - left) / (right - left)
+            out[i] = pred[i] * ((1 - w) if on_l else w)
+    return out
+
+
+def _lines(st: _Stroke, fit: _Harmonics, use_at: Mask, grid: Array, lam: float,
+           f_top: float) -> Array:
+    """The stroke's fitted harmonics summed over its valid samples, each where
+    ``use_at[grid row of the sample's speed, n]`` and in band."""
+    idx = np.flatnonzero(st.valid)
+    vv, ss_ = st.v[idx], st.s[idx]
+    nb, n_max = use_at.shape
+    b = np.clip(np.rint((vv - grid[0]) / GRID_STEP_MM_S).astype(int), 0, nb - 1)
+    line = np.zeros(idx.size)
+    for c0 in range(0, n_max, _CHUNK):
+        cnt = min(_CHUNK, n_max - c0)
+        n = np.arange(c0, c0 + cnt) + 1.0
+        use = use_at[b][:, c0:c0 + cnt] & (np.outer(vv, n / lam) <= f_top)
+        c = fit.at(vv, c0, cnt)
+        line += np.sum(np.real(c * np.conj(_phasors(ss_, n[0], cnt, lam))) * use, axis=1)
+    return line
+
+
+def _noise_of_fit(rest: Array, fit: _Harmonics, lam: float, fs_hz: float):
+    """v -> (len(v), N): the E|c(v)|^2 that noise alone gives harmonic n's fit at v.
+
+    With the demodulated noise's slow part at half the one-sided spectrum P(f) of the
+    signal near the harmonic, the least-squares fit c = 2 G^-1 B^T z has
+    E|c(v)|^2 = 2 P(f) fs b(v)^T G^-1 b(v) (a constant fit over T seconds: 2 P / T). P is
+    the Welch spectrum of ``rest`` (what every harmonic's fit leaves), median-smoothed
+    over 5 bins so a line left in it does not count as noise."""
+    nper = int(min(256, rest.size))
+    f, p = ss.welch(rest, fs_hz, nperseg=nper)
+    p = ndi.median_filter(p, size=5, mode="nearest")
+    n = np.arange(1, fit.knots.size + 1)
+
+    def q_of(v: Array) -> Array:
+        pf = np.interp(np.outer(v, n / lam), f, p)
+        return 2.0 * pf * fs_hz * fit.noise_gain(v)
+
+    return q_of
+
+
+def fit_lines(signals: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
+              speed_range: tuple[float, float], *, period_mm: float | None = None,
+              snr: float = DEFAULT_SNR, min_share: float = MIN_SHARE,
+              knot_hz: float = KNOT_HZ) -> LineFit:
+    """The line spectrum of preprocessed strokes (see the module docstring).
+
+    ``speed_range``: the modelled speeds (mm/s); ``period_mm``: a known period (refined
+    within 2 %; the lines are then kept whatever their share). Without a periodic part
+    (or one below ``min_share`` of the power) the residuals are the signals and every
+    sample may be used.
+    """
+    signals = [np.asarray(y, float) for y in signals]
+    speeds = [np.asarray(v, float) for v in speeds]
+    whole = LineFit(None, signals, [np.ones(y.size, bool) for y in signals], None, 0.0, "")
+    f_top = BAND_TOP * fs_hz / 2
+    f_lo = 15.0  # above the 10 Hz high-pass's knee
+    strokes = []
+    for i, (y, v) in enumerate(zip(signals, speeds, strict=True)):
+        span = _stroke_span(v, speed_range, fs_hz)
+        if span is not None and span[1].sum() >= 0.5 * fs_hz:
+            strokes.append(_Stroke(i, y, v, arc_length_mm(v, fs_hz), span[0], span[1]))
+    if not strokes:
+        whole.note = "no stroke holds 0.5 s within the modelled speeds"
+        return whole
+    found = estimate_period(strokes, f_lo, f_top, period_mm)
+    if found is None:
+        whole.note = "no spatial period (no harmonic comb stands out of the spectrum)"
+        return whole
+    lam, _ = found
+    n_max = int(max(math.floor(f_top * lam / float(st.v[st.valid].min())) for st in strokes))
+    if n_max < 1:
+        whole.note = f"period {lam:.4g} mm: no harmonic within the band"
+        return whole
+    grid = np.arange(math.floor(speed_range[0] / GRID_STEP_MM_S) * GRID_STEP_MM_S,
+                     speed_range[1] + GRID_STEP_MM_S / 2, GRID_STEP_MM_S)
+    grid = grid[grid > 0]
+    nb = grid.size
+    p_sum = np.zeros((nb, n_max))
+    q_sum = np.zeros((nb, n_max))
+    w_sum = np.zeros((nb, n_max))
+    fits = [_fit_stroke(st, lam, n_max, f_top, knot_hz) for st in strokes]
+    owns: list[Mask] = []
+    everything = np.ones((nb, n_max), bool)
+    for st, fit in zip(strokes, fits, strict=True):
+        # What a fit of this many knots catches of the noise alone: from the spectrum of
+        # what every harmonic's fit leaves (module docstring, step 3).
+        q_of = _noise_of_fit(st.y[st.valid] - _lines(st, fit, everything, grid, lam, f_top),
+                             fit, lam, fs_hz)
+        vv = st.v[st.valid]
+        b = np.clip(np.rint((vv - grid[0]) / GRID_STEP_MM_S).astype(int), 0, nb - 1)
+        cnt = np.bincount(b, minlength=nb).astype(float)
+        rows = np.flatnonzero(cnt)
+        inband = np.outer(grid[rows], np.arange(1, n_max + 1) / lam) <= f_top
+        w = cnt[rows, None] * inband * (fit.knots > 0)[None, :]
+        p_rows, q_rows = np.abs(fit.at(grid[rows])) ** 2, q_of(grid[rows])
+        p_sum[rows] += w * p_rows
+        q_sum[rows] += w * q_rows
+        w_sum[rows] += w
+        # Where the stroke's own fit stands far out, its line is taken out of it whatever
+        # the pool says (a speed only this stroke reached); not at the pool's threshold:
+        # many weak harmonics over many rows would take noise out of the residual.
+        own = np.zeros((nb, n_max), bool)
+        own[rows] = (w > 0) & (p_rows > OWN_SNR_FACTOR * snr * q_rows)
+        owns.append(own)
+    data = w_sum >= MIN_BIN_S * fs_hz
+    with np.errstate(invalid="ignore", divide="ignore"):
+        p_mean = np.where(data, p_sum / w_sum, 0.0)
+        q_mean = np.where(data, q_sum / w_sum, 0.0)
+    present = data & (p_mean > snr * q_mean)
+    # A line persists from one 0.5 mm/s row to the next; noise over the threshold does not
+    # (a few cells in a thousand at snr 3): a row counts with a neighbour that agrees.
+    agree = np.zeros_like(present)
+    agree[1:] |= present[:-1]
+    agree[:-1] |= present[1:]
+    present &= agree
+    power = np.where(present, p_mean - q_mean, 0.0)  # amplitude^2 of the line alone
+    # Each harmonic's rows: the table from its rows with data (interpolated per column).
+    model = _factor_model(power, present, grid, lam, fs_hz)
+    table = np.zeros_like(power)
+    for n in range(n_max):
+        table[:, n] = _fill(power[:, n], present[:, n], data[:, n], model[:, n])
+    freq = np.outer(grid, np.arange(1, n_max + 1) / lam)
+    taper = np.clip((BAND_TOP * fs_hz / 2 - freq) / ((BAND_TOP - TAPER_START) * fs_hz / 2),
+                    0.0, 1.0)
+    amplitude = np.sqrt(table) * (0.5 - 0.5 * np.cos(np.pi * taper))
+    # Subtraction: a harmonic is removed where its nearest row with data keeps it.
+    keep_near = np.zeros((nb, n_max), bool)
+    for n in range(n_max):
+        keep_near[:, n] = _spread(present[:, n].astype(float), data[:, n]) > 0.5
+    residuals = list(signals)  # a stroke without a line fit: none of it is clean
+    keeps = [np.zeros(y.size, bool) for y in signals]
+    line_energy = total_energy = 0.0
+    for st, fit, own in zip(strokes, fits, owns, strict=True):
+        idx = np.flatnonzero(st.valid)
+        r = st.y.copy()
+        r[idx] -= _lines(st, fit, keep_near | own, grid, lam, f_top)
+        residuals[st.index] = r
+        keeps[st.index] = st.valid.copy()
+        line_energy += float(np.dot(st.y[idx], st.y[idx]) - np.dot(r[idx], r[idx]))
+        total_energy += float(np.dot(st.y[idx], st.y[idx]))
+    share = line_energy / total_energy if total_energy > 0 else 0.0
+    if period_mm is None and share < min_share:
+        whole.note = (f"period {lam:.4g} mm: its lines hold {100 * share:.1f} % of the power "
+                      f"(< {100 * min_share:g} %): left to the all-pole model")
+        whole.period_mm = lam
+        whole.share = share
+        return whole
+    ref = min(range(len(strokes)), key=lambda i: (strokes[i].med, -strokes[i].valid.sum()))
+    phase = np.angle(fits[ref].at(np.array([strokes[ref].med]))[0])
+    spectrum = LineSpectrum(lam, grid, amplitude, phase)
+    kept = int(np.sum(present.any(axis=0)))
+    note = (f"period {lam:.4f} mm, {kept} harmonics kept, {100 * share:.1f} % of the "
+            "power in lines")
+    return LineFit(spectrum, residuals, keeps, lam, share, note)

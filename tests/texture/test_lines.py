@@ -1,0 +1,284 @@
+"""The line spectrum of periodic surfaces (fydpad/texture/lines.py, line_voice.py).
+
+Ground truth first: strokes synthesized here from a known comb (a period, amplitudes that
+follow a tool resonance and the speed, a vanishing harmonic) in noise that is not an AR
+process, along a hand's speed; then the generator's surfaces, whose periods are known.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+
+import numpy as np
+import pytest
+import scipy.signal as ss
+
+from fydpad.errors import UserError
+from fydpad.texture.dft321 import preprocess
+from fydpad.texture.fit import fit_texture
+from fydpad.texture.line_voice import LineVoice
+from fydpad.texture.lines import LineSpectrum, arc_length_mm, fit_lines
+from fydpad.texture.model_file import load_model, save_model
+from fydpad.texture.scan_generator import generate_scan, hand_speed
+from fydpad.texture.synthesis import TextureRenderer
+
+FS = 1000.0
+PERIOD = 1.7  # mm: none of the generator's
+SPEEDS = (10.0, 20.0, 30.0, 40.0)
+NOISE = 0.02  # m/s^2 RMS of the broadband part
+#: A line's power 20 dB over what the white noise puts in a fit of ~1 Hz bandwidth (a few
+#: knots over 10 s): (one-sided density 2 NOISE^2 / FS) x 1 Hz x 100.
+STRONG = 100 * 2 * NOISE ** 2 / FS
+
+
+def true_amplitude(n: np.ndarray, v: float) -> np.ndarray:
+    """The comb's truth: 1/n, every 5th harmonic absent, through a 150 Hz mode (Q 3),
+    growing as v^2 (an acceleration)."""
+    f = n * v / PERIOD
+    mode = 1.0 / np.abs(1 - (f / 150.0) ** 2 + 1j * f / (3 * 150.0))
+    a = 0.2 / n * mode * (v / 20.0) ** 2
+    return np.where(n % 5 == 0, 0.0, a) * (f < 0.99 * FS / 2)
+
+
+def comb_stroke(v_target: float, seed: int, seconds: float = 10.0):
+    """(signal, speed, its noise): the comb along a hand's speed, plus noise that is impulsive and
+    coloured (sparse taps through a 2nd-order filter and white noise), not AR."""
+    rng = np.random.default_rng(seed)
+    v = hand_speed(v_target, seconds, FS, rng)
+    s = arc_length_mm(v, FS)
+    n = np.arange(1, 200)
+    y = np.zeros(v.size)
+    for k in n:
+        amp = true_amplitude(np.array([k]), 1.0)[0]  # nonzero pattern only
+        if amp == 0.0:
+            continue
+        a = np.array([true_amplitude(np.array([k]), float(x))[0] for x in v[::50]])
+        a = np.interp(np.arange(v.size), np.arange(0, v.size, 50), a)
+        y += a * np.cos(2 * np.pi * k * s / PERIOD + 0.3 * k)
+    taps = (rng.random(v.size) < 0.02) * rng.standard_normal(v.size) * 0.3
+    b, a = ss.butter(2, [60, 200], "bandpass", fs=FS)
+    noise = ss.lfilter(b, a, taps) + NOISE * rng.standard_normal(v.size)
+    return y + noise, v, noise
+
+
+@pytest.fixture(scope="module")
+def comb():
+    strokes = [comb_stroke(v, seed) for v in SPEEDS for seed in (1, 2)]
+    return strokes, fit_lines([y for y, _, _ in strokes], [v for _, v, _ in strokes], FS,
+                              (5.0, 45.0))
+
+
+def test_the_period_is_found_to_1e5(comb):
+    _, fit = comb
+    assert fit.spectrum is not None, fit.note
+    assert fit.period_mm == pytest.approx(PERIOD, rel=1e-5)
+
+
+def test_amplitudes_match_the_truth_where_the_lines_stand_out(comb):
+    """At the fitted speeds the harmonics 10 dB or more over the noise's level in their
+    band are within 1 dB (median) and 2 dB (all) of the truth; the vanishing 5th, 10th..
+    are 20 dB or more below their neighbours where those stand out."""
+    _, fit = comb
+    sp = fit.spectrum
+    for v in SPEEDS:
+        n = np.arange(1, sp.harmonics + 1)
+        truth = true_amplitude(n, v)
+        got = sp.amplitudes_at(v)
+        strong = (truth ** 2 / 2 > STRONG) & (truth > 0)
+        err = 20 * np.log10(got[strong] / truth[strong])
+        assert np.median(np.abs(err)) < 1.0 and np.max(np.abs(err)) < 2.0, (v, err)
+        fifth = (n % 5 == 0) & (n < n.size)
+        neighbours = np.maximum(truth[n[fifth] - 2], truth[n[fifth]])
+        clear = neighbours ** 2 / 2 > STRONG
+        ratio = got[fifth][clear] / np.maximum(got[n[fifth] - 2], got[n[fifth]])[clear]
+        assert np.all(ratio <= 0.1), (v, ratio)
+
+
+def test_between_the_strokes_speeds_the_factor_model_holds(comb):
+    """15 mm/s lies between the 10 and 20 mm/s strokes' speeds (each within +-20 %):
+    strong harmonics within 2 dB of the truth (median 1 dB)."""
+    sp = comb[1].spectrum
+    n = np.arange(1, sp.harmonics + 1)
+    truth, got = true_amplitude(n, 15.0), sp.amplitudes_at(15.0)
+    strong = truth ** 2 / 2 > STRONG
+    err = 20 * np.log10(got[strong] / truth[strong])
+    assert np.median(np.abs(err)) < 1.0 and np.max(np.abs(err)) < 2.0, err
+
+
+def test_the_residual_is_what_the_lines_leave(comb):
+    """On the samples the stochastic fit may use (most of each stroke), the residual less
+    the noise (taps and white noise) is what the fits got wrong: the noise they caught
+    (a few knots per harmonic over 10 s: 3-7 % of it here) and the lines' own error; at
+    most 10 % of the noise's power and 30 dB below the lines' (the strongest stroke:
+    a fundamental 34 dB over the noise, its error -39 dB). The residual keeps at least
+    90 % of the noise's power."""
+    strokes, fit = comb
+    for (y, _, noise), r, keep in zip(strokes, fit.residuals, fit.keep, strict=True):
+        assert keep.mean() > 0.7
+        lines = np.mean((y - noise)[keep] ** 2)
+        noise_power = np.mean(noise[keep] ** 2)
+        left = np.mean((r - noise)[keep] ** 2)
+        assert left < 0.1 * noise_power + 1e-3 * lines, (left, noise_power, lines)
+        assert np.mean(r[keep] ** 2) > 0.9 * noise_power
+
+
+@pytest.mark.parametrize("name, period", [("R1", 3.90), ("R2", 2.15), ("mesh_steel", 0.6),
+                                          ("aluminum_knurl", 1.0), ("canvas", 1.2)])
+def test_the_generators_periodic_surfaces_are_found(name, period):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scans = [generate_scan(name, s, 6.0, seed=3) for s in SPEEDS]
+        fit = fit_lines([preprocess(sc.acc, FS) for sc in scans],
+                        [sc.speed_mm_s for sc in scans], FS, (5.0, 45.0))
+    assert fit.spectrum is not None, fit.note
+    assert fit.period_mm == pytest.approx(period, rel=1e-4)
+    assert fit.share > 0.9  # the generator's combs: 96-99 % of the power
+
+
+@pytest.mark.parametrize("name", ["felt", "sandpaper_p80", "glass", "wood_grain", "brick"])
+def test_surfaces_without_a_period_get_no_lines(name):
+    """Random roughness, pits, stick-slip, and wood grain, whose period wanders by 20 %
+    from one to the next (no comb survives that)."""
+    scans = [generate_scan(name, s, 6.0, seed=3) for s in SPEEDS]
+    fit = fit_lines([preprocess(sc.acc, FS) for sc in scans],
+                    [sc.speed_mm_s for sc in scans], FS, (5.0, 45.0))
+    assert fit.spectrum is None, fit.note
+    assert all(k.all() for k in fit.keep)
+
+
+def test_fit_texture_without_lines_is_the_model_it_was(tmp_path):
+    """A surface without a period: the same models with lines auto or off, no 'lines' block,
+    a version-1 file (every reader since the first reads it)."""
+    scans = [generate_scan("felt", s, 6.0, seed=1) for s in SPEEDS]
+    auto, _ = fit_texture(scans, free_form=None)
+    off, _ = fit_texture(scans, free_form=None, lines="off")
+    np.testing.assert_array_equal(auto.h, off.h)
+    assert auto.lines is None and "no spatial period" in auto.provenance["lines"]["note"]
+    data = json.loads(save_model(auto, tmp_path / "felt.json").read_text())
+    assert data["format_version"] == 1 and "lines" not in data
+
+
+@pytest.fixture(scope="module")
+def r2_model(tmp_path_factory):
+    scans = [generate_scan("R2", s, 6.0, seed=1) for s in SPEEDS]
+    model, _ = fit_texture(scans)
+    path = save_model(model, tmp_path_factory.mktemp("lines") / "R2.json")
+    return model, path
+
+
+def test_a_model_with_lines_is_a_version_2_file_read_back(r2_model):
+    model, path = r2_model
+    data = json.loads(path.read_text())
+    assert data["format_version"] == 2 and data["lines"]["period_mm"] == pytest.approx(2.15,
+                                                                                       rel=1e-4)
+    back = load_model(path)
+    a, b = LineSpectrum.from_json(back.lines, "x"), LineSpectrum.from_json(model.lines, "y")
+    np.testing.assert_allclose(a.amplitude, b.amplitude, rtol=1e-5, atol=1e-9)
+    # With lines the per-speed models are fitted on what they leave, and pooled.
+    assert back.free_form is None and back.provenance["lines"]["share"] > 0.9
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d.update(format_version=1), r"'lines' needs 'format_version' 2"),
+    (lambda d: d.update(format_version=3), r"format_version"),
+    (lambda d: d["lines"].update(period_mm=-1), r"lines\.period_mm"),
+    (lambda d: d["lines"].update(period_mm=True), r"lines\.period_mm"),
+    (lambda d: d["lines"]["amplitude"].pop(), r"lines\.amplitude"),
+    (lambda d: d["lines"].update(phase_rad=[0.0]), r"lines\.amplitude"),
+    (lambda d: d["lines"]["amplitude"][0].__setitem__(0, -1.0), r"lines\.amplitude"),
+    (lambda d: d["lines"].update(v_mm_s=d["lines"]["v_mm_s"][::-1]), r"lines\.v_mm_s"),
+    (lambda d: d["lines"].pop("phase_rad"), r"missing key 'lines\.phase_rad'"),
+    (lambda d: d["lines"].update(v_mm_s="fast"), r"lines\.v_mm_s"),
+    (lambda d: d.update(lines=[1, 2]), r"'lines' must be an object"),
+])
+def test_a_bad_lines_block_is_an_error_naming_the_key(r2_model, tmp_path, edit, message):
+    data = json.loads(r2_model[1].read_text())
+    edit(data)
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(data))
+    with pytest.raises(UserError, match=r"bad\.json.*" + message):
+        load_model(bad)
+
+
+def test_a_given_period_is_used_and_refined():
+    """lines=2.16 (0.5 % off): refined to the true 2.15 mm and kept; 'off' fits none; a
+    period that is not a positive number is an error."""
+    scans = [generate_scan("R2", s, 6.0, seed=1) for s in SPEEDS]
+    model, _ = fit_texture(scans, lines=2.16, free_form=None)
+    assert model.provenance["lines"]["period_mm"] == pytest.approx(2.15, rel=1e-4)
+    off, _ = fit_texture(scans, lines="off", free_form=None)
+    assert off.lines is None
+    for bad in ("wide", -2.0, float("nan")):
+        with pytest.raises(UserError, match="lines"):
+            fit_texture(scans, lines=bad)
+
+
+def _single_line(amplitude: float, harmonic: int, period: float = 1.0) -> LineSpectrum:
+    v = np.arange(5.0, 45.5, 0.5)
+    amp = np.zeros((v.size, harmonic))
+    amp[:, harmonic - 1] = amplitude
+    return LineSpectrum(period, v, amp, np.zeros(harmonic))
+
+
+def test_a_line_is_rendered_at_its_frequency_and_level():
+    """One harmonic (n = 12 of a 1 mm period) at 30 mm/s sounds at 360 Hz with its
+    amplitude (RMS A / sqrt 2 within 0.5 %); what the wavetable's interpolation adds
+    elsewhere is 30 dB or more below it."""
+    voice = LineVoice(_single_line(0.4, 12), FS)
+    y = voice.block(np.full(20_000, 30.0))
+    assert np.sqrt(np.mean(y ** 2)) == pytest.approx(0.4 / math.sqrt(2), rel=5e-3)
+    f, p = ss.welch(y, FS, nperseg=1000)
+    peak = int(np.argmax(p))
+    assert f[peak] == pytest.approx(360.0, abs=1.0)
+    away = np.abs(f - 360.0) > 5.0
+    assert 10 * np.log10(p[away].max() / p[peak]) < -30.0
+
+
+def test_tick_and_block_give_the_same_samples_along_a_hands_stroke(r2_model):
+    model, _ = r2_model
+    v = generate_scan("R2", 25.0, 3.0, seed=9).speed_mm_s
+    a = TextureRenderer(model, seed=4)
+    b = TextureRenderer(model, seed=4)
+    ticks = np.array([a.tick(float(x)) for x in v])
+    np.testing.assert_allclose(ticks, b.block(v), rtol=0, atol=1e-12)
+    voice = LineVoice(LineSpectrum.from_json(model.lines, "x"), FS)
+    again = LineVoice(LineSpectrum.from_json(model.lines, "x"), FS)
+    np.testing.assert_allclose([voice.tick(float(x)) for x in v], again.block(v), atol=1e-12)
+
+
+def test_the_comb_follows_the_speed_and_falls_silent_without_contact(r2_model):
+    """At a constant 20 mm/s the strongest lines of R2's rendering sit on multiples of
+    20 / 2.15 = 9.30 Hz; without contact the output goes to zero within the gain ramp,
+    and a reset and reseed restart the lines with the noise (the same samples twice)."""
+    model, _ = r2_model
+    r = TextureRenderer(model, seed=0)
+    r.warmup(20.0, 0.5)
+    y = r.block(20.0, True, 8000)
+    f, p = ss.welch(y, FS, nperseg=4000)
+    top = f[np.argsort(p)[::-1][:6]]
+    assert np.all(np.abs(top / (20.0 / 2.15) - np.rint(top / (20.0 / 2.15))) < 0.06), top
+    quiet = r.block(20.0, False, 200)
+    assert np.max(np.abs(quiet[50:])) < 1e-3 * np.std(y)
+    r.reset()
+    r.reseed(7)
+    first = r.block(np.full(500, 20.0))
+    r.reset()
+    r.reseed(7)
+    np.testing.assert_array_equal(first, r.block(np.full(500, 20.0)))
+
+
+def test_the_station_renders_the_lines_from_the_centroid(r2_model):
+    """The station's texture term (TextureSource: centroid -> 10 Hz speed -> renderer) on
+    a finger moving at 20 mm/s: its strongest line on a multiple of 9.30 Hz."""
+    from fydpad.station.texture_source import TextureSource
+
+    src = TextureSource(r2_model[1])
+    out = []
+    for k in range(6000):
+        t = k / FS
+        out.append(src.tick(t, True, 20.0 * t, 0.0))
+    f, p = ss.welch(np.asarray(out[2000:]), FS, nperseg=2000)
+    top = f[int(np.argmax(p))]
+    assert abs(top / (20.0 / 2.15) - round(top / (20.0 / 2.15))) < 0.06, top
