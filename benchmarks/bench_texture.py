@@ -123,6 +123,47 @@ def main() -> None:
               f"{t_naive / 1000 * 1e6:.0f} us/sample ({t_naive / 1000 / t_tick:.0f}x slower)")
 
 
+    lines_benchmark(best)
+
+
+def lines_benchmark(best) -> None:
+    """A periodic surface's lines (fit --lines, the default): the fit, and the renderer
+    with its wavetable against the same model without lines, in the same run."""
+    from fydpad.texture.fit import fit_texture
+
+    train = [generate_scan("R1", s, 10.0, seed=1 + j) for s in (10.0, 20.0, 30.0, 40.0)
+             for j in range(2)]
+    one = [generate_scan("R1", 20.0, 11.0, seed=1)]
+    t_fit = best(lambda: fit_texture(train), 3)
+    t_off = best(lambda: fit_texture(train, lines="off", free_form=None), 3)
+    t_one = best(lambda: fit_texture(one, speeds_mm_s=(20.0,)), 3)
+    t_one_off = best(lambda: fit_texture(one, speeds_mm_s=(20.0,), lines="off"), 3)
+    model, _ = fit_texture(train)
+    plain, _ = fit_texture(train)
+    plain.lines = None
+    n_h = len(model.lines["phase_rad"])
+    print(f"  [lines] R1 ({n_h} harmonics, period {model.lines['period_mm']:.4f} mm): fit a "
+          f"whole texture (8 strokes of 10 s) {t_fit:.2f} s, without lines {t_off:.2f} s; "
+          f"one speed from 11 s {t_one * 1e3:.0f} ms (target <= 100 ms), without lines "
+          f"{t_one_off * 1e3:.0f} ms")
+    hand = np.ascontiguousarray(generate_scan("R1", 25.0, 12.0, seed=50).speed_mm_s[4000:5000])
+    for label, m in (("with lines", model), ("without", plain)):
+        r = TextureRenderer(m, seed=0)
+        r.warmup(25.0)
+        t_block = best(lambda r=r: r.block(hand, True), 20)
+
+        def ticks(r=r) -> None:
+            for s in hand:
+                r.tick(float(s), True)
+
+        t_tick = best(ticks, 5) / hand.size
+        extra = "" if r.lines is None else (f"; wavetable {r.lines.table.shape[0]} x "
+                                            f"{r.lines.table.shape[1]}, "
+                                            f"{r.lines.table.nbytes / 1e6:.1f} MB")
+        print(f"  [lines] R1 {label}: block along a hand's stroke 1 s {t_block * 1e3:.2f} ms"
+              f" = {1 / t_block:.0f}x real time; tick {t_tick * 1e6:.2f} us/sample{extra}")
+
+
 def quality(textures: list[str] | None = None) -> None:
     """Held-out figures of the issue's targets for every texture (minutes; --quality)."""
     from fydpad.texture.evaluate import compare, evaluate_scan, evaluation_mask

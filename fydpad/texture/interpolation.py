@@ -150,8 +150,8 @@ def table_range(model: TextureModel, method: str = "stretch") -> tuple[float, fl
 
 def build_table(model: TextureModel, method: str = "stretch", step_mm_s: float = 0.25,
                 hold_mm_s: float | None = None) -> SpeedTable:
-    """Interpolate the model at every ``step_mm_s`` over :func:`table_range` (the grid
-    keeps the fitted speeds on it)."""
+    """Interpolate the model at every ``step_mm_s`` over :func:`table_range` (the grid is
+    anchored at the slowest fitted speed)."""
     interp = SpeedInterpolator(model, method, hold_mm_s)
     v0 = float(model.speeds_mm_s[0])
     lo, hi = table_range(model, method)

@@ -5,8 +5,10 @@
 The waveform of one period at every grid speed is built once; each sample reads it at
 the phase phi (linear between table points, 32 per cycle of the highest harmonic) and
 mixes the two grid speeds around v linearly, so the lines move with the speed sample by
-sample and never click. ``tick`` (no array allocated) and ``block`` give the same
-samples: the phase is one running sum in both.
+sample and never click. Above the table's fastest speed the pitch and the level hold
+(as the process is clamped there): the table keeps every harmonic in band only up to it.
+``tick`` (no array allocated) and ``block`` give the same samples: the phase is one
+running sum in both.
 """
 
 from __future__ import annotations
@@ -32,6 +34,9 @@ class LineVoice:
         self._v0 = float(v[0])
         self._inv_step = 1.0 / float(v[1] - v[0]) if v.size > 1 else 0.0
         self._last_row = float(v.size - 1)
+        # Beyond the fastest row the lines hold its pitch and level (the process is clamped
+        # there too): their harmonics would otherwise fold back from above Nyquist.
+        self._v_top = float(v[-1])
         if v.size == 1:  # one speed: two equal rows keep the mixing uniform
             self.table = np.vstack([self.table, self.table])
             self._last_row = 1.0
@@ -43,7 +48,9 @@ class LineVoice:
         self.phase = 0.0
 
     def tick(self, speed_mm_s: float) -> float:
-        """One sample at this speed (mm/s; finite, >= 0)."""
+        """One sample at this speed (mm/s; finite, >= 0; clamped to the table's top)."""
+        if speed_mm_s > self._v_top:
+            speed_mm_s = self._v_top
         ph = self.phase + speed_mm_s * self._cycles_per_sample
         self.phase = ph
         x = (speed_mm_s - self._v0) * self._inv_step
@@ -63,7 +70,7 @@ class LineVoice:
 
     def block(self, speed_mm_s: ArrayLike) -> Array:
         """Samples for a speed trace (finite, >= 0); the same as ``tick`` sample by sample."""
-        v = np.asarray(speed_mm_s, float)
+        v = np.minimum(np.asarray(speed_mm_s, float), self._v_top)
         if v.size == 0:
             return np.zeros(0)
         ph = np.cumsum(np.concatenate([[self.phase], v * self._cycles_per_sample]))[1:]

@@ -24,9 +24,11 @@ Fit (:func:`fit_lines`), on the preprocessed (high-passed, DFT321) signal of eac
    harmonics are orthogonal over a stroke of many periods). The same fit at the
    half-integer harmonics n + 1/2, where no line is, measures what noise alone gives.
 3. Per 0.5 mm/s speed bin, pooled over strokes: the amplitude^2 less the noise's; a
-   harmonic is kept at a speed where it stands ``snr`` times above that noise. Between
-   bins with data, log-linear in speed (linear in power where one side has no line);
-   beyond them, the edge value.
+   harmonic is kept at a speed where it stands ``snr`` times above that noise (or one
+   stroke's own fit stands far above it). Where no stroke's speeds reach, a factor model
+   log P_n(v) = u_n + t(n v / lambda) + g(v) (a surface's harmonic levels through a
+   tool's response, scaled by the drive), corrected by its error at the nearest bins with
+   the line.
 4. The residual: each stroke less its kept harmonics. Only the samples within a
    stroke's fitted speed range (+-45 % of its median) have their lines removed, so only
    they go to the stochastic fit (a ramp at the ends of a stroke does not).
@@ -78,6 +80,9 @@ MIN_BIN_S = 0.25
 #: The comb's teeth must hold this much more of the spatial power than their share of
 #: the band (a smooth spectrum: 0).
 MIN_COMB_SCORE = 0.2
+#: Harmonics modelled at most (a long period at a slow speed has thousands in band); the
+#: wavetable then has 32 points per cycle of the highest in 16384.
+MAX_HARMONICS = 512
 #: Knot spacing of a harmonic's amplitude along speed, in Hz of the harmonic's frequency:
 #: the scale on which a tool resonance changes it (a mode of Q 10 at 300 Hz is 30 Hz wide).
 KNOT_HZ = 20.0
@@ -158,9 +163,15 @@ class LineSpectrum:
                 math.isfinite(period) and period > 0):
             raise UserError(f"{where}: key 'lines.period_mm' must be a number > 0, "
                             f"not {period!r}")
+        if period < 1e-3 or period > 1e3:
+            raise UserError(f"{where}: key 'lines.period_mm' must be within 0.001-1000 mm, "
+                            f"not {period!r}")
         v, phase, amp = arr("v_mm_s", 1), arr("phase_rad", 1), arr("amplitude", 2)
-        if np.any(np.diff(v) <= 0) or v[0] < 0:
-            raise UserError(f"{where}: key 'lines.v_mm_s' must be ascending speeds >= 0")
+        step = np.diff(v)
+        if (v[0] < 0 or v[-1] > 1e4 or np.any(step < 0.01)
+                or (step.size and np.any(np.abs(step - step[0]) > 1e-6 * step[0]))):
+            raise UserError(f"{where}: key 'lines.v_mm_s' must be speeds 0-10000 mm/s, "
+                            "ascending in equal steps of at least 0.01 mm/s")
         if amp.shape != (v.size, phase.size):
             raise UserError(f"{where}: key 'lines.amplitude' must have one row per "
                             f"'lines.v_mm_s' ({v.size}) and one column per 'lines.phase_rad' "
@@ -202,8 +213,8 @@ def _stroke_span(v: Array, speed_range: tuple[float, float], fs_hz: float
     med = float(np.median(v[inr]))
     fast = np.abs(np.gradient(v) * fs_hz) > MAX_SPEED_RATE * np.maximum(v, 1.0)
     guard = max(1, round(EDGE_S * fs_hz))
-    fast[:guard] = fast[-guard:] = True
     fast = ndi.binary_dilation(fast, np.ones(2 * guard + 1, bool))
+    fast[:guard] = fast[-guard:] = True
     return med, inr & ~fast & (np.abs(v - med) < SPEED_SPAN * med)
 
 
@@ -316,19 +327,20 @@ def estimate_period(strokes: Sequence[_Stroke], f_lo: float, f_hi: float,
                     period_mm: float | None = None) -> tuple[float, int] | None:
     """The spatial period (mm) and the median number of comb peaks per stroke, or None
     without a comb. ``period_mm``: a given period, refined (within 2 %)."""
+    if period_mm is not None:  # given: refined on the coherent power alone
+        return _refine(strokes, float(period_mm), f_lo, f_hi, 0.02), 0
     specs = [sp for st in strokes if (sp := _spatial_spectrum(st, f_lo, f_hi)) is not None]
     if not specs or not any(sp.peaks_k.size for sp in specs):
         return None
-    if period_mm is not None:
-        candidates = {float(period_mm)}
-    else:
-        candidates = set()
-        for sp in specs:
-            top = sp.peaks_k[:12]
-            candidates |= {m / kp for kp in top[:5] for m in range(1, 13)}
-            diff = np.abs(top[:, None] - top[None, :])
-            candidates |= {d / float(x) for x in diff[diff > 0] for d in (1, 2, 3)}
-        candidates = {lam for lam in candidates if 0.05 <= lam <= 50.0}
+    # Guesses: a strong peak as one of the first 12 harmonics, or the spacing of two
+    # peaks as one to three harmonics apart.
+    candidates: set[float] = set()
+    for sp in specs:
+        top = sp.peaks_k[:12]
+        candidates |= {m / kp for kp in top[:5] for m in range(1, 13)}
+        diff = np.abs(top[:, None] - top[None, :])
+        candidates |= {d / float(x) for x in diff[diff > 0] for d in (1, 2, 3)}
+    candidates = {lam for lam in candidates if 0.05 <= lam <= 50.0}
     if not candidates:
         return None
     # Each guess fitted to the peaks (cheap); the distinct combs with the most matched
@@ -347,10 +359,9 @@ def estimate_period(strokes: Sequence[_Stroke], f_lo: float, f_hi: float,
                  key=lambda t: -(sum(t[1]) - peaks * min(1.0, 2 * _TOL_BINS * dk * t[0])))[:12]
     score, lam, hits = max(((_comb_score(specs, lam), lam, hits) for lam, hits in top),
                            key=lambda t: t[0])
-    if period_mm is None and (score < MIN_COMB_SCORE or np.median(hits) < 3):
+    if score < MIN_COMB_SCORE or np.median(hits) < 3:
         return None
-    span = 0.02 if period_mm is not None else 2e-3
-    return _refine(strokes, lam, f_lo, f_hi, span), int(np.median(hits))
+    return _refine(strokes, lam, f_lo, f_hi, 2e-3), int(np.median(hits))
 
 
 def _refine(strokes: Sequence[_Stroke], lam: float, f_lo: float, f_hi: float,
@@ -372,7 +383,8 @@ def _refine(strokes: Sequence[_Stroke], lam: float, f_lo: float, f_hi: float,
         if n.size == 0:
             continue
         if n.size > 24:  # the strongest harmonics carry the fit
-            z = np.abs(np.exp(-2j * np.pi * np.outer(n / lam, s)) @ y)
+            z = np.concatenate([np.abs(y @ _phasors(s, n[c], min(_CHUNK, n.size - c), lam))
+                                for c in range(0, n.size, _CHUNK)])
             n = np.sort(n[np.argsort(z)[::-1][:24]])
         pieces.append((s, y, n))
     if not pieces:
@@ -614,7 +626,7 @@ def _lines(st: _Stroke, fit: _Harmonics, use_at: Mask, grid: Array, lam: float,
     for c0 in range(0, n_max, _CHUNK):
         cnt = min(_CHUNK, n_max - c0)
         n = np.arange(c0, c0 + cnt) + 1.0
-        use = use_at[b][:, c0:c0 + cnt] & (np.outer(vv, n / lam) <= f_top)
+        use = use_at[b, c0:c0 + cnt] & (np.outer(vv, n / lam) <= f_top)
         c = fit.at(vv, c0, cnt)
         line += np.sum(np.real(c * np.conj(_phasors(ss_, n[0], cnt, lam))) * use, axis=1)
     return line
@@ -670,6 +682,8 @@ def fit_lines(signals: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
         return whole
     lam, _ = found
     n_max = int(max(math.floor(f_top * lam / float(st.v[st.valid].min())) for st in strokes))
+    capped = n_max > MAX_HARMONICS
+    n_max = min(n_max, MAX_HARMONICS)
     if n_max < 1:
         whole.note = f"period {lam:.4g} mm: no harmonic within the band"
         return whole
@@ -681,7 +695,7 @@ def fit_lines(signals: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     q_sum = np.zeros((nb, n_max))
     w_sum = np.zeros((nb, n_max))
     fits = [_fit_stroke(st, lam, n_max, f_top, knot_hz) for st in strokes]
-    owns: list[Mask] = []
+    strong = np.zeros((nb, n_max), bool)
     everything = np.ones((nb, n_max), bool)
     for st, fit in zip(strokes, fits, strict=True):
         # What a fit of this many knots catches of the noise alone: from the spectrum of
@@ -698,22 +712,23 @@ def fit_lines(signals: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
         p_sum[rows] += w * p_rows
         q_sum[rows] += w * q_rows
         w_sum[rows] += w
-        # Where the stroke's own fit stands far out, its line is taken out of it whatever
-        # the pool says (a speed only this stroke reached); not at the pool's threshold:
-        # many weak harmonics over many rows would take noise out of the residual.
-        own = np.zeros((nb, n_max), bool)
-        own[rows] = (w > 0) & (p_rows > OWN_SNR_FACTOR * snr * q_rows)
-        owns.append(own)
+        # A stroke whose own fit stands far out at a row makes the line present there
+        # whatever the pool's mean says (a speed few strokes reached); not at the pool's
+        # threshold: many weak harmonics over many rows would keep noise as lines.
+        strong[rows] |= (w > 0) & (p_rows > OWN_SNR_FACTOR * snr * q_rows)
     data = w_sum >= MIN_BIN_S * fs_hz
     with np.errstate(invalid="ignore", divide="ignore"):
         p_mean = np.where(data, p_sum / w_sum, 0.0)
         q_mean = np.where(data, q_sum / w_sum, 0.0)
-    present = data & (p_mean > snr * q_mean)
+    present = data & ((p_mean > snr * q_mean) | strong)
     # A line persists from one 0.5 mm/s row to the next; noise over the threshold does not
-    # (a few cells in a thousand at snr 3): a row counts with a neighbour that agrees.
+    # (a few cells in a thousand at snr 3): a row counts unless every neighbour with data
+    # disagrees (a row whose neighbours have no data stands on its own: a constant-speed
+    # rig, the fastest instants of a stroke).
     agree = np.zeros_like(present)
-    agree[1:] |= present[:-1]
-    agree[:-1] |= present[1:]
+    agree[1:] |= present[:-1] | ~data[:-1]
+    agree[:-1] |= present[1:] | ~data[1:]
+    agree[[0, -1]] |= True if nb == 1 else False
     present &= agree
     power = np.where(present, p_mean - q_mean, 0.0)  # amplitude^2 of the line alone
     # Each harmonic's rows: the table from its rows with data (interpolated per column).
@@ -721,7 +736,8 @@ def fit_lines(signals: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     table = np.zeros_like(power)
     for n in range(n_max):
         table[:, n] = _fill(power[:, n], present[:, n], data[:, n], model[:, n])
-    freq = np.outer(grid, np.arange(1, n_max + 1) / lam)
+    # A row is mixed in up to the next row's speed: its harmonics must stay in band there.
+    freq = np.outer(grid + GRID_STEP_MM_S, np.arange(1, n_max + 1) / lam)
     taper = np.clip((BAND_TOP * fs_hz / 2 - freq) / ((BAND_TOP - TAPER_START) * fs_hz / 2),
                     0.0, 1.0)
     amplitude = np.sqrt(table) * (0.5 - 0.5 * np.cos(np.pi * taper))
@@ -732,15 +748,19 @@ def fit_lines(signals: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     residuals = list(signals)  # a stroke without a line fit: none of it is clean
     keeps = [np.zeros(y.size, bool) for y in signals]
     line_energy = total_energy = 0.0
-    for st, fit, own in zip(strokes, fits, owns, strict=True):
+    for st, fit in zip(strokes, fits, strict=True):
         idx = np.flatnonzero(st.valid)
         r = st.y.copy()
-        r[idx] -= _lines(st, fit, keep_near | own, grid, lam, f_top)
+        r[idx] -= _lines(st, fit, keep_near, grid, lam, f_top)
         residuals[st.index] = r
         keeps[st.index] = st.valid.copy()
         line_energy += float(np.dot(st.y[idx], st.y[idx]) - np.dot(r[idx], r[idx]))
         total_energy += float(np.dot(st.y[idx], st.y[idx]))
     share = line_energy / total_energy if total_energy > 0 else 0.0
+    if not present.any():
+        whole.note = f"period {lam:.4g} mm: no harmonic stands over the noise"
+        whole.period_mm = lam
+        return whole
     if period_mm is None and share < min_share:
         whole.note = (f"period {lam:.4g} mm: its lines hold {100 * share:.1f} % of the power "
                       f"(< {100 * min_share:g} %): left to the all-pole model")
@@ -753,4 +773,10 @@ def fit_lines(signals: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     kept = int(np.sum(present.any(axis=0)))
     note = (f"period {lam:.4f} mm, {kept} harmonics kept, {100 * share:.1f} % of the "
             "power in lines")
+    if capped:
+        note += (f"; harmonics above the {MAX_HARMONICS}th (in band only at the slowest "
+                 "speeds) are left to the all-pole model")
+    if period_mm is not None and share < min_share:
+        note += (f"; only {100 * share:.1f} % of the power at the given period: check it "
+                 "(it is refined within about 2 %)")
     return LineFit(spectrum, residuals, keeps, lam, share, note)

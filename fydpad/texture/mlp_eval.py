@@ -168,7 +168,8 @@ def spectrum_vs_lpc(texture: str, seconds: float = 8.0, speeds: Sequence[float] 
     scans = [generate_scan(texture, s, seconds, seed=1) for s in speeds]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        lpc, _ = fit_texture(scans, speeds_mm_s=speeds, free_form=None)
+        # The paper's model: the per-speed LPC of the whole signal (no lines).
+        lpc, _ = fit_texture(scans, speeds_mm_s=speeds, free_form=None, lines="off")
         net = fit_spectrum_net(scans, order=order,
                                cfg=cfg or SpectrumTrainConfig()).texture_model()
         rows = []

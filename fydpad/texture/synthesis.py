@@ -211,7 +211,7 @@ class TextureRenderer:
 
     def target_gains(self, v: Array, c: Array) -> Array:
         """Vectorised :meth:`target_gain`."""
-        on = c & (v >= self.still_mm_s)
+        on = c & np.isfinite(v) & (v >= self.still_mm_s)  # as tick: no speed, no contact
         g = np.where(on, self.gain * np.minimum(v / self.fade_below_mm_s, 1.0), 0.0)
         fast = on & (v > self.clamp_above_mm_s)
         if fast.any() and not self.clamped:
@@ -304,8 +304,9 @@ class TextureRenderer:
         t = self.table
         e = self._take_noise(n)
         if self.structure == "fir":
-            pos = np.clip((v - t.speeds_mm_s[0]) / t.step_mm_s, 0.0, self._n_fir_rows - 1.0)
-            pos[~np.isfinite(pos)] = 0.0
+            # A speed that is not finite is no speed (as in tick): the first entry.
+            pos = np.clip(np.where(np.isfinite(v), (v - t.speeds_mm_s[0]) / t.step_mm_s, 0.0),
+                          0.0, self._n_fir_rows - 1.0)
             idx = np.minimum(pos.astype(np.int64), self._n_fir_rows - 2)
             lam = pos - idx
         else:

@@ -282,3 +282,62 @@ def test_the_station_renders_the_lines_from_the_centroid(r2_model):
     f, p = ss.welch(np.asarray(out[2000:]), FS, nperseg=2000)
     top = f[int(np.argmax(p))]
     assert abs(top / (20.0 / 2.15) - round(top / (20.0 / 2.15))) < 0.06, top
+
+
+def test_a_constant_speed_rig_keeps_its_lines():
+    """Strokes at a constant speed (a motorised rig: no hand's wander) put all their data
+    in one speed row: the lines are kept there (not vetoed by rows without data) and the
+    rendering along each stroke has its recording's power within 1 dB."""
+    scans = [generate_scan("R2", s, 6.0, seed=1, hand_variation=0.0) for s in SPEEDS]
+    model, _ = fit_texture(scans)
+    assert model.lines is not None
+    for sc in scans:
+        rec = preprocess(sc.acc, FS)[1000:-1000]
+        r = TextureRenderer(model, seed=0)
+        r.warmup(float(sc.speed_mm_s[1000]), 0.5)
+        syn = r.block(sc.speed_mm_s)[1000:-1000]
+        assert abs(10 * np.log10(np.mean(syn ** 2) / np.mean(rec ** 2))) < 1.0
+
+
+def test_above_the_tables_fastest_speed_the_lines_hold_their_pitch():
+    """The table keeps every harmonic in band up to its fastest speed (45 mm/s here);
+    faster, the lines hold that pitch and level (as the process is clamped) instead of
+    folding back from above Nyquist: 90 mm/s renders what 45 does."""
+    sp = _single_line(0.4, 10)  # 10 x 45 / 1 mm = 450 Hz at the top
+    fast = LineVoice(sp, FS).block(np.full(4000, 90.0))
+    top = LineVoice(sp, FS).block(np.full(4000, 45.0))
+    np.testing.assert_allclose(fast, top, atol=1e-12)
+    voice = LineVoice(sp, FS)
+    np.testing.assert_allclose([voice.tick(90.0) for _ in range(100)], top[:100], atol=1e-12)
+
+
+def test_a_lines_block_the_renderer_cannot_play_is_refused():
+    """Uneven speed steps (the renderer indexes rows by one step) and absurd periods are
+    errors on reading, not a wrong sound or a crash in the 1 kHz loop."""
+    good = _single_line(0.4, 3).to_json()
+    for key, value in (("v_mm_s", [5.0, 10.0, 40.0]), ("period_mm", 1e-310),
+                       ("period_mm", 5e3)):
+        d = dict(good)
+        d[key] = value
+        if key == "v_mm_s":
+            d["amplitude"] = [[0.0, 0.0, 1.0]] * 3
+        with pytest.raises(UserError, match=f"lines\\.{key}"):
+            LineSpectrum.from_json(d, "m.json")
+
+
+def test_a_given_period_is_kept_even_outside_the_search_range():
+    """--lines PERIOD is used as given (refined), whatever the automatic search would
+    consider: a 0.04 mm period (below its 0.05 mm) is fitted and said to hold little."""
+    scans = [generate_scan("R2", s, 4.0, seed=1) for s in (20.0, 30.0)]
+    model, _ = fit_texture(scans, speeds_mm_s=(20.0, 30.0), lines=0.04, free_form=None)
+    note = model.provenance["lines"]["note"]
+    assert model.provenance["lines"]["period_mm"] == pytest.approx(0.04, rel=0.03), note
+    assert "no spatial period" not in note
+
+
+def test_a_speed_that_is_not_finite_is_silence_in_both_paths(r2_model):
+    model, _ = r2_model
+    v = np.full(300, 25.0)
+    v[100:200] = np.inf
+    a, b = TextureRenderer(model, seed=1), TextureRenderer(model, seed=1)
+    np.testing.assert_allclose([a.tick(float(x)) for x in v], b.block(v), atol=1e-12)
