@@ -96,7 +96,7 @@ def main() -> None:
     net = fit_spectrum_net(scans)
     t_fit_net = time.perf_counter() - t0
     t_table = best(lambda: net.texture_model(), 3)
-    t_lpc = best(lambda: fit_texture(scans, free_form=None), 3)
+    t_lpc = best(lambda: fit_texture(scans, free_form=None, lines="off"), 3)
     print(f"  spectrum network: fit (window LPCs + 3000 Adam steps) {t_fit_net:.2f} s; speed "
           f"table {t_table * 1e3:.0f} ms; LPC family fit baseline {t_lpc * 1e3:.0f} ms "
           f"({t_fit_net / t_lpc:.1f}x)")

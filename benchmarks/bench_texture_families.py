@@ -59,7 +59,8 @@ def main() -> None:
 
     warnings.simplefilter("ignore")
     scans = [generate_scan("canvas", v, 6.0, seed=1, friction=True) for v in (10.0, 30.0)]
-    model, _ = fit_texture(scans, order=200, speeds_mm_s=[10.0, 30.0], free_form=None)
+    model, _ = fit_texture(scans, order=200, speeds_mm_s=[10.0, 30.0], free_form=None,
+                           lines="off")
     lpc = LpcFamily(model)
     lpc.prepare()
     fric = parse_friction(fit_friction(scans[:1]), "bench")

@@ -31,13 +31,14 @@ paper's plain method (linear interpolation of the pooled fit's coefficients).
 paper's linear way, chosen per texture by two-fold cross-validation on the training
 strokes, scored on 12 s held-out strokes at 30 and 25 mm/s.
 ``forms``: the spectral forms side by side on one seed set (default two 10 s training
-strokes per speed, 12 s held-out strokes, all textures): the pooled fit ("stretch", the
-default), the two-part model, the paper's linear interpolation of the pooled fit, the
-calibrated two-part model (``fit --free-form``), and on request (FORMS, comma-separated)
-``free``, ``surface`` (free_form.py's other forms) and ``hold5`` (the pooled fit held
-over the whole +-5 mm/s of each fitted speed: what the paper's linear way approximates
-near a fitted speed). Gap (LSD - ceiling) / correlation, ``*`` where both targets are
-met, the fit time, and the met count per form and speed.
+strokes per speed, 12 s held-out strokes, all textures): ``default`` (what ``fit`` fits
+now: a periodic surface's lines, the calibrated spectrum for the others; ask for it in
+FORMS), the pooled fit ("stretch"), the two-part model, the paper's linear
+interpolation of the pooled fit, the calibrated two-part model (``fit --free-form``), and
+on request (FORMS, comma-separated) ``free``, ``surface`` (free_form.py's other forms)
+and ``hold5`` (the pooled fit held over the whole +-5 mm/s of each fitted speed: what the
+paper's linear way approximates near a fitted speed). Gap (LSD - ceiling) / correlation,
+``*`` where both targets are met, the fit time, and the met count per form and speed.
 ``constant``: how well the speed-resolved spectra (two-part, calibrated; fitted on two
 10 s strokes per speed from TRAIN_SEED, default 8) match the texture's spectrum at a
 *constant* speed (strokes without the hand's wander, 12 s, at 26-34 mm/s): correlation
@@ -54,7 +55,7 @@ import numpy as np
 
 from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import compare, evaluate_scan, evaluation_mask, welch_psd
-from fydpad.texture.fit import fit_texture
+from fydpad.texture.fit import fit_texture as _fit_texture
 from fydpad.texture.identify import identify
 from fydpad.texture.lpc import energy_length
 from fydpad.texture.scan_generator import TEXTURES, generate_scan
@@ -63,6 +64,12 @@ from fydpad.texture.synthesis import TextureRenderer, synthesize
 from fydpad.texture.two_part import RENDER_SMEAR_MM_S, TwoPartSpectrum
 
 SPEEDS = (10.0, 20.0, 30.0, 40.0)
+
+
+def fit_texture(*args, lines="off", **kwargs):
+    """The forms here are the whole signal's (the figures of docs/texture.md before the
+    lines); the ``default`` form of ``forms`` asks for the lines."""
+    return _fit_texture(*args, lines=lines, **kwargs)
 
 
 def modelled(speed: float, names: list[str]) -> None:
@@ -275,7 +282,8 @@ def methods(train_seed: int, held_seed: int, second_seed: int) -> None:
     print("met at 30 mm/s:", met)
 
 
-FORM_FIT = {"pooled": {"free_form": None}, "two-part": {"two_part": True},
+FORM_FIT = {"default": {"lines": "auto"}, "pooled": {"free_form": None},
+            "two-part": {"two_part": True},
             "linear": {"free_form": None},
             "calibrated": {"free_form": "calibrated"}, "free": {"free_form": "free"},
             "surface": {"free_form": "surface"}, "hold5": {"free_form": None}}

@@ -86,6 +86,8 @@ MAX_HARMONICS = 512
 #: Knot spacing of a harmonic's amplitude along speed, in Hz of the harmonic's frequency:
 #: the scale on which a tool resonance changes it (a mode of Q 10 at 300 Hz is 30 Hz wide).
 KNOT_HZ = 20.0
+#: Speed bins of the per-harmonic fits (mm/s): the amplitudes change over 1 mm/s or more.
+FINE_MM_S = 0.01
 _CHUNK = 64  # harmonics per matrix product (memory: samples x chunk complex)
 
 
@@ -389,27 +391,39 @@ def _refine(strokes: Sequence[_Stroke], lam: float, f_lo: float, f_hi: float,
         pieces.append((s, y, n))
     if not pieces:
         return lam
-    for _ in range(5):
+    # Demodulated once at lambda_0, summed over blocks short enough for the widest span;
+    # each level re-centres those sums and regroups them into 64 blocks.
+    lam0, first = lam, span
+    blocks = []
+    for s, y, n in pieces:
+        ds = float(s[-1] - s[0]) / max(s.size - 1, 1)
+        blk = max(1, int(0.05 * lam0 / (n.max() * max(ds, 1e-12) * first)))
+        blk = min(blk, max(1, s.size // 64))  # enough blocks to see the phase ramp
+        m = (s.size // blk) * blk
+        z = y[:m, None] * np.exp(-2j * np.pi * np.outer(s[:m], n / lam0))
+        blocks.append((z.reshape(-1, blk, n.size).sum(axis=1),
+                       s[:m].reshape(-1, blk).mean(axis=1), n / lam0, blk * ds))
+    centre = 0.0  # lambda = lambda_0 / (1 + eps)
+    for _ in range(4):
         grid = np.linspace(-span, span, 21)
         total = np.zeros(grid.size)
-        for s, y, n in pieces:
-            z = y[:, None] * np.exp(-2j * np.pi * np.outer(s, n / lam))  # (T, N)
-            # Block length: the correction's phase moves < 0.05 cycle within a block.
-            ds = float(s[-1] - s[0]) / max(s.size - 1, 1)
-            blk = max(1, int(0.05 * lam / (n.max() * max(ds, 1e-12) * span)))
-            blk = min(blk, max(1, s.size // 64))  # enough blocks to see the phase ramp
-            m = (s.size // blk) * blk
-            zb = z[:m].reshape(-1, blk, n.size).sum(axis=1)
-            sb = s[:m].reshape(-1, blk).mean(axis=1)
-            ph = np.exp(-2j * np.pi * np.outer(grid, sb)[:, :, None] * (n / lam)[None, None])
-            total += np.sum(np.abs(np.einsum("gbn,bn->gn", ph, zb)) ** 2, axis=1)
+        for zb, sb, k, blk_mm in blocks:
+            zc = zb * np.exp(-2j * np.pi * centre * np.outer(sb, k))
+            # As many blocks per group as this level's span allows, 64 groups at least.
+            per = int(0.05 / (k.max() * max(blk_mm, 1e-12) * span))
+            per = max(1, min(per, sb.size // 64))
+            cut = (sb.size // per) * per
+            zc = zc[:cut].reshape(-1, per, k.size).sum(axis=1)
+            sc = sb[:cut].reshape(-1, per).mean(axis=1)
+            ph = np.exp(-2j * np.pi * np.outer(grid, sc)[:, :, None] * k[None, None])
+            total += np.sum(np.abs(np.einsum("gbn,bn->gn", ph, zc)) ** 2, axis=1)
         i = int(np.clip(np.argmax(total), 1, grid.size - 2))
         y0, y1, y2 = total[i - 1], total[i], total[i + 1]
         den = y0 - 2 * y1 + y2
         step = grid[1] - grid[0]
-        eps = grid[i] + (0.5 * step * (y0 - y2) / den if den < 0 else 0.0)
-        lam = lam / (1.0 + eps)
+        centre += grid[i] + (0.5 * step * (y0 - y2) / den if den < 0 else 0.0)
         span = 2 * step
+    lam = lam0 / (1.0 + centre)
     return lam
 
 
@@ -473,8 +487,17 @@ def _phasors(s: Array, n0: float, count: int, lam: float) -> NDArray[np.complex1
     return out
 
 
+def _speed_bins(v: Array) -> tuple[NDArray[np.int64], Array, NDArray[np.int64]]:
+    """Samples grouped by speed in FINE_MM_S bins: (each sample's bin, the bins' mean
+    speeds, their counts); empty bins dropped, so the speeds ascend."""
+    raw = ((v - float(v.min())) / FINE_MM_S).astype(np.int64)
+    used, b = np.unique(raw, return_inverse=True)
+    cnt = np.bincount(b, minlength=used.size)
+    return b, np.bincount(b, v, used.size) / cnt, cnt
+
+
 def _fit_stroke(st: _Stroke, lam: float, n_max: int, f_top: float, knot_hz: float
-                ) -> _Harmonics:
+                ) -> tuple[_Harmonics, Array]:
     """Per harmonic n = 1..n_max, its complex amplitude as a function of
     speed by least squares: (v / med)^2 (an acceleration's v^2) times a piecewise linear
     function between knots spaced so that the harmonic's frequency moves ``knot_hz`` from
@@ -483,40 +506,52 @@ def _fit_stroke(st: _Stroke, lam: float, n_max: int, f_top: float, knot_hz: floa
 
     y ~ Re{c(v) e^{j theta}} with theta = 2 pi n s / lambda: the demodulated
     y e^{-j theta} ~ c(v) / 2 + terms at 2 theta, which average out over many periods, so
-    each harmonic is a small real-basis least squares on it (a tridiagonal system)."""
+    each harmonic is a small real-basis least squares on it (a tridiagonal system). The
+    basis is a function of speed alone: the demodulated samples are summed per
+    FINE_MM_S speed bin first (one sparse product), and each harmonic's system is built
+    on the bins. Also returns every fitted harmonic summed over the valid samples (what
+    the noise estimate subtracts), made with the same phasors."""
     idx = np.flatnonzero(st.valid)
-    order = np.argsort(st.v[idx], kind="stable")  # speeds ascending: each band a prefix
-    idx = idx[order]
     v, y, s = st.v[idx], st.y[idx], st.s[idx]
+    bins, vb, cnt = _speed_bins(v)
+    total = np.cumsum(cnt)
+    summing = sparse.csr_matrix((np.ones(v.size), (bins, np.arange(v.size))),
+                                shape=(vb.size, v.size))
+    grow = (vb / st.med) ** 2  # an acceleration's lines grow as v^2
     lo_all, hi_all = np.zeros(n_max), np.zeros(n_max)
     kn_all = np.zeros(n_max, np.int64)
     m_all = np.zeros(n_max, np.int64)
     coef = np.zeros((n_max, K_MAX), complex)
     ginv = np.zeros((n_max, K_MAX, K_MAX))
+    line = np.zeros(v.size)
     for c0 in range(0, n_max, _CHUNK):
-        cnt = min(_CHUNK, n_max - c0)
-        n = np.arange(c0, c0 + cnt) + 1.0
-        z = _phasors(s, n[0], cnt, lam) * y[:, None]  # (T, c): y e^{-j theta}
-        for j in range(cnt):
-            m = int(np.searchsorted(v, f_top * lam / n[j], side="right"))  # in band
+        c_n = min(_CHUNK, n_max - c0)
+        n = np.arange(c0, c0 + c_n) + 1.0
+        ph = _phasors(s, n[0], c_n, lam)
+        zb = summing @ (ph * y[:, None])  # (bins, c) sums
+        amp = np.zeros((vb.size, c_n), complex)  # the fits at the bins' speeds
+        for j in range(c_n):
+            nb_in = int(np.searchsorted(vb, f_top * lam / n[j], side="right"))  # in band
+            m = int(total[nb_in - 1]) if nb_in else 0
             if m < 64:
                 continue
-            vj = v[:m]
             # The knots span all but the sparse 1 % tails of the speeds (clamped beyond):
             # a knot out there would rest on a handful of samples.
-            lo, hi = float(vj[m // 100]), float(vj[m - 1 - m // 100])
+            q_lo = int(np.searchsorted(total, m // 100, side="right"))
+            q_hi = int(np.searchsorted(total, m - m // 100, side="left"))
+            lo, hi = float(vb[min(q_lo, nb_in - 1)]), float(vb[min(q_hi, nb_in - 1)])
             k = (int(np.clip(1 + math.ceil((hi - lo) * n[j] / lam / knot_hz), 3, K_MAX))
                  if hi > lo else 1)
-            zj = z[:m, j]
+            w_cnt, zj, gj = cnt[:nb_in], zb[:nb_in, j], grow[:nb_in]
             if k > 1:
-                x = np.clip((vj - lo) / (hi - lo) * (k - 1), 0.0, k - 1 - 1e-9)
+                x = np.clip((vb[:nb_in] - lo) / (hi - lo) * (k - 1), 0.0, k - 1 - 1e-9)
                 i0 = x.astype(np.int64)
-                grow = (vj / st.med) ** 2  # an acceleration's lines grow as v^2
-                w1 = (x - i0) * grow
-                w0 = (1 - (x - i0)) * grow
+                w1 = (x - i0) * gj
+                w0 = (1 - (x - i0)) * gj
                 # Normal equations of the hat basis: a tridiagonal G, right side B^T z.
-                diag = np.bincount(i0, w0 * w0, k) + np.bincount(i0 + 1, w1 * w1, k)
-                off = np.bincount(i0, w0 * w1, k)[:-1]
+                diag = (np.bincount(i0, w_cnt * w0 * w0, k)
+                        + np.bincount(i0 + 1, w_cnt * w1 * w1, k))
+                off = np.bincount(i0, w_cnt * w0 * w1, k)[:-1]
                 g = np.diag(diag) + np.diag(off, 1) + np.diag(off, -1)
                 g += np.eye(k) * 1e-6 * diag.sum() / k  # a knot with little data near it
                 rhs = (np.bincount(i0, w0 * zj.real, k) + np.bincount(i0 + 1, w1 * zj.real, k)
@@ -524,16 +559,17 @@ def _fit_stroke(st: _Stroke, lam: float, n_max: int, f_top: float, knot_hz: floa
                                + np.bincount(i0 + 1, w1 * zj.imag, k)))
                 gi = np.linalg.inv(g)
                 c = 2.0 * (gi @ rhs)
+                amp[:nb_in, j] = (w0 * c[i0] + w1 * c[np.minimum(i0 + 1, k - 1)])
             else:
-                grow = (vj / st.med) ** 2
-                gi = np.array([[1.0 / float(np.dot(grow, grow))]])
-                c = np.array([2.0 * float(np.dot(grow, zj.real)) * gi[0, 0]
-                              + 2j * float(np.dot(grow, zj.imag)) * gi[0, 0]])
+                gi = np.array([[1.0 / float(np.dot(w_cnt * gj, gj))]])
+                c = np.array([2.0 * complex(np.dot(gj, zj)) * gi[0, 0]])
+                amp[:nb_in, j] = c[0] * gj
             ginv[c0 + j, :k, :k] = gi
             lo_all[c0 + j], hi_all[c0 + j], kn_all[c0 + j], m_all[c0 + j] = lo, hi, k, m
             coef[c0 + j, :k] = c
             coef[c0 + j, k:] = c[-1]
-    return _Harmonics(lo_all, hi_all, kn_all, coef, m_all, ginv, st.med)
+        line += np.sum(np.real(amp[bins] * np.conj(ph)), axis=1)
+    return _Harmonics(lo_all, hi_all, kn_all, coef, m_all, ginv, st.med), line
 
 
 def _spread(values: Array, has: Mask) -> Array:
@@ -555,7 +591,7 @@ def _factor_model(power: Array, present: Mask, grid: Array, lam: float, fs_hz: f
     log power of the harmonics present, second differences of t and g penalised (so g is
     linear across speeds without data). Returns exp of the fit at every (row, harmonic)."""
     nb, n_h = power.shape
-    rows, harm = np.nonzero(present)
+    rows, harm = np.nonzero(present & (power > 0))
     if rows.size == 0:
         return np.zeros_like(power)
     f_knots = np.arange(0.0, fs_hz / 2 + 10.0, 10.0)
@@ -621,14 +657,16 @@ def _lines(st: _Stroke, fit: _Harmonics, use_at: Mask, grid: Array, lam: float,
     idx = np.flatnonzero(st.valid)
     vv, ss_ = st.v[idx], st.s[idx]
     nb, n_max = use_at.shape
-    b = np.clip(np.rint((vv - grid[0]) / GRID_STEP_MM_S).astype(int), 0, nb - 1)
+    # Amplitudes at the speed bins' speeds, then per sample (a function of speed alone).
+    bins, vb, _ = _speed_bins(vv)
+    row = np.clip(np.rint((vb - grid[0]) / GRID_STEP_MM_S).astype(int), 0, nb - 1)
     line = np.zeros(idx.size)
     for c0 in range(0, n_max, _CHUNK):
         cnt = min(_CHUNK, n_max - c0)
         n = np.arange(c0, c0 + cnt) + 1.0
-        use = use_at[b, c0:c0 + cnt] & (np.outer(vv, n / lam) <= f_top)
-        c = fit.at(vv, c0, cnt)
-        line += np.sum(np.real(c * np.conj(_phasors(ss_, n[0], cnt, lam))) * use, axis=1)
+        amp = fit.at(vb, c0, cnt) * (use_at[row, c0:c0 + cnt]
+                                      & (np.outer(vb, n / lam) <= f_top))
+        line += np.sum(np.real(amp[bins] * np.conj(_phasors(ss_, n[0], cnt, lam))), axis=1)
     return line
 
 
@@ -694,14 +732,13 @@ def fit_lines(signals: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     p_sum = np.zeros((nb, n_max))
     q_sum = np.zeros((nb, n_max))
     w_sum = np.zeros((nb, n_max))
-    fits = [_fit_stroke(st, lam, n_max, f_top, knot_hz) for st in strokes]
+    fitted = [_fit_stroke(st, lam, n_max, f_top, knot_hz) for st in strokes]
+    fits = [f for f, _ in fitted]
     strong = np.zeros((nb, n_max), bool)
-    everything = np.ones((nb, n_max), bool)
-    for st, fit in zip(strokes, fits, strict=True):
+    for st, (fit, every_line) in zip(strokes, fitted, strict=True):
         # What a fit of this many knots catches of the noise alone: from the spectrum of
         # what every harmonic's fit leaves (module docstring, step 3).
-        q_of = _noise_of_fit(st.y[st.valid] - _lines(st, fit, everything, grid, lam, f_top),
-                             fit, lam, fs_hz)
+        q_of = _noise_of_fit(st.y[st.valid] - every_line, fit, lam, fs_hz)
         vv = st.v[st.valid]
         b = np.clip(np.rint((vv - grid[0]) / GRID_STEP_MM_S).astype(int), 0, nb - 1)
         cnt = np.bincount(b, minlength=nb).astype(float)
@@ -730,7 +767,10 @@ def fit_lines(signals: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     agree[:-1] |= present[1:] | ~data[1:]
     agree[[0, -1]] |= True if nb == 1 else False
     present &= agree
-    power = np.where(present, p_mean - q_mean, 0.0)  # amplitude^2 of the line alone
+    # Amplitude^2 of the line alone; where only one stroke's fit made it present, the
+    # pool's mean over strokes may not clear the noise's: at least a quarter of the mean.
+    power = np.where(present, np.maximum(p_mean - q_mean, 0.25 * p_mean), 0.0)
+    present &= power > 0
     # Each harmonic's rows: the table from its rows with data (interpolated per column).
     model = _factor_model(power, present, grid, lam, fs_hz)
     table = np.zeros_like(power)

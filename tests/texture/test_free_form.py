@@ -302,3 +302,19 @@ def test_one_fitted_speed_gets_the_pooled_fit_by_default():
     assert model.free_form is None and model.two_part is None
     named, _ = fit_texture(scans, speeds_mm_s=(20.0,), order=60, free_form="calibrated")
     assert named.free_form["form"] == "calibrated"
+
+
+def test_a_spectral_forms_table_spans_the_speeds_its_fit_saw(scan_model):
+    """The calibrated spectrum renders its own S from where the renderer starts fading
+    (the slowest speed less the tolerance, at least half of it) to the fastest plus the
+    tolerance, not its slowest and fastest entries held beyond (felt at 40 mm/s, seed set
+    A: +2.42 -> +0.33 dB over the ceiling, docs/texture.md); the pooled fit's table still
+    holds its end models, which were fitted on that wander."""
+    from fydpad.texture.interpolation import build_table, table_range
+
+    assert table_range(scan_model) == (5.0, 35.0)
+    table = build_table(scan_model)
+    assert table.speeds_mm_s[0] == 5.0 and table.speeds_mm_s[-1] == 35.0
+    assert not np.allclose(table.polys[table.index(34.0)], table.polys[table.index(30.0)])
+    pooled = replace(scan_model, free_form=None, two_part=None)
+    assert table_range(pooled) == (10.0, 30.0)
