@@ -13,6 +13,7 @@ from __future__ import annotations
 import ipaddress
 import logging
 import select
+import time
 from collections.abc import Callable
 from pathlib import Path
 from urllib.parse import urlparse
@@ -80,6 +81,27 @@ class LoggingAuthenticator(ThreadAuthenticator):
         return allowed, reason
 
 
+def _start_authenticator(auth: ThreadAuthenticator, timeout_s: float = 2.0) -> None:
+    """Start the ZAP handler, waiting while its endpoint is still held.
+
+    A context has one ZAP endpoint (inproc://zeromq.zap.01). The previous authenticator's
+    socket frees it only when libzmq's reaper thread destroys that socket, after close()
+    has returned: a slave restarted at once on the same context (the tests, a restart
+    after a fault) could meet "Address already in use" under load (seen in CI)."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            auth.start()
+            return
+        except zmq.ZMQError as e:
+            if auth.zap_socket is not None:  # created, not bound: close it before retrying
+                auth.zap_socket.close(linger=0)
+                auth.zap_socket = None  # type: ignore[assignment]
+            if e.errno != zmq.EADDRINUSE or time.monotonic() > deadline:
+                raise
+            time.sleep(0.01)
+
+
 class SlaveSocket:
     """The slave's bound ROUTER (+ authenticator). Context manager: always closes."""
 
@@ -96,7 +118,7 @@ class SlaveSocket:
             keys_dir = Path(cfg.keys_dir)
             pub, sec = server_keys(keys_dir)
             self.auth = LoggingAuthenticator(self.ctx)
-            self.auth.start()
+            _start_authenticator(self.auth)
             self.auth.configure_curve(domain="*", location=str(keys_dir / "authorized_clients"))
             self.sock.curve_secretkey = sec
             self.sock.curve_publickey = pub
