@@ -362,19 +362,6 @@ def _ratio(text: str | None) -> tuple[int, int] | None:
     return v, f
 
 
-def _lines_option(text: str) -> str | float:
-    """``--lines``: 'auto', 'off' or a period in mm (a one-line error otherwise)."""
-    if text in ("auto", "off"):
-        return text
-    try:
-        period = float(text)
-    except ValueError:
-        raise UserError(f"--lines {text}: 'auto', 'off' or a period in mm") from None
-    if not (math.isfinite(period) and period > 0):
-        raise UserError(f"--lines {text}: the period must be a number of mm > 0")
-    return period
-
-
 def _fitted_form(model) -> str:
     """What the models are, in the words of `fit --help`."""
     prov = model.provenance
@@ -455,7 +442,7 @@ def _run_fit_family(args: argparse.Namespace) -> int:
 def _run_fit_lpc(args: argparse.Namespace) -> int:
     from fydpad.texture.dft321 import preprocess
     from fydpad.texture.evaluate import welch_psd
-    from fydpad.texture.fit import fit_texture
+    from fydpad.texture.fit import fit_texture, lines_option
     from fydpad.texture.lpc import ar_psd
     from fydpad.texture.model_file import save_model
     from fydpad.texture.segment import segment_by_speed
@@ -479,7 +466,8 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
             highpass_hz=args.highpass_hz, min_seconds=args.min_seconds, method=args.method,
             surface=args.surface, drive_band_hz=tuple(args.drive_band),
             prewhiten_order=args.prewhiten_order, speed_normalise=args.speed_normalise,
-            two_part=args.two_part, free_form=args.free_form, lines=_lines_option(args.lines),
+            two_part=args.two_part, free_form=args.free_form,
+            lines=lines_option(args.lines, "--lines"),
             wrap=lambda it: progress(it, total=len(scans), desc="fit", unit="scan"),
             wrap_iterations=lambda it: progress(it, desc="spectral model", unit="it"))
     _print_warnings("fit", _scan_names(args.scans), caught)
@@ -499,12 +487,13 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
         from fydpad.texture.plots import plot_spectra
 
         panels = []
-        voice = None
-        if model.lines is not None:  # the lines rendered along the same runs' speeds
+        lines = None
+        if model.lines is not None:  # the lines rendered along the scans' own speeds, once
             from fydpad.texture.line_voice import LineVoice
             from fydpad.texture.lines import LineSpectrum
 
             voice = LineVoice(LineSpectrum.from_json(model.lines, args.out), model.fs_hz)
+            lines = np.concatenate([voice.block(sc.speed_mm_s) for sc in scans])
         # The runs the fit used: same high-pass, tolerance and shortest run.
         pre = [preprocess(sc.acc, sc.fs_hz, model.highpass_hz) for sc in scans]
         for k, s in enumerate(model.speeds_mm_s):
@@ -520,13 +509,11 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
             m = np.concatenate([b for _, b in segs])
             fr, pr = welch_psd(x, model.fs_hz, m)
             pm = ar_psd(model.poly(k), model.sigma2[k], fr, model.fs_hz)
-            if voice is not None:
-                voice.reset()
-                lines = np.concatenate([voice.block(sc.speed_mm_s) for sc in scans])
+            if lines is not None:
                 pm = pm + welch_psd(lines, model.fs_hz, m)[1]
             panels.append((f"{s:g} mm/s", fr, pr, pm))
         plot_spectra(args.plot, panels, f"{model.surface}: recorded vs LPC model"
-                     + (" + lines" if voice is not None else ""))
+                     + (" + lines" if lines is not None else ""))
     return 0
 
 

@@ -32,9 +32,7 @@ from fydpad.texture.segment import (
     DEFAULT_TOLERANCE_MM_S,
     segment_by_speed,
 )
-from fydpad.texture.segment import (
-    runs as segment_runs,
-)
+from fydpad.texture.segment import runs as segment_runs
 from fydpad.texture.speed_warp import NFFT as _NFFT
 from fydpad.texture.speed_warp import (
     ar_from_log_psd,
@@ -243,7 +241,7 @@ def fit_texture(
     )
     if normalised is not None:
         model.provenance["speed_normalised"] = normalised
-    if line_fit.period_mm is not None or lines not in (None, "off"):
+    if lines not in (None, "off"):  # what the fit found, lines or not
         model.provenance["lines"] = {
             "period_mm": line_fit.period_mm, "share": round(line_fit.share, 4),
             "note": line_fit.note}
@@ -263,23 +261,29 @@ def fit_texture(
     return model, reports
 
 
+def lines_option(lines: str | float | None, name: str = "lines") -> str | float | None:
+    """The ``lines`` option checked: ``"auto"``, ``"off"``/None, or a period in mm (a
+    number, or text that is one); a one-line error naming ``name`` otherwise."""
+    if lines is None or lines in ("auto", "off"):
+        return lines
+    try:
+        period = float(lines)
+    except (TypeError, ValueError):
+        raise UserError(f"{name} {lines}: 'auto', 'off' or a period in mm") from None
+    if not (math.isfinite(period) and period > 0):
+        raise UserError(f"{name} {lines}: the period must be a number of mm > 0")
+    return period
+
+
 def _fit_lines(prepared: list[tuple[Array, Array]], fs: float, speeds_mm_s: Sequence[float],
                tolerance_mm_s: float, lines: str | float | None) -> LineFit:
     """fit_texture's line spectrum: ``"auto"`` finds the period, a number is the period
     in mm, None or ``"off"`` fits none."""
     signals = [x for x, _ in prepared]
+    lines = lines_option(lines)
     if lines is None or lines == "off":
-        return LineFit(None, signals, [np.ones(x.size, bool) for x in signals], None, 0.0,
-                       "not fitted (lines off)")
-    if lines == "auto":
-        period = None
-    else:
-        try:
-            period = float(lines)
-        except (TypeError, ValueError):
-            raise UserError(f"lines: 'auto', 'off' or a period in mm, not {lines!r}") from None
-        if not (math.isfinite(period) and period > 0):
-            raise UserError(f"lines: the period must be a number of mm > 0, not {lines!r}")
+        return LineFit.none(signals, "not fitted (lines off)")
+    period = None if lines == "auto" else float(lines)
     lo = max(min(speeds_mm_s) - tolerance_mm_s, 0.5)
     hi = max(speeds_mm_s) + tolerance_mm_s
     return fit_lines(signals, [v for _, v in prepared], fs, (lo, hi), period_mm=period)

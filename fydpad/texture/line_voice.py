@@ -40,6 +40,7 @@ class LineVoice:
         if v.size == 1:  # one speed: two equal rows keep the mixing uniform
             self.table = np.vstack([self.table, self.table])
             self._last_row = 1.0
+        self._k_top = int(self._last_row) - 1  # the lower of the last two rows
         self._cycles_per_sample = 1.0 / (float(fs_hz) * float(spectrum.period_mm))
         self._rows = list(self.table)  # views made once: no view per tick
         self.phase = 0.0
@@ -55,7 +56,7 @@ class LineVoice:
         self.phase = ph
         x = (speed_mm_s - self._v0) * self._inv_step
         x = min(max(x, 0.0), self._last_row)
-        k = min(int(x), int(self._last_row) - 1)
+        k = min(int(x), self._k_top)
         w = x - k
         p = (ph - math.floor(ph)) * self.points
         i = int(p)
@@ -76,7 +77,7 @@ class LineVoice:
         ph = np.cumsum(np.concatenate([[self.phase], v * self._cycles_per_sample]))[1:]
         self.phase = float(ph[-1])
         x = np.clip((v - self._v0) * self._inv_step, 0.0, self._last_row)
-        k = np.minimum(x.astype(np.int64), int(self._last_row) - 1)
+        k = np.minimum(x.astype(np.int64), self._k_top)
         w = x - k
         p = (ph - np.floor(ph)) * self.points
         i = p.astype(np.int64)

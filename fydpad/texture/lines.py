@@ -19,10 +19,11 @@ Fit (:func:`fit_lines`), on the preprocessed (high-passed, DFT321) signal of eac
    candidate that puts significant peaks on the most harmonics wins, then lambda is
    refined on the coherent power of its strongest harmonics (the high harmonics need it
    to 1e-5: their phase over a 100 mm stroke).
-2. Per stroke and harmonic, the complex amplitude as a quadratic in speed, by least
-   squares on the signal demodulated at the harmonic's phase 2 pi n s / lambda (the
-   harmonics are orthogonal over a stroke of many periods). The same fit at the
-   half-integer harmonics n + 1/2, where no line is, measures what noise alone gives.
+2. Per stroke and harmonic, the complex amplitude as (v / med)^2 times a piecewise
+   linear function of speed, by least squares on the signal demodulated at the
+   harmonic's phase 2 pi n s / lambda (the harmonics are orthogonal over a stroke of many
+   periods); what noise alone gives such a fit follows from the spectrum of what every
+   harmonic's fit leaves (:func:`_noise_of_fit`).
 3. Per 0.5 mm/s speed bin, pooled over strokes: the amplitude^2 less the noise's; a
    harmonic is kept at a speed where it stands ``snr`` times above that noise (or one
    stroke's own fit stands far above it). Where no stroke's speeds reach, a factor model
@@ -51,6 +52,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
+from fydpad.texture.segment import runs
 
 Array = NDArray[np.float64]
 Mask = NDArray[np.bool_]
@@ -68,9 +70,9 @@ GRID_STEP_MM_S = 0.5
 #: the renderer tapers them from TAPER_START of Nyquist so none drops out with a click.
 BAND_TOP = 0.99
 TAPER_START = 0.96
-#: A kept harmonic's power over the noise's at the half-integer harmonics.
+#: A kept harmonic's pooled power over what noise alone gives its fit.
 DEFAULT_SNR = 3.0
-#: A stroke's own fit this many times over ``snr`` takes its line out of it.
+#: A stroke's own fit this many times over ``snr`` makes its line present at that row.
 OWN_SNR_FACTOR = 4.0
 #: Less of the in-band power than this in the lines: no line model (the all-pole
 #: model holds such weak lines as well).
@@ -114,11 +116,6 @@ class LineSpectrum:
         if v.size == 1:
             return self.amplitude[0].copy()
         return (1 - w) * self.amplitude[k] + w * self.amplitude[k + 1]
-
-    def power_at(self, speed_mm_s: float) -> float:
-        """Mean power of the lines at a constant speed, (m/s^2)^2."""
-        a = self.amplitudes_at(speed_mm_s)
-        return float(0.5 * np.dot(a, a))
 
     def wavetable(self, points: int | None = None) -> Array:
         """One period of the waveform at every grid speed: (m, points + 1), the last
@@ -195,6 +192,13 @@ class LineFit:
     share: float  # of the kept samples' power, in the lines
     note: str
 
+    @classmethod
+    def none(cls, signals: Sequence[Array], note: str, period_mm: float | None = None,
+             share: float = 0.0) -> LineFit:
+        """No line model: the residuals are the signals, every sample may be used."""
+        return cls(None, list(signals), [np.ones(y.size, bool) for y in signals], period_mm,
+                   share, note)
+
 
 def arc_length_mm(speed_mm_s: Array, fs_hz: float) -> Array:
     """s(t) = int v dt as the renderer integrates it (one step of v / fs per sample)."""
@@ -221,12 +225,7 @@ def _stroke_span(v: Array, speed_range: tuple[float, float], fs_hz: float
 
 
 def _longest_run(mask: Mask) -> tuple[int, int]:
-    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    a, b = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
-    if a.size == 0:
-        return 0, 0
-    i = int(np.argmax(b - a))
-    return int(a[i]), int(b[i])
+    return max(runs(mask), key=lambda r: r[1] - r[0], default=(0, 0))
 
 
 @dataclass
@@ -244,7 +243,6 @@ class _Spectrum:
     """A stroke's spatial periodogram and its peaks (sub-bin interpolated)."""
 
     k: Array  # cycles/mm
-    ratio: Array  # power over the running median of its neighbours
     k_lo: float  # the harmonics' band for every sample of the run
     k_hi: float
     power: Array
@@ -281,7 +279,7 @@ def _spatial_spectrum(st: _Stroke, f_lo: float, f_hi: float) -> _Spectrum | None
     lp = np.log(p)
     den = lp[j - 1] - 2 * lp[j] + lp[j + 1]
     off = np.where(den < 0, 0.5 * (lp[j - 1] - lp[j + 1]) / np.where(den < 0, den, -1.0), 0.0)
-    return _Spectrum(k, ratio, k_lo, k_hi, p, k[j] + np.clip(off, -0.5, 0.5) * (k[1] - k[0]))
+    return _Spectrum(k, k_lo, k_hi, p, k[j] + np.clip(off, -0.5, 0.5) * (k[1] - k[0]))
 
 
 def _comb_fit(specs: Sequence[_Spectrum], lam: float, rounds: int = 3
@@ -523,13 +521,13 @@ def _fit_stroke(st: _Stroke, lam: float, n_max: int, f_top: float, knot_hz: floa
     m_all = np.zeros(n_max, np.int64)
     coef = np.zeros((n_max, K_MAX), complex)
     ginv = np.zeros((n_max, K_MAX, K_MAX))
-    line = np.zeros(v.size)
+    phasors = []  # kept for the fitted lines' sum below
     for c0 in range(0, n_max, _CHUNK):
         c_n = min(_CHUNK, n_max - c0)
         n = np.arange(c0, c0 + c_n) + 1.0
         ph = _phasors(s, n[0], c_n, lam)
+        phasors.append(ph)
         zb = summing @ (ph * y[:, None])  # (bins, c) sums
-        amp = np.zeros((vb.size, c_n), complex)  # the fits at the bins' speeds
         for j in range(c_n):
             nb_in = int(np.searchsorted(vb, f_top * lam / n[j], side="right"))  # in band
             m = int(total[nb_in - 1]) if nb_in else 0
@@ -559,17 +557,21 @@ def _fit_stroke(st: _Stroke, lam: float, n_max: int, f_top: float, knot_hz: floa
                                + np.bincount(i0 + 1, w1 * zj.imag, k)))
                 gi = np.linalg.inv(g)
                 c = 2.0 * (gi @ rhs)
-                amp[:nb_in, j] = (w0 * c[i0] + w1 * c[np.minimum(i0 + 1, k - 1)])
             else:
                 gi = np.array([[1.0 / float(np.dot(w_cnt * gj, gj))]])
                 c = np.array([2.0 * complex(np.dot(gj, zj)) * gi[0, 0]])
-                amp[:nb_in, j] = c[0] * gj
             ginv[c0 + j, :k, :k] = gi
             lo_all[c0 + j], hi_all[c0 + j], kn_all[c0 + j], m_all[c0 + j] = lo, hi, k, m
             coef[c0 + j, :k] = c
             coef[c0 + j, k:] = c[-1]
+    fit = _Harmonics(lo_all, hi_all, kn_all, coef, m_all, ginv, st.med)
+    line = np.zeros(v.size)
+    for c0, ph in zip(range(0, n_max, _CHUNK), phasors, strict=True):
+        c_n = ph.shape[1]
+        inband = np.outer(vb, (np.arange(c0, c0 + c_n) + 1.0) / lam) <= f_top
+        amp = fit.at(vb, c0, c_n) * inband
         line += np.sum(np.real(amp[bins] * np.conj(ph)), axis=1)
-    return _Harmonics(lo_all, hi_all, kn_all, coef, m_all, ginv, st.med), line
+    return fit, line
 
 
 def _spread(values: Array, has: Mask) -> Array:
@@ -703,7 +705,7 @@ def fit_lines(signals: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     """
     signals = [np.asarray(y, float) for y in signals]
     speeds = [np.asarray(v, float) for v in speeds]
-    whole = LineFit(None, signals, [np.ones(y.size, bool) for y in signals], None, 0.0, "")
+    whole = LineFit.none(signals, "")
     f_top = BAND_TOP * fs_hz / 2
     f_lo = 15.0  # above the 10 Hz high-pass's knee
     strokes = []

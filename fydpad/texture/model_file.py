@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError, read_json
+from fydpad.texture.lines import LineSpectrum
 from fydpad.texture.lpc import is_stable, poly_from_h
 
 FORMAT = "fydpad-texture-model"
@@ -224,8 +225,6 @@ def _lines(d: Any, version: Any, where: str) -> dict[str, Any] | None:
     if version < FORMAT_VERSION:
         raise UserError(f"{where}: key 'lines' needs 'format_version' {FORMAT_VERSION}, "
                         f"the file says {version}")
-    from fydpad.texture.lines import LineSpectrum
-
     LineSpectrum.from_json(d, where)
     return dict(d)
 
