@@ -230,6 +230,7 @@ def _lines(d: Any, version: Any, where: str) -> dict[str, Any] | None:
 
 
 _TWO_PART_KEYS = ("f_hz", "k_per_mm", "tool", "surface", "floor", "v_mm_s", "g", "n")
+_TWO_PART_OPTIONAL = ("fixed_floor",)  # files written before it was fitted lack it
 
 
 def _two_part(d: Any, where: str) -> dict[str, Any] | None:
@@ -238,7 +239,7 @@ def _two_part(d: Any, where: str) -> dict[str, Any] | None:
         return None
     if not isinstance(d, dict):
         raise UserError(f"{where}: key 'two_part' must be an object")
-    for k in _TWO_PART_KEYS:
+    for k in _TWO_PART_KEYS + tuple(k for k in _TWO_PART_OPTIONAL if k in d):
         try:
             a = np.asarray(_get(d, k, f"{where}: two_part"), float)
         except (TypeError, ValueError) as exc:
@@ -246,9 +247,9 @@ def _two_part(d: Any, where: str) -> dict[str, Any] | None:
         if a.ndim != 1 or a.size < 2 or not np.isfinite(a).all() or (a < 0).any():
             raise UserError(f"{where}: two_part.{k} must be a list of at least 2 finite, "
                             "nonnegative numbers")
-    for grid, vals in (("f_hz", ("tool", "floor")), ("k_per_mm", ("surface",)),
+    for grid, vals in (("f_hz", ("tool", "floor", "fixed_floor")), ("k_per_mm", ("surface",)),
                        ("v_mm_s", ("g", "n"))):
-        for k in vals:
+        for k in (k for k in vals if k in d):
             if len(d[k]) != len(d[grid]):
                 raise UserError(f"{where}: two_part.{k} has {len(d[k])} values, "
                                 f"two_part.{grid} {len(d[grid])}")

@@ -2,7 +2,7 @@
 
 A tool scanning a surface at speed v records (docs/texture.md, "Two-part model")
 
-    S(f, v) = T(f) * U(f / v) * g(v) + N(f) * n(v)
+    S(f, v) = T(f) * U(f / v) * g(v) + N(f) * n(v) + N0(f)
 
 - ``U(k)``: the surface's part, a function of spatial frequency k = f / v (cycles/mm):
   a grating's comb, a roughness band's edge. It slides along f with speed.
@@ -10,8 +10,18 @@ A tool scanning a surface at speed v records (docs/texture.md, "Two-part model")
   resonance, the contact filter, the 10 Hz high-pass.
 - ``N(f)``: a fixed additive part: the sensor floor and vibration that does not follow
   the surface (stick-slip through the tool mode), with its own level per speed n(v).
-- ``g(v)``, ``n(v)``: levels per speed (log-linear between knots every 5 mm/s, kept on
-  a 1 mm/s grid).
+- ``N0(f)``: a floor whose level does not depend on speed: the accelerometer's own
+  noise. Without it the sensor floor had to come from N n(v) or from U at spatial
+  frequencies only the slowest chunks see, and either rose or fell 20-30 dB between
+  the strokes' speeds.
+- ``g(v)``, ``n(v)``: levels per speed, linear in log v between knots every 5 mm/s (a
+  power law, what a spatial process's level is, is then exact between knots); a knot
+  with less than ``KNOT_MIN_CHUNKS`` chunks of data within half a step is dropped, so a
+  gap between strokes' speeds is bridged by the knots on either side, not by a knot
+  that the gap's edges alone set. Kept on a 1 mm/s grid.
+- ``U(k)`` at spatial frequencies no chunk sees in earnest (less than
+  ``U_MIN_CHUNKS`` of weight: above f_max over the slowest speed with data) holds the
+  nearest seen value instead of its start value.
 
 All factors are nonnegative and each enters S linearly, so they are fitted jointly on
 every training run at its measured speed by multiplicative updates minimising the
@@ -41,6 +51,12 @@ ITERATIONS = 600
 RENDER_SMEAR_MM_S = 1.0  # see TwoPartSpectrum.ar
 FACTORS = ("f_hz", "k_per_mm", "tool", "surface", "floor", "v_mm_s", "g", "n")
 STEP = 0.5  # MU exponent: 1/2 is the IS divergence's majorisation (monotone)
+#: A level knot needs this many chunks' worth of data within half a knot step (8: about
+#: 2 s of a stroke; 2 kept a knot at 15 mm/s between the 10 and 20 mm/s strokes, set by
+#: their edges alone, and put felt's spectrum there 1 dB high; docs/texture.md).
+KNOT_MIN_CHUNKS = 8.0
+#: A spatial frequency node needs this much chunk-bin weight to be fitted (module doc).
+U_MIN_CHUNKS = 1.0
 
 
 @dataclass
@@ -55,6 +71,7 @@ class TwoPartSpectrum:
     v_mm_s: Array  # speed grid of the levels
     g: Array  # g(v)
     n: Array  # n(v)
+    fixed: Array | None = None  # N0(f); None in files written before it was fitted
 
     def psd(self, speed_mm_s: float) -> Array:
         """S(f, v) on ``f_hz`` (power per bin, the chunk periodograms' scale: mean = power);
@@ -62,8 +79,9 @@ class TwoPartSpectrum:
         v = float(np.clip(speed_mm_s, self.v_mm_s[0], self.v_mm_s[-1]))
         g = np.exp(np.interp(v, self.v_mm_s, np.log(self.g)))
         n = np.exp(np.interp(v, self.v_mm_s, np.log(self.n)))
-        return self.tool * _resampled(self.surface, self.k_per_mm, self.f_hz, v) * g \
+        s = self.tool * _resampled(self.surface, self.k_per_mm, self.f_hz, v) * g \
             + self.floor * n
+        return s if self.fixed is None else s + self.fixed
 
     def ar(self, speed_mm_s: float, order: int, fs_hz: float) -> tuple[Array, float]:
         """All-pole (A, sigma^2) of ``order`` with the spectrum S(f, v) averaged over
@@ -82,11 +100,16 @@ class TwoPartSpectrum:
         return ar_two_stage(log_p, order)
 
     def to_json(self) -> dict:
-        return {k: [float(x) for x in getattr(self, k)] for k in FACTORS}
+        d = {k: [float(x) for x in getattr(self, k)] for k in FACTORS}
+        if self.fixed is not None:
+            d["fixed_floor"] = [float(x) for x in self.fixed]
+        return d
 
     @classmethod
     def from_json(cls, d: dict) -> TwoPartSpectrum:
-        return cls(**{k: np.asarray(d[k], float) for k in FACTORS})
+        fixed = d.get("fixed_floor")
+        return cls(**{k: np.asarray(d[k], float) for k in FACTORS},
+                   fixed=None if fixed is None else np.asarray(fixed, float))
 
 
 def ar_two_stage(log_p: Array, order: int, prewhiten_order: int = 8) -> tuple[Array, float]:
@@ -148,6 +171,22 @@ def _resampled(u: Array, k: Array, f_hz: Array, v: float, sub: int = 8) -> Array
     return np.interp((f_hz[:, None] + df * off) / v, k, u).mean(axis=1)
 
 
+def _log_hats(v_mm_s: Array, knots: Array) -> Array:
+    """Weights of a level linear in log v between ``knots`` and continued along the end
+    segments' slopes beyond them (a power law; held flat, the level at 10 mm/s put the
+    ramps of a stroke 3-5 dB high). log v is kept finite at a standstill."""
+    x, nodes = np.log(np.maximum(v_mm_s, 0.25)), np.log(np.maximum(knots, 0.25))
+    if nodes.size < 2:
+        return np.ones((x.size, 1))
+    out = np.zeros((x.size, nodes.size))
+    j = np.clip(np.searchsorted(nodes, x) - 1, 0, nodes.size - 2)
+    t = (x - nodes[j]) / (nodes[j + 1] - nodes[j])  # outside [0, 1] beyond the ends
+    r = np.arange(x.size)
+    out[r, j] = 1 - t
+    out[r, j + 1] = t
+    return out
+
+
 def _mm(a: Array, b: Array) -> Array:
     """a @ b without BLAS: these products are tiny, and a threaded BLAS on a loaded machine
     spends 10x their cost in thread hand-offs (measured: 14 ms against 2 ms per iteration)."""
@@ -172,9 +211,9 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     """Fit the module's S(f, v) to preprocessed runs ``runs`` with speed traces ``speeds``.
 
     Chunks whose speeds leave ``speed_range_mm_s`` are not used. The levels g and n are
-    log-linear between knots every ``knot_step_mm_s`` (a hand gives few chunks at any
-    one speed: a free level per 1 mm/s would follow the noise). ``wrap`` wraps the
-    iterations (a progress bar).
+    log-linear (in log v) between knots every ``knot_step_mm_s`` that have data (a hand
+    gives few chunks at any one speed: a free level per 1 mm/s would follow the noise).
+    ``wrap`` wraps the iterations (a progress bar).
     """
     lo, hi = speed_range_mm_s
     p_all, v_all = chunk_periodograms(runs, speeds, fs_hz, chunk)
@@ -188,8 +227,15 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     w = np.vstack([_hats(v_all[i], vgrid).mean(axis=0) for i in keep])
     rho = w.sum(axis=0)  # data at each speed node
     knots = np.arange(vgrid[0], vgrid[-1] + knot_step_mm_s, knot_step_mm_s)
-    phi = _hats(vgrid, knots)  # speed node <- knots (log-linear levels)
-    kw = _mm(phi.T, rho)
+    near = np.array([rho[np.abs(vgrid - kn) <= knot_step_mm_s / 2].sum() for kn in knots])
+    if np.count_nonzero(near >= KNOT_MIN_CHUNKS) >= 2:
+        knots = knots[near >= KNOT_MIN_CHUNKS]
+    phi = _log_hats(vgrid, knots)  # speed node <- knots
+    # The nodes' update ratios pool onto the knots with clamped (nonnegative) weights: a
+    # node beyond the end knots counts for the nearest one.
+    pool = np.clip(phi, 0.0, 1.0)
+    pool /= np.maximum(pool.sum(axis=1, keepdims=True), 1e-300)
+    kw = _mm(pool.T, rho)
     kw_ok = kw > 1e-2 * kw.max()
     dk = (f[1] - f[0]) / vgrid[-1]  # the finest k spacing the data resolve
     k = np.arange(0.0, f[-1] / vgrid[0] + 2 * dk, dk)
@@ -204,17 +250,20 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     floor = np.full(nf, 0.05 * mean_p.min() + 1e-30)
     lg = np.full(knots.size, np.log(float(np.median(mean_p))))
     ln = np.zeros(knots.size)
+    # N0 starts at half the quietest tenth of the chunks: a floor present at every speed
+    # (started as low as N, U's start value took the floor's place and kept it).
+    fixed = 0.5 * np.percentile(p, 10, axis=0) + 1e-30
     eps = 1e-300
 
     def knot_step(ratio: Array) -> Array:
         # The speed nodes' MU ratios pooled onto the knots (weighted geometric mean).
-        wgt = phi * rho[:, None]
+        wgt = pool * rho[:, None]
         return _mm(wgt.T, np.log(np.maximum(ratio, eps))) / np.maximum(wgt.sum(0), eps)
 
     for _ in wrap(range(iterations)):
         g, n = np.exp(_mm(phi, lg)), np.exp(_mm(phi, ln))
         x = (bbig @ surface).reshape(nv, nf)
-        m = tool * x * g[:, None] + floor * n[:, None]
+        m = tool * x * g[:, None] + floor * n[:, None] + fixed
         s = np.maximum(_mm(w, m), eps)
         gn, gp = _mm(wt, p / s**2), _mm(wt, 1.0 / s)  # IS-divergence gradient parts per node
         # Multiplicative updates (exponent 1/2: the IS divergence's majorisation).
@@ -225,6 +274,7 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
         xg = x * g[:, None]
         tool *= ((gn * xg).sum(0) / np.maximum((gp * xg).sum(0), eps)) ** STEP
         floor *= ((gn * n[:, None]).sum(0) / np.maximum((gp * n[:, None]).sum(0), eps)) ** STEP
+        fixed *= (gn.sum(0) / np.maximum(gp.sum(0), eps)) ** STEP
         lg += STEP * knot_step((gn * x * tool).sum(1) / np.maximum((gp * x * tool).sum(1), eps))
         ln += STEP * knot_step((gn * floor).sum(1) / np.maximum((gp * floor).sum(1), eps))
         # Scale ambiguities (T*U*g, N*n): T and N at unit peak, U at unit mean.
@@ -237,8 +287,14 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
         c = floor.max()
         floor /= c
         ln += np.log(c)
+    # Spatial frequencies the chunks barely see (beyond f_max / the slowest speed with
+    # data) would keep their start value and stand 30 dB over the floor at the speeds
+    # that read them (cork at 6 mm/s): they hold the nearest well-seen value instead.
+    seen = bbig_t @ np.repeat(rho, nf) >= U_MIN_CHUNKS
+    if seen.any():
+        surface = np.interp(k, k[seen], surface[seen])
     # Knots without data take their neighbours' log-linear level.
     lg = np.interp(knots, knots[kw_ok], lg[kw_ok])
     ln = np.interp(knots, knots[kw_ok], ln[kw_ok])
     return TwoPartSpectrum(f, k, tool, surface, floor, vgrid, np.exp(_mm(phi, lg)),
-                           np.exp(_mm(phi, ln)))
+                           np.exp(_mm(phi, ln)), fixed)
