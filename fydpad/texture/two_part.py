@@ -171,33 +171,21 @@ def _resampled(u: Array, k: Array, f_hz: Array, v: float, sub: int = 8) -> Array
     return np.interp((f_hz[:, None] + df * off) / v, k, u).mean(axis=1)
 
 
-def _log_hats(v_mm_s: Array, knots: Array) -> Array:
-    """Weights of a level linear in log v between ``knots`` and continued along the end
-    segments' slopes beyond them (a power law; held flat, the level at 10 mm/s put the
-    ramps of a stroke 3-5 dB high). log v is kept finite at a standstill."""
-    x, nodes = np.log(np.maximum(v_mm_s, 0.25)), np.log(np.maximum(knots, 0.25))
-    if nodes.size < 2:
-        return np.ones((x.size, 1))
-    out = np.zeros((x.size, nodes.size))
-    j = np.clip(np.searchsorted(nodes, x) - 1, 0, nodes.size - 2)
-    t = (x - nodes[j]) / (nodes[j + 1] - nodes[j])  # outside [0, 1] beyond the ends
-    r = np.arange(x.size)
-    out[r, j] = 1 - t
-    out[r, j + 1] = t
-    return out
-
-
 def _mm(a: Array, b: Array) -> Array:
     """a @ b without BLAS: these products are tiny, and a threaded BLAS on a loaded machine
     spends 10x their cost in thread hand-offs (measured: 14 ms against 2 ms per iteration)."""
     return np.einsum("ij,j...->i...", a, b)
 
 
-def _hats(x: Array, nodes: Array) -> Array:
-    """Linear-interpolation weights of the points ``x`` on ``nodes``: (len(x), len(nodes))."""
+def _hats(x: Array, nodes: Array, clamp: bool = True) -> Array:
+    """Linear-interpolation weights of the points ``x`` on ``nodes``: (len(x), len(nodes));
+    held at the end nodes beyond them, or with ``clamp=False`` continued along the end
+    segments (extrapolation)."""
     out = np.zeros((np.size(x), nodes.size))
     j = np.clip(np.searchsorted(nodes, x) - 1, 0, nodes.size - 2)
-    t = np.clip((x - nodes[j]) / (nodes[j + 1] - nodes[j]), 0.0, 1.0)
+    t = (x - nodes[j]) / (nodes[j + 1] - nodes[j])
+    if clamp:
+        t = np.clip(t, 0.0, 1.0)
     r = np.arange(np.size(x))
     np.add.at(out, (r, j), 1 - t)
     np.add.at(out, (r, j + 1), t)
@@ -230,11 +218,13 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     near = np.array([rho[np.abs(vgrid - kn) <= knot_step_mm_s / 2].sum() for kn in knots])
     if np.count_nonzero(near >= KNOT_MIN_CHUNKS) >= 2:
         knots = knots[near >= KNOT_MIN_CHUNKS]
-    phi = _log_hats(vgrid, knots)  # speed node <- knots
-    # The nodes' update ratios pool onto the knots with clamped (nonnegative) weights: a
-    # node beyond the end knots counts for the nearest one.
-    pool = np.clip(phi, 0.0, 1.0)
-    pool /= np.maximum(pool.sum(axis=1, keepdims=True), 1e-300)
+    # Levels linear in log v (a power law), continued along the end segments beyond the
+    # end knots (held flat, the level at 10 mm/s put a stroke's ramps 3-5 dB high); log v
+    # kept finite at a standstill. The nodes' update ratios pool onto the knots with the
+    # clamped weights: a node beyond the end knots counts for the nearest one.
+    log_v, log_knots = np.log(np.maximum(vgrid, 0.25)), np.log(np.maximum(knots, 0.25))
+    phi = _hats(log_v, log_knots, clamp=False)  # speed node <- knots
+    pool = _hats(log_v, log_knots)
     kw = _mm(pool.T, rho)
     kw_ok = kw > 1e-2 * kw.max()
     dk = (f[1] - f[0]) / vgrid[-1]  # the finest k spacing the data resolve

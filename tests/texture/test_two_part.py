@@ -33,11 +33,11 @@ def true_psd(f_hz, v_mm_s):
     return tool * surface * (v_mm_s / 20.0) ** 2 + 1e-3
 
 
-def shaped_noise(v_mm_s, seconds, rng):
+def shaped_noise(v_mm_s, seconds, rng, psd=true_psd):
     n = int(seconds * FS)
     f = np.fft.rfftfreq(n, 1 / FS)
     spec = (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size)) / np.sqrt(2)
-    return np.fft.irfft(spec * np.sqrt(true_psd(f, v_mm_s) * n), n)
+    return np.fft.irfft(spec * np.sqrt(psd(f, v_mm_s) * n), n)
 
 
 @pytest.fixture(scope="module")
@@ -191,13 +191,9 @@ def gap_fit():
     """Strokes that wander +-1 mm/s around 10, 20, 30 and 40 mm/s: nothing between."""
     rng = np.random.default_rng(11)
     speeds = [c + d for c in (10.0, 20.0, 30.0, 40.0) for d in (-1.0, 0.0, 1.0)]
-    n = int(3.0 * FS)
-    f = np.fft.rfftfreq(n, 1 / FS)
-    runs = []
-    for v in speeds:
-        spec = (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size)) / np.sqrt(2)
-        runs.append(np.fft.irfft(spec * np.sqrt(gap_psd(f, v) * n), n))
-    return fit_two_part(runs, [np.full(n, v) for v in speeds], FS, (5.0, 45.0))
+    runs = [shaped_noise(v, 3.0, rng, gap_psd) for v in speeds]
+    return fit_two_part(runs, [np.full(r.size, v) for r, v in zip(runs, speeds, strict=True)],
+                        FS, (5.0, 45.0))
 
 
 def test_spectrum_in_a_gap_between_strokes_matches_the_truth(gap_fit):
