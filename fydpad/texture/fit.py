@@ -284,9 +284,13 @@ def _fit_lines(prepared: list[tuple[Array, Array]], fs: float, speeds_mm_s: Sequ
     if lines is None or lines == "off":
         return LineFit.none(signals, "not fitted (lines off)")
     period = None if lines == "auto" else float(lines)
-    lo = max(min(speeds_mm_s) - tolerance_mm_s, 0.5)
-    hi = max(speeds_mm_s) + tolerance_mm_s
-    return fit_lines(signals, [v for _, v in prepared], fs, (lo, hi), period_mm=period)
+    return fit_lines(signals, [v for _, v in prepared], fs,
+                     _speed_range(speeds_mm_s, tolerance_mm_s), period_mm=period)
+
+
+def _speed_range(speeds_mm_s: Sequence[float], tolerance_mm_s: float) -> tuple[float, float]:
+    """The speeds a fit over ``speeds_mm_s`` reads: each within the tolerance, above 0.5."""
+    return max(min(speeds_mm_s) - tolerance_mm_s, 0.5), max(speeds_mm_s) + tolerance_mm_s
 
 
 class ScansTooShort(UserError):
@@ -317,8 +321,7 @@ def _fit_spectrum(
 ) -> _Spectrum:
     """The two-part and/or free-form spectrum of ``fit_texture`` and its all-pole fits;
     ScansTooShort where the scans hold too little for it, UserError on other failures."""
-    lo = max(min(got_speeds) - tolerance_mm_s, 0.5)
-    hi = max(got_speeds) + tolerance_mm_s
+    lo, hi = _speed_range(got_speeds, tolerance_mm_s)
     runs, traces = [w[0] for w in whole], [w[1] for w in whole]
     s_of = spectrum = free = its = None
     if two_part or free_form != "free":
