@@ -15,6 +15,9 @@ with (h, sigma^2) interpolated at the current finger speed. Two filter structure
   stationary RMS on the generator's strokes, LSD up to 26 dB), while here the output
   variance at every sample is exactly that of the current filter, whatever the
   switching. Cost: two dot products of the response's length (<= 2048 here) per sample.
+  When the speed changes fast (a stroke's start or stop), lag j takes the filter of
+  the mean speed over that lag instead of the current one (:mod:`fir_warp`): the
+  current filter on old noise rings a gliding line at the wrong frequency.
 
 Both structures have two paths that share one state and one noise stream, so they
 give the same samples:
@@ -43,7 +46,16 @@ import numpy as np
 import scipy.fft as sfft
 import scipy.signal as ss
 from numpy.typing import ArrayLike, NDArray
+from scipy.ndimage import maximum_filter1d, minimum_filter1d
 
+from fydpad.texture.fir_warp import (
+    WARP_LAGS,
+    WARP_SLACK_MM_S,
+    lag_fade,
+    lag_speeds,
+    table_position,
+    warped_responses,
+)
 from fydpad.texture.interpolation import SpeedTable, build_table
 from fydpad.texture.line_voice import LineVoice
 from fydpad.texture.lines import LineSpectrum
@@ -76,7 +88,7 @@ class TextureRenderer:
         gain: float | None = None, drive_filter: bool = False,
         drive_band_hz: tuple[float, float] | None = None, drive_order: int = 2,
         fade_below_mm_s: float | None = None, structure: str | None = None,
-        fir_max: int = 4096,
+        fir_max: int = 4096, warp_slack_mm_s: float = WARP_SLACK_MM_S,
     ):
         if model.fs_hz <= 0:
             raise ValueError("model sample rate must be positive")
@@ -134,6 +146,27 @@ class TextureRenderer:
             self._gspec_ok = np.zeros(g.shape[0], bool)
             self._ebuf = np.zeros(2 * n_fir)  # noise, newest first, written twice
             self._epos = 0
+            # The last speeds, newest first, written twice: each lag's speed (fir_warp).
+            lags = min(WARP_LAGS, n_fir)
+            self._lags = lags
+            self._vbuf = np.zeros(2 * lags)
+            self._vpos = 0
+            self._inv_count = 1.0 / np.arange(1.0, lags + 1.0)
+            self._vdev = np.empty(lags)
+            self._vclip = np.empty(lags)
+            self.warp_slack_mm_s = float(warp_slack_mm_s)  # inf: the plain FIR
+            self._fade = lag_fade(lags)
+            # Scratch for a warped tick: table positions of the lags, flat indices, taps.
+            self._wk = np.empty(lags, np.int64)
+            self._wflat = np.empty(lags, np.int64)
+            self._ww = np.empty(lags)
+            self._g0 = np.empty(lags)
+            self._g1 = np.empty(lags)
+            # Lag-major copy of the table's first `lags` taps: entry k's tap j at
+            # j * rows + k, entry k + 1's next to it.
+            self._fir_lag_major = np.ascontiguousarray(self.fir[:, :lags].T).ravel()
+            self._lag_base = np.arange(lags) * self._n_fir_rows
+            self._fade_per_step = self._fade / float(self.table.step_mm_s)
         self._tick_views()
         # A periodic surface's lines (model.lines), added to the process before the gain.
         self.lines: LineVoice | None = (
@@ -162,6 +195,11 @@ class TextureRenderer:
             self._n_fir = self.fir.shape[1]
             self._fir_rows = list(self.fir)
             self._ewin = [self._ebuf[k:k + self._n_fir] for k in range(self._n_fir)]
+            lags = self._lags
+            self._vwin = [self._vbuf[k:k + lags] for k in range(lags)]
+            self._ewin_head = [w[:lags] for w in self._ewin]
+            self._ewin_tail = [w[lags:] for w in self._ewin]
+            self._fir_tails = [row[lags:] for row in self.fir]
 
     def _replace_unstable(self) -> None:
         t = self.table
@@ -187,6 +225,7 @@ class TextureRenderer:
             self.lines.reset()
         if self.structure == "fir":
             self._ebuf[:] = 0.0
+            self._vbuf[:] = 0.0
         self._g = 0.0
         self._last_i = -1
         if self._sos is not None:
@@ -253,6 +292,19 @@ class TextureRenderer:
             self._ebuf[pos] = e
             self._ebuf[pos + n_fir] = e
             self._epos = pos
+            hist = self._ewin[pos]
+            # Each lag's speed (fir_warp.lag_speeds, the same operations): the mean of the
+            # newest speeds, its deviation from this one.
+            lags = self._lags
+            vpos = self._vpos
+            vpos = vpos - 1 if vpos > 0 else lags - 1
+            self._vbuf[vpos] = speed_mm_s
+            self._vbuf[vpos + lags] = speed_mm_s
+            self._vpos = vpos
+            d = self._vdev
+            np.add.accumulate(self._vwin[vpos], out=d)  # np.cumsum, without its wrapper
+            d *= self._inv_count
+            d -= speed_mm_s
             # g_v linear between the two entries around the speed: a stepwise g would
             # modulate the output at every step and leak the strong bands into weak ones
             # (measured: 10-20 dB too much power at 250-500 Hz on sandpaper_p80).
@@ -260,9 +312,16 @@ class TextureRenderer:
             x = min(max(x, 0.0), self._n_fir_rows - 1.0) if x == x else 0.0
             k = min(int(x), self._n_fir_rows - 2)
             w = x - k
-            hist = self._ewin[pos]
             rows = self._fir_rows
-            y = (1.0 - w) * float(rows[k].dot(hist)) + w * float(rows[k + 1].dot(hist))
+            slack = self.warp_slack_mm_s
+            if d.max() > slack or d.min() < -slack:
+                # The warped lags' taps, then the plain tail (the fade ends at v).
+                y = self._warped_head(d, speed_mm_s, pos)
+                if self._n_fir > lags:
+                    tails, ht = self._fir_tails, self._ewin_tail[pos]
+                    y += (1.0 - w) * float(tails[k].dot(ht)) + w * float(tails[k + 1].dot(ht))
+            else:
+                y = (1.0 - w) * float(rows[k].dot(hist)) + w * float(rows[k + 1].dot(hist))
         else:
             i = self.table.index(speed_mm_s)
             if i != self._last_i:
@@ -281,6 +340,33 @@ class TextureRenderer:
         if self._sos is not None:
             out = self._drive_tick(out)
         return out
+
+    def _warped_head(self, d: Array, speed_mm_s: float, pos: int) -> float:
+        """sum_{j < lags} g_{u_j}(j) e(k - j) for the lag deviations ``d`` (overwritten):
+        :func:`fir_warp.lag_speeds` and :func:`fir_warp.warped_responses` in place."""
+        slack = self.warp_slack_mm_s
+        # ufuncs, not np.clip: its Python wrapper costs ~2 us a call here
+        u = np.maximum(d, -slack, out=self._vclip)
+        np.minimum(u, slack, out=u)
+        np.subtract(d, u, out=u)
+        # The table position (u - v0) / step with the fade folded in (fir_warp's
+        # arithmetic up to rounding)
+        u *= self._fade_per_step
+        u += (speed_mm_s - self._v0) * self._inv_step
+        np.maximum(u, 0.0, out=u)
+        np.minimum(u, self._n_fir_rows - 1.0, out=u)
+        k = self._wk
+        np.copyto(k, u, casting="unsafe")  # truncation: u >= 0
+        np.minimum(k, self._n_fir_rows - 2, out=k)
+        w = np.subtract(u, k, out=self._ww)
+        flat = np.add(self._lag_base, k, out=self._wflat)
+        g0 = self._fir_lag_major.take(flat, out=self._g0)
+        flat += 1
+        g1 = self._fir_lag_major.take(flat, out=self._g1)
+        g1 -= g0
+        g1 *= w
+        g1 += g0
+        return float(g1.dot(self._ewin_head[pos]))
 
     def _drive_tick(self, x: float) -> float:
         for (b0, b1, b2, _, a1, a2), z in zip(self._sos_rows, self._zs, strict=True):
@@ -317,7 +403,7 @@ class TextureRenderer:
         starts = np.concatenate([[0], cuts]).astype(int)
         stops = np.concatenate([cuts, [n]]).astype(int)
         if self.structure == "fir":
-            y = self._fir_block(e, idx, lam, starts, stops)
+            y = self._fir_block(e, idx, lam, starts, stops, np.where(np.isfinite(v), v, 0.0))
         else:
             y = self._direct_block(e, idx, starts, stops)
         if self.lines is not None:
@@ -334,9 +420,10 @@ class TextureRenderer:
         return out
 
     def _fir_block(self, e: Array, idx: NDArray[np.int64], lam: Array,
-                   starts: NDArray[np.int64], stops: NDArray[np.int64]) -> Array:
+                   starts: NDArray[np.int64], stops: NDArray[np.int64], v: Array) -> Array:
         """a(k) = sum_j g_v(j) e(k-j), the noise history in front; g_v linear between the
-        two table entries around the speed, as in ``tick``.
+        two table entries around the speed, as in ``tick``; then the samples whose lags
+        are warped (:mod:`fir_warp`) again, by their own responses.
 
         Over chunks of up to nfft - n_fir + 1 samples, entry by entry: an entry used on
         few samples (a fast sweep) by dot products on those samples; one used on more by
@@ -378,11 +465,49 @@ class TextureRenderer:
                     spec = sfft.rfft(x, nfft)
                 z = sfft.irfft(spec * self._entry_spectrum(j), nfft)
                 y[a + k] += wj * z[n_fir - 1 + k]
+        self._warp_block(y, full, v)
         newest = full[::-1][:n_fir]
         self._ebuf[:n_fir] = newest
         self._ebuf[n_fir:] = newest
         self._epos = 0
         return y
+
+    def _warp_block(self, y: Array, full: Array, v: Array) -> None:
+        """Redo the samples whose lags are warped, in place: those whose window of the
+        last ``_lags`` speeds reaches further than the slack from the current speed (else
+        no lag's mean speed can) and, of these, those :func:`fir_warp.lag_speeds` says
+        so."""
+        lags, n_fir = self._lags, self.fir.shape[1]
+        vpos = self._vpos
+        hv = np.concatenate([self._vbuf[vpos:vpos + lags - 1][::-1], v])
+        newest = hv[::-1][:lags]
+        self._vbuf[:lags] = newest
+        self._vbuf[lags:] = newest
+        self._vpos = 0
+        if v.size == 0:
+            return
+        o = (lags - 1) // 2  # a trailing window: sample i's last `lags` speeds
+        slack = self.warp_slack_mm_s
+        cand = np.flatnonzero((maximum_filter1d(hv, lags, origin=o)[lags - 1:] - v > slack)
+                              | (v - minimum_filter1d(hv, lags, origin=o)[lags - 1:] > slack))
+        if cand.size == 0:
+            return
+        windows = np.lib.stride_tricks.sliding_window_view(hv, lags)
+        # Each sample's last `lags` noise values, newest first: its taps' partners.
+        noise = np.lib.stride_tricks.sliding_window_view(full[n_fir - lags:], lags)
+        step = self.table.step_mm_s
+        rows = self.fir.shape[0]
+        for a in range(0, cand.size, 512):  # (512, lags) taps at a time
+            i = cand[a:a + 512]
+            u, warped = lag_speeds(windows[i, ::-1], slack, self._fade)
+            i, u = i[warped], u[warped]
+            if i.size:
+                # The warped taps less the plain ones (the tails are the same: u ends at v).
+                k, w = table_position(v[i], self._v0, step, rows)
+                w = w[:, None]
+                plain = (1.0 - w) * self.fir[k, :lags] + w * self.fir[k + 1, :lags]
+                dg = warped_responses(self.fir[:, :lags], self._v0, step, u) - plain
+                y[i] += np.einsum("ij,ij->i", dg, noise[i, ::-1])
 
     def _entry_spectrum(self, j: int) -> NDArray[np.complex128]:
         """rfft of table entry j's response at the block FFT size (computed once)."""
