@@ -57,6 +57,11 @@ STEP = 0.5  # MU exponent: 1/2 is the IS divergence's majorisation (monotone)
 KNOT_MIN_CHUNKS = 8.0
 #: A spatial frequency node needs this much chunk-bin weight to be fitted (module doc).
 U_MIN_CHUNKS = 1.0
+#: Beyond the end knots a level goes on along its end segment, its slope in log level per
+#: log speed bounded by this (power ~ v^+-4): a level that is not used (the floor n(v)
+#: where N0 holds the floor) drifts to 1e-13 with any slope, and continued unbounded to
+#: 5 mm/s it stood 1e13 (canvas with lines and --two-part: +98 dB at a stroke's ramps).
+MAX_EXTRAPOLATION_POWER = 4.0
 
 
 @dataclass
@@ -192,6 +197,22 @@ def _hats(x: Array, nodes: Array, clamp: bool = True) -> Array:
     return out
 
 
+def _node_levels(log_levels: Array, log_v: Array, log_knots: Array, phi: Array) -> Array:
+    """Log levels at the speed nodes from the knots': linear in log v between knots
+    (``phi``), beyond the end knots along the end segments with their slopes bounded by
+    ``MAX_EXTRAPOLATION_POWER``."""
+    out = _mm(phi, log_levels)
+    if log_knots.size < 2:
+        return out
+    lim = MAX_EXTRAPOLATION_POWER
+    for end, nxt, side in ((0, 1, log_v < log_knots[0]), (-1, -2, log_v > log_knots[-1])):
+        if side.any():
+            slope = (log_levels[nxt] - log_levels[end]) / (log_knots[nxt] - log_knots[end])
+            out[side] = log_levels[end] + np.clip(slope, -lim, lim) * (log_v[side]
+                                                                       - log_knots[end])
+    return out
+
+
 def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
                  speed_range_mm_s: tuple[float, float], iterations: int = ITERATIONS,
                  chunk: int = CHUNK, knot_step_mm_s: float = 5.0,
@@ -251,7 +272,8 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
         return _mm(wgt.T, np.log(np.maximum(ratio, eps))) / np.maximum(wgt.sum(0), eps)
 
     for _ in wrap(range(iterations)):
-        g, n = np.exp(_mm(phi, lg)), np.exp(_mm(phi, ln))
+        g = np.exp(_node_levels(lg, log_v, log_knots, phi))
+        n = np.exp(_node_levels(ln, log_v, log_knots, phi))
         x = (bbig @ surface).reshape(nv, nf)
         m = tool * x * g[:, None] + floor * n[:, None] + fixed
         s = np.maximum(_mm(w, m), eps)
@@ -286,5 +308,6 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     # Knots without data take their neighbours' log-linear level.
     lg = np.interp(knots, knots[kw_ok], lg[kw_ok])
     ln = np.interp(knots, knots[kw_ok], ln[kw_ok])
-    return TwoPartSpectrum(f, k, tool, surface, floor, vgrid, np.exp(_mm(phi, lg)),
-                           np.exp(_mm(phi, ln)), fixed)
+    return TwoPartSpectrum(f, k, tool, surface, floor, vgrid,
+                           np.exp(_node_levels(lg, log_v, log_knots, phi)),
+                           np.exp(_node_levels(ln, log_v, log_knots, phi)), fixed)
