@@ -351,3 +351,35 @@ def test_a_speed_that_is_not_finite_is_silence_in_both_paths(r2_model):
     v[100:200] = np.inf
     a, b = TextureRenderer(model, seed=1), TextureRenderer(model, seed=1)
     np.testing.assert_allclose([a.tick(float(x)) for x in v], b.block(v), atol=1e-12)
+
+
+def test_a_line_seen_at_one_edge_row_is_not_carried_across_a_gap():
+    """_fill with a factor model that climbs 5 dB per row across rows without data: a
+    harmonic seen only at the last row of a run of data (a stroke's fastest instants)
+    keeps its measured row and nothing in the gap (carried, it grew 15 dB over its one
+    measurement on canvas); seen at two rows, or at an isolated row (a constant-speed
+    rig), it is carried by the model."""
+    from fydpad.texture.lines import _fill
+
+    rows = 30
+    data = np.zeros(rows, bool)
+    data[5:14] = True  # a 10 mm/s stroke's rows
+    data[24:30] = True  # a 20 mm/s stroke's rows
+    model = 10.0 ** (np.arange(rows) * 0.5)  # +5 dB per row
+    power = np.zeros(rows)
+    present = np.zeros(rows, bool)
+    present[13], power[13] = True, model[13]  # seen at the run's top row only
+    out = _fill(power, present, data, model)
+    assert out[13] == power[13] and not out[14:24].any()
+
+    present[12], power[12] = True, model[12]  # seen at two rows: carried across the gap
+    out = _fill(power, present, data, model)
+    assert out[18] > power[13]
+
+    rig = np.zeros(rows, bool)
+    rig[[5, 15, 25]] = True  # a constant-speed rig: isolated rows of data
+    present = np.zeros(rows, bool)
+    present[5] = True
+    power = np.where(present, model, 0.0)
+    out = _fill(power, present, rig, model)
+    assert out[10] > 0.0  # carried from its one row towards the next rig speed
