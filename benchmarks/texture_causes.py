@@ -135,9 +135,7 @@ def _render_exact_s(model, speed_mm_s, seed: int = 0):
         rows.append(np.fft.irfft(np.exp(np.fft.rfft(c)), NFFT)[:4096])
     fir = np.array(rows)
     n = min(max(energy_length(fir, 1e-4), 16), 4096)
-    r.fir = np.ascontiguousarray(fir[:, :n])
-    r._fir_rev = np.ascontiguousarray(r.fir[:, ::-1])
-    r._ebuf = np.zeros(2 * n)
+    r._use_fir(fir[:, :n])  # the responses and every state built on them
     r.warmup(float(speed_mm_s[0]), 0.5)
     return r.block(speed_mm_s, True, speed_mm_s.size)
 

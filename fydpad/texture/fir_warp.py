@@ -23,9 +23,10 @@ at a constant speed. Only the excess of vbar_j - v(k) beyond ``slack_mm_s`` is u
 
 so a hand's wander (a few mm/s over the horizon) keeps the plain FIR and its fast
 paths, and a start or stop gets the warp; u is continuous in the speeds, so there is no
-switch to click at. phi_j is 1 over the first 256 lags and falls linearly to 0 at lag
-``WARP_LAGS`` = 512, where the plain response's tail (at the current speed) takes over
-without a step; the responses' energy is mostly in the first 256 lags (90-99 % on the
+switch to click at. phi_j is 1 over the first half of the warped lags and falls
+linearly to 0 at the last (lags 256 and 511 of ``WARP_LAGS`` = 512, or of the response's
+length when that is shorter), where the plain response's tail (at the current speed)
+takes over without a step; the responses' energy is mostly in the first 256 lags (90-99 % on the
 generator's textures). Lines that ring longer belong to the lines model, which follows
 the position exactly.
 """
@@ -103,8 +104,13 @@ def responses_along(fir: Array, v0_mm_s: float, step_mm_s: float, speeds_mm_s: A
     renderer applies, written plainly (for tests and plots; the renderer computes only
     the warped samples this way)."""
     v = np.asarray(speeds_mm_s, float)
+    if v.size == 0:
+        return np.zeros((0, fir.shape[1]))
     lags = min(lags, fir.shape[1])
     pre = np.full(lags - 1, v[0]) if before_mm_s is None else np.asarray(before_mm_s, float)
+    if pre.size < lags - 1:
+        raise ValueError(f"before_mm_s holds {pre.size} speeds; the first sample's lags need "
+                         f"{lags - 1}")
     hv = np.concatenate([pre[pre.size - (lags - 1):] if lags > 1 else pre[:0], v])
     recent = np.lib.stride_tricks.sliding_window_view(hv, lags)[:, ::-1]
     u, _ = lag_speeds(recent, slack_mm_s)

@@ -629,8 +629,8 @@ def _fill(power: Array, present: Mask, data: Mask, model: Array) -> Array:
     """One harmonic's power at every grid row. Rows with data: the measured line (0 where
     it was below the noise). Rows without: the factor model times its error at the
     nearest rows with the line (interpolated between two), going linearly to 0 towards a
-    row with data and no line; 0 if the harmonic has no line anywhere, or only at one
-    row at the edge of a run of data (a stroke's fastest or slowest instants: see
+    row with data and no line; 0 if the harmonic has no line anywhere, or at only one
+    row that has a neighbour with data (a stroke's fastest or slowest instants: see
     :func:`_carries_over`)."""
     out = np.where(data, power, 0.0)
     if not _carries_over(present, data):

@@ -17,7 +17,9 @@ with (h, sigma^2) interpolated at the current finger speed. Two filter structure
   switching. Cost: two dot products of the response's length (<= 2048 here) per sample.
   When the speed changes fast (a stroke's start or stop), lag j takes the filter of
   the mean speed over that lag instead of the current one (:mod:`fir_warp`): the
-  current filter on old noise rings a gliding line at the wrong frequency.
+  current filter on old noise rings a gliding line at the wrong frequency. Cost: the
+  mean of the last 512 speeds every sample (one cumulative sum), and where warped 512
+  taps gathered from the table.
 
 Both structures have two paths that share one state and one noise stream, so they
 give the same samples:
@@ -53,7 +55,6 @@ from fydpad.texture.fir_warp import (
     WARP_SLACK_MM_S,
     lag_fade,
     lag_speeds,
-    table_position,
     warped_responses,
 )
 from fydpad.texture.interpolation import SpeedTable, build_table
@@ -66,6 +67,7 @@ from vision.speed import SpeedState, speed_update
 Array = NDArray[np.float64]
 _NOISE_CHUNK = 4096
 _DIRECT_MAX = 48  # an entry used on fewer samples of a block chunk: dot products, not FFT
+_HISTORY_MAX_MM_S = 1e4  # the warp's speed history is clamped to [0, this]
 
 
 class TextureRenderer:
@@ -132,41 +134,16 @@ class TextureRenderer:
             for s, a in zip(self.table.sigma, self.table.polys, strict=True)])
         self._cap2 = (self.history_cap * self._rms) ** 2 * self.p
         self._cap2_jump = (self.jump_cap * self._rms) ** 2 * self.p
+        slack = float(warp_slack_mm_s)
+        if not slack >= 0.0:  # NaN too
+            raise ValueError(f"warp_slack_mm_s must be >= 0 (inf: no warp), not {slack!r}")
+        self.warp_slack_mm_s = slack  # inf: the plain FIR
         if self.structure == "fir":
             g = impulse_responses(self.table.polys, self.table.sigma, fir_max)
             n_fir = min(max(energy_length(g, 1e-4), 16), fir_max)
             if g.shape[0] == 1:  # one model: two equal rows keep the interpolation uniform
                 g = np.vstack([g, g])
-            self._n_fir_rows = g.shape[0]
-            self.fir = np.ascontiguousarray(g[:, :n_fir])
-            self._fir_rev = np.ascontiguousarray(self.fir[:, ::-1])
-            # Block path: FFT size, and each table entry's spectrum once it is first used.
-            self._nfft = sfft.next_fast_len(n_fir + 1023)  # chunks of >= 1024 samples
-            self._gspec = np.empty((g.shape[0], self._nfft // 2 + 1), complex)
-            self._gspec_ok = np.zeros(g.shape[0], bool)
-            self._ebuf = np.zeros(2 * n_fir)  # noise, newest first, written twice
-            self._epos = 0
-            # The last speeds, newest first, written twice: each lag's speed (fir_warp).
-            lags = min(WARP_LAGS, n_fir)
-            self._lags = lags
-            self._vbuf = np.zeros(2 * lags)
-            self._vpos = 0
-            self._inv_count = 1.0 / np.arange(1.0, lags + 1.0)
-            self._vdev = np.empty(lags)
-            self._vclip = np.empty(lags)
-            self.warp_slack_mm_s = float(warp_slack_mm_s)  # inf: the plain FIR
-            self._fade = lag_fade(lags)
-            # Scratch for a warped tick: table positions of the lags, flat indices, taps.
-            self._wk = np.empty(lags, np.int64)
-            self._wflat = np.empty(lags, np.int64)
-            self._ww = np.empty(lags)
-            self._g0 = np.empty(lags)
-            self._g1 = np.empty(lags)
-            # Lag-major copy of the table's first `lags` taps: entry k's tap j at
-            # j * rows + k, entry k + 1's next to it.
-            self._fir_lag_major = np.ascontiguousarray(self.fir[:, :lags].T).ravel()
-            self._lag_base = np.arange(lags) * self._n_fir_rows
-            self._fade_per_step = self._fade / float(self.table.step_mm_s)
+            self._use_fir(g[:, :n_fir])
         self._tick_views()
         # A periodic surface's lines (model.lines), added to the process before the gain.
         self.lines: LineVoice | None = (
@@ -182,6 +159,42 @@ class TextureRenderer:
             # the block path hands the same state to sosfilt.
             self._sos_rows = [tuple(float(c) for c in row) for row in self._sos]
             self._zs = [[0.0, 0.0] for _ in self._sos_rows]
+
+    def _use_fir(self, fir: Array) -> None:
+        """Make ``fir`` (table entries x taps) the FIR structure's responses, with every
+        state and scratch buffer that depends on them (histories zeroed)."""
+        self._n_fir_rows, n_fir = fir.shape
+        self.fir = np.ascontiguousarray(fir)
+        self._fir_rev = np.ascontiguousarray(self.fir[:, ::-1])
+        # Block path: FFT size, and each table entry's spectrum once it is first used.
+        self._nfft = sfft.next_fast_len(n_fir + 1023)  # chunks of >= 1024 samples
+        self._gspec = np.empty((self._n_fir_rows, self._nfft // 2 + 1), complex)
+        self._gspec_ok = np.zeros(self._n_fir_rows, bool)
+        self._ebuf = np.zeros(2 * n_fir)  # noise, newest first, written twice
+        self._epos = 0
+        # The last speeds, newest first, written twice: each lag's speed (fir_warp).
+        lags = min(WARP_LAGS, n_fir)
+        self._lags = lags
+        self._vbuf = np.zeros(2 * lags)
+        self._vpos = 0
+        self._v_last = 0.0  # the last finite speed (what a lost track holds)
+        self._inv_count = 1.0 / np.arange(1.0, lags + 1.0)
+        self._vdev = np.empty(lags)
+        self._vclip = np.empty(lags)
+        self._fade = lag_fade(lags)
+        # Scratch for a warped tick: table positions of the lags, flat indices, taps.
+        self._wk = np.empty(lags, np.int64)
+        self._wflat = np.empty(lags, np.int64)
+        self._ww = np.empty(lags)
+        self._g0 = np.empty(lags)
+        self._g1 = np.empty(lags)
+        # Lag-major copy of the table's first `lags` taps: entry k's tap j at j * rows + k,
+        # entry k + 1's next to it.
+        self._fir_lag_major = np.ascontiguousarray(self.fir[:, :lags].T).ravel()
+        self._lag_base = np.arange(lags) * self._n_fir_rows
+        self._fade_per_step = self._fade / float(self.table.step_mm_s)
+        if hasattr(self, "_bwin"):  # after __init__: the views too
+            self._tick_views()
 
     def _tick_views(self) -> None:
         """The per-sample path's table rows and history windows as views made once."""
@@ -226,6 +239,7 @@ class TextureRenderer:
         if self.structure == "fir":
             self._ebuf[:] = 0.0
             self._vbuf[:] = 0.0
+            self._v_last = 0.0
         self._g = 0.0
         self._last_i = -1
         if self._sos is not None:
@@ -277,7 +291,8 @@ class TextureRenderer:
     def tick(self, speed_mm_s: float, contact: bool = True) -> float:
         """One output sample (m/s^2) for the current speed and contact: eq. 5. A speed that
         is not finite (NaN, inf) is no speed: silence, as a lost track."""
-        if not math.isfinite(speed_mm_s):  # else the table index raises (NaN, inf)
+        finite = math.isfinite(speed_mm_s)
+        if not finite:  # else the table index raises (NaN, inf)
             speed_mm_s, contact = 0.0, False
         if self._noise_pos >= _NOISE_CHUNK:
             self._rng.standard_normal(out=self._noise)
@@ -298,13 +313,14 @@ class TextureRenderer:
             lags = self._lags
             vpos = self._vpos
             vpos = vpos - 1 if vpos > 0 else lags - 1
-            self._vbuf[vpos] = speed_mm_s
-            self._vbuf[vpos + lags] = speed_mm_s
+            vh = self._history_speed(speed_mm_s, finite)
+            self._vbuf[vpos] = vh
+            self._vbuf[vpos + lags] = vh
             self._vpos = vpos
             d = self._vdev
             np.add.accumulate(self._vwin[vpos], out=d)  # np.cumsum, without its wrapper
             d *= self._inv_count
-            d -= speed_mm_s
+            d -= vh
             # g_v linear between the two entries around the speed: a stepwise g would
             # modulate the output at every step and leak the strong bands into weak ones
             # (measured: 10-20 dB too much power at 250-500 Hz on sandpaper_p80).
@@ -314,9 +330,10 @@ class TextureRenderer:
             w = x - k
             rows = self._fir_rows
             slack = self.warp_slack_mm_s
-            if d.max() > slack or d.min() < -slack:
+            # argmax/argmin, not max/min: their reductions allocate 1 kB a call here
+            if d[d.argmax()] > slack or d[d.argmin()] < -slack:
                 # The warped lags' taps, then the plain tail (the fade ends at v).
-                y = self._warped_head(d, speed_mm_s, pos)
+                y = self._warped_head(d, vh, pos)
                 if self._n_fir > lags:
                     tails, ht = self._fir_tails, self._ewin_tail[pos]
                     y += (1.0 - w) * float(tails[k].dot(ht)) + w * float(tails[k + 1].dot(ht))
@@ -342,8 +359,9 @@ class TextureRenderer:
         return out
 
     def _warped_head(self, d: Array, speed_mm_s: float, pos: int) -> float:
-        """sum_{j < lags} g_{u_j}(j) e(k - j) for the lag deviations ``d`` (overwritten):
-        :func:`fir_warp.lag_speeds` and :func:`fir_warp.warped_responses` in place."""
+        """sum_{j < lags} g_{u_j}(j) e(k - j) for the lag deviations ``d`` from the
+        history's current speed ``speed_mm_s``: :func:`fir_warp.lag_speeds` and
+        :func:`fir_warp.warped_responses` in preallocated buffers."""
         slack = self.warp_slack_mm_s
         # ufuncs, not np.clip: its Python wrapper costs ~2 us a call here
         u = np.maximum(d, -slack, out=self._vclip)
@@ -360,13 +378,23 @@ class TextureRenderer:
         np.minimum(k, self._n_fir_rows - 2, out=k)
         w = np.subtract(u, k, out=self._ww)
         flat = np.add(self._lag_base, k, out=self._wflat)
-        g0 = self._fir_lag_major.take(flat, out=self._g0)
+        # mode="clip": with the default "raise" NumPy copies the output (4 kB a tick);
+        # the indices are in range (u clamped to the table above).
+        g0 = self._fir_lag_major.take(flat, out=self._g0, mode="clip")
         flat += 1
-        g1 = self._fir_lag_major.take(flat, out=self._g1)
+        g1 = self._fir_lag_major.take(flat, out=self._g1, mode="clip")
         g1 -= g0
         g1 *= w
         g1 += g0
         return float(g1.dot(self._ewin_head[pos]))
+
+    def _history_speed(self, speed_mm_s: float, finite: bool) -> float:
+        """The speed the warp's history keeps for this sample: a lost track (not finite)
+        holds the last speed; clamped to [0, 1e4] mm/s (a mean of 512 speeds near 1e306
+        overflows)."""
+        if finite:
+            self._v_last = min(max(speed_mm_s, 0.0), _HISTORY_MAX_MM_S)
+        return self._v_last
 
     def _drive_tick(self, x: float) -> float:
         for (b0, b1, b2, _, a1, a2), z in zip(self._sos_rows, self._zs, strict=True):
@@ -385,6 +413,8 @@ class TextureRenderer:
         c = np.asarray(contact, bool)
         if n is None:
             n = max(v.size, c.size)
+        if n == 0:
+            return np.zeros(0)
         v = np.broadcast_to(v, (n,))
         c = np.broadcast_to(c, (n,))
         t = self.table
@@ -403,7 +433,7 @@ class TextureRenderer:
         starts = np.concatenate([[0], cuts]).astype(int)
         stops = np.concatenate([cuts, [n]]).astype(int)
         if self.structure == "fir":
-            y = self._fir_block(e, idx, lam, starts, stops, np.where(np.isfinite(v), v, 0.0))
+            y = self._fir_block(e, idx, lam, starts, stops, self._history_speeds(v))
         else:
             y = self._direct_block(e, idx, starts, stops)
         if self.lines is not None:
@@ -465,18 +495,32 @@ class TextureRenderer:
                     spec = sfft.rfft(x, nfft)
                 z = sfft.irfft(spec * self._entry_spectrum(j), nfft)
                 y[a + k] += wj * z[n_fir - 1 + k]
-        self._warp_block(y, full, v)
+        self._warp_block(y, full, v, idx, lam)
         newest = full[::-1][:n_fir]
         self._ebuf[:n_fir] = newest
         self._ebuf[n_fir:] = newest
         self._epos = 0
         return y
 
-    def _warp_block(self, y: Array, full: Array, v: Array) -> None:
-        """Redo the samples whose lags are warped, in place: those whose window of the
-        last ``_lags`` speeds reaches further than the slack from the current speed (else
-        no lag's mean speed can) and, of these, those :func:`fir_warp.lag_speeds` says
-        so."""
+    def _history_speeds(self, v: Array) -> Array:
+        """:meth:`_history_speed` over a block: not finite holds the last finite speed."""
+        ok = np.isfinite(v)
+        h = np.clip(np.where(ok, v, 0.0), 0.0, _HISTORY_MAX_MM_S)
+        if not ok.all():
+            last = np.maximum.accumulate(np.where(ok, np.arange(v.size), -1))
+            h = np.where(last >= 0, h[np.maximum(last, 0)], self._v_last)
+        if v.size:
+            self._v_last = float(h[-1])
+        return h
+
+    def _warp_block(self, y: Array, full: Array, v: Array, idx: NDArray[np.int64],
+                    lam: Array) -> None:
+        """Correct the samples whose lags are warped, in place: those whose window of the
+        last ``_lags`` history speeds ``v`` reaches further than the slack from the
+        current one (else no lag's mean speed can) and, of these, those
+        :func:`fir_warp.lag_speeds` says so; their first ``_lags`` plain taps (table
+        entries ``idx``, ``idx + 1`` mixed by ``lam``, as the plain pass used) are
+        replaced by the warped ones."""
         lags, n_fir = self._lags, self.fir.shape[1]
         vpos = self._vpos
         hv = np.concatenate([self._vbuf[vpos:vpos + lags - 1][::-1], v])
@@ -484,8 +528,6 @@ class TextureRenderer:
         self._vbuf[:lags] = newest
         self._vbuf[lags:] = newest
         self._vpos = 0
-        if v.size == 0:
-            return
         o = (lags - 1) // 2  # a trailing window: sample i's last `lags` speeds
         slack = self.warp_slack_mm_s
         cand = np.flatnonzero((maximum_filter1d(hv, lags, origin=o)[lags - 1:] - v > slack)
@@ -496,15 +538,13 @@ class TextureRenderer:
         # Each sample's last `lags` noise values, newest first: its taps' partners.
         noise = np.lib.stride_tricks.sliding_window_view(full[n_fir - lags:], lags)
         step = self.table.step_mm_s
-        rows = self.fir.shape[0]
         for a in range(0, cand.size, 512):  # (512, lags) taps at a time
             i = cand[a:a + 512]
             u, warped = lag_speeds(windows[i, ::-1], slack, self._fade)
             i, u = i[warped], u[warped]
             if i.size:
                 # The warped taps less the plain ones (the tails are the same: u ends at v).
-                k, w = table_position(v[i], self._v0, step, rows)
-                w = w[:, None]
+                k, w = idx[i], lam[i, None]
                 plain = (1.0 - w) * self.fir[k, :lags] + w * self.fir[k + 1, :lags]
                 dg = warped_responses(self.fir[:, :lags], self._v0, step, u) - plain
                 y[i] += np.einsum("ij,ij->i", dg, noise[i, ::-1])
@@ -553,9 +593,13 @@ class TextureRenderer:
         self._pos = 0
 
     def warmup(self, speed_mm_s: float, seconds: float = 0.5) -> None:
-        """Run the filter (unheard) so its state is the stationary process at this speed."""
+        """Run the filter (unheard) so its state is the stationary process at this speed
+        (the FIR's speed history held at it too: 0.5 s is shorter than its 512 lags)."""
         if seconds > 0:
             self.block(speed_mm_s, True, round(seconds * self.fs_hz))
+        if self.structure == "fir" and math.isfinite(speed_mm_s):
+            self._vbuf[:] = self._history_speed(float(speed_mm_s), True)
+            self._vpos = 0
 
 
 def synthesize(

@@ -284,3 +284,25 @@ def test_fir_lags_follow_the_speed_they_were_made_at():
         excess[slack] = float(np.mean(10 * np.log10(p[sel] / expected[sel])))
     assert excess[float("inf")] > 3.0, excess  # the scenario shows the leak
     assert excess[WARP_SLACK_MM_S] < 1.5, excess
+
+
+def test_tick_and_block_agree_with_a_response_longer_than_the_warped_lags(sandpaper):
+    """The same as the test above on sandpaper_p80's pooled table (responses of ~4000 taps:
+    512 warped lags and a plain tail), with starts and stops, a lost track (NaN) mid-
+    stroke, 0.6 s at 1e306 mm/s (a mean of 512 such speeds overflowed: IndexError), and
+    block calls of 1 and 0 samples between."""
+    hand = generate_scan("sandpaper_p80", 25.0, 3.0, seed=5).speed_mm_s
+    v = np.concatenate([hand, np.linspace(25, 0, 200), np.zeros(100), np.linspace(0, 40, 150),
+                        [np.nan, np.nan], np.full(300, 40.0), np.full(600, 1e306),
+                        np.full(200, 30.0)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r1 = TextureRenderer(sandpaper, seed=3)
+        r2 = TextureRenderer(sandpaper, seed=3)
+        assert r1.fir.shape[1] > 512
+        cut = 1700
+        yb = np.concatenate([r1.block(v[:cut]), r1.block(v[cut:cut + 1]),
+                             r1.block(v[cut + 1:cut + 1], n=0), r1.block(v[cut + 1:])])
+        yt = np.array([r2.tick(float(s)) for s in v])
+    assert np.isfinite(yt).all()
+    np.testing.assert_allclose(yb, yt, atol=1e-12)
