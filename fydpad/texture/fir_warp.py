@@ -74,7 +74,7 @@ def table_position(speed_mm_s: Array, v0_mm_s: float, step_mm_s: float, rows: in
                    ) -> tuple[NDArray[np.int64], Array]:
     """The FIR table's lower entry and the weight of the upper one for each speed (the
     renderer's linear interpolation between entries, clamped to the table)."""
-    x = np.clip((speed_mm_s - v0_mm_s) * (1.0 / step_mm_s), 0.0, rows - 1.0)
+    x = np.clip((speed_mm_s - v0_mm_s) / step_mm_s, 0.0, rows - 1.0)
     k = np.minimum(x.astype(np.int64), rows - 2)
     return k, x - k
 

@@ -55,6 +55,7 @@ from fydpad.texture.fir_warp import (
     WARP_SLACK_MM_S,
     lag_fade,
     lag_speeds,
+    table_position,
     warped_responses,
 )
 from fydpad.texture.interpolation import SpeedTable, build_table
@@ -143,8 +144,9 @@ class TextureRenderer:
             n_fir = min(max(energy_length(g, 1e-4), 16), fir_max)
             if g.shape[0] == 1:  # one model: two equal rows keep the interpolation uniform
                 g = np.vstack([g, g])
-            self._use_fir(g[:, :n_fir])
-        self._tick_views()
+            self._use_fir(g[:, :n_fir])  # and the per-sample views
+        else:
+            self._tick_views()
         # A periodic surface's lines (model.lines), added to the process before the gain.
         self.lines: LineVoice | None = (
             None if model.lines is None
@@ -193,8 +195,7 @@ class TextureRenderer:
         self._fir_lag_major = np.ascontiguousarray(self.fir[:, :lags].T).ravel()
         self._lag_base = np.arange(lags) * self._n_fir_rows
         self._fade_per_step = self._fade / float(self.table.step_mm_s)
-        if hasattr(self, "_bwin"):  # after __init__: the views too
-            self._tick_views()
+        self._tick_views()
 
     def _tick_views(self) -> None:
         """The per-sample path's table rows and history windows as views made once."""
@@ -421,10 +422,9 @@ class TextureRenderer:
         e = self._take_noise(n)
         if self.structure == "fir":
             # A speed that is not finite is no speed (as in tick): the first entry.
-            pos = np.clip(np.where(np.isfinite(v), (v - t.speeds_mm_s[0]) / t.step_mm_s, 0.0),
-                          0.0, self._n_fir_rows - 1.0)
-            idx = np.minimum(pos.astype(np.int64), self._n_fir_rows - 2)
-            lam = pos - idx
+            v0 = float(t.speeds_mm_s[0])
+            idx, lam = table_position(np.where(np.isfinite(v), v, v0), v0, t.step_mm_s,
+                                      self._n_fir_rows)
         else:
             idx = np.clip(((v - t.speeds_mm_s[0]) / t.step_mm_s + 0.5).astype(np.int64)
                           if n else np.zeros(0, np.int64), 0, t.h.shape[0] - 1)

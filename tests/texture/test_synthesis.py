@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import scipy.signal as ss
 
-from fydpad.texture.fir_warp import WARP_SLACK_MM_S, responses_along
+from fydpad.texture.fir_warp import WARP_SLACK_MM_S, responses_along, table_position
 from fydpad.texture.fit import fit_texture
 from fydpad.texture.lpc import ar_psd, h_from_poly, lpc_autocorrelation
 from fydpad.texture.model_file import TextureModel
@@ -177,9 +177,8 @@ def _fir_at(r: TextureRenderer, v: np.ndarray, warped: bool = False) -> np.ndarr
     t = r.table
     if warped:
         return responses_along(r.fir, float(t.speeds_mm_s[0]), t.step_mm_s, v)
-    pos = np.clip((v - t.speeds_mm_s[0]) / t.step_mm_s, 0, r.fir.shape[0] - 1.0)
-    i = np.minimum(pos.astype(int), r.fir.shape[0] - 2)
-    w = (pos - i)[:, None]
+    i, w = table_position(v, float(t.speeds_mm_s[0]), t.step_mm_s, r.fir.shape[0])
+    w = w[:, None]
     return (1 - w) * r.fir[i] + w * r.fir[i + 1]
 
 
