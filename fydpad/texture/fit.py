@@ -13,6 +13,7 @@ import scipy.signal as ss
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
+from fydpad.texture.coverage import gaps_between, scanned_spans
 from fydpad.texture.dft321 import preprocess
 from fydpad.texture.free_form import (
     AUTO,
@@ -241,6 +242,11 @@ def fit_texture(
     )
     if normalised is not None:
         model.provenance["speed_normalised"] = normalised
+    # Where the strokes went and where the model only interpolates (coverage.py).
+    lo, hi = _speed_range(got_speeds, tolerance_mm_s)  # the speeds the model stands for
+    spans = scanned_spans([v[(v >= lo) & (v <= hi)] for _, v in prepared], fs)
+    model.provenance["speed_coverage_mm_s"] = [list(sp) for sp in spans]
+    model.provenance["interpolated_mm_s"] = [list(g) for g in gaps_between(spans)]
     if lines not in (None, "off"):  # what the fit found, lines or not
         model.provenance["lines"] = {
             "period_mm": line_fit.period_mm, "share": round(line_fit.share, 4),
