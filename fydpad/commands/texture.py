@@ -490,7 +490,9 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
               f"sigma2 {r.sigma2:.3g} (m/s^2)^2 = {r.sigma2 / g2:.3g} g^2, "
               f"prediction gain {10 * math.log10(r.signal_var / r.sigma2):.1f} dB, stable")
     if args.plot:
-        from fydpad.texture.plots import plot_spectra
+        from fydpad.texture.coverage import speed_histogram
+        from fydpad.texture.fit import modelled_speed_range
+        from fydpad.texture.plots import SpeedCoverage, plot_spectra
 
         panels = []
         lines = None
@@ -518,8 +520,12 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
             if lines is not None:
                 pm = pm + welch_psd(lines, model.fs_hz, m)[1]
             panels.append((f"{s:g} mm/s", fr, pr, pm))
+        edges, seconds = speed_histogram(
+            [sc.speed_mm_s for sc in scans], model.fs_hz,
+            modelled_speed_range(list(model.speeds_mm_s), model.tolerance_mm_s))
         plot_spectra(args.plot, panels, f"{model.surface}: recorded vs LPC model"
-                     + (" + lines" if lines is not None else ""))
+                     + (" + lines" if lines is not None else ""),
+                     coverage=SpeedCoverage(edges, seconds, list(model.speeds_mm_s), gaps))
     return 0
 
 

@@ -35,21 +35,31 @@ STILL_MM_S = 1.0
 Span = tuple[float, float]
 
 
+def speed_histogram(speeds_mm_s: Iterable[ArrayLike], fs_hz: float,
+                    speed_range_mm_s: tuple[float, float] | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Seconds of scan per ``BIN_MM_S`` bin: (bin edges from 0 mm/s, seconds). NaN speeds
+    (a lost track), speeds below ``STILL_MM_S`` (at rest) and, if given, speeds outside
+    ``speed_range_mm_s`` are left out."""
+    v = np.concatenate([np.asarray(s, float).ravel() for s in speeds_mm_s] or [np.zeros(0)])
+    ok = np.isfinite(v) & (v >= STILL_MM_S)
+    if speed_range_mm_s is not None:
+        ok &= (v >= speed_range_mm_s[0]) & (v <= speed_range_mm_s[1])
+    counts = np.bincount(np.floor(v[ok] / BIN_MM_S).astype(np.int64))
+    seconds = counts / fs_hz if fs_hz > 0 else np.zeros(0)
+    return np.arange(seconds.size + 1) * BIN_MM_S, seconds
+
+
 def scanned_spans(speeds_mm_s: Iterable[ArrayLike], fs_hz: float,
+                  speed_range_mm_s: tuple[float, float] | None = None,
                   min_seconds_per_bin: float = MIN_SECONDS_PER_BIN) -> list[Span]:
     """The speed ranges (mm/s, ascending, disjoint) in which the speed traces spent at
-    least ``min_seconds_per_bin`` per ``BIN_MM_S`` bin. Gaps narrower than
-    ``MIN_GAP_MM_S`` are bridged. NaN speeds (a lost track) and speeds below
-    ``STILL_MM_S`` (at rest) are ignored."""
-    v = np.concatenate([np.asarray(s, float).ravel() for s in speeds_mm_s] or [np.zeros(0)])
-    v = v[np.isfinite(v) & (v >= STILL_MM_S)]
-    if v.size == 0 or fs_hz <= 0:
-        return []
-    counts = np.bincount(np.floor(v / BIN_MM_S).astype(np.int64))
-    covered = counts >= min_seconds_per_bin * fs_hz
+    least ``min_seconds_per_bin`` per ``BIN_MM_S`` bin (:func:`speed_histogram`'s
+    speeds). Gaps narrower than ``MIN_GAP_MM_S`` are bridged."""
+    edges, seconds = speed_histogram(speeds_mm_s, fs_hz, speed_range_mm_s)
     spans: list[Span] = []
-    for i in np.flatnonzero(covered):
-        lo, hi = float(i * BIN_MM_S), float((i + 1) * BIN_MM_S)
+    for i in np.flatnonzero(seconds >= min_seconds_per_bin):
+        lo, hi = float(edges[i]), float(edges[i + 1])
         if spans and lo - spans[-1][1] < MIN_GAP_MM_S:
             spans[-1] = (spans[-1][0], hi)
         else:

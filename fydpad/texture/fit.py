@@ -243,8 +243,8 @@ def fit_texture(
     if normalised is not None:
         model.provenance["speed_normalised"] = normalised
     # Where the strokes went and where the model only interpolates (coverage.py).
-    lo, hi = _speed_range(got_speeds, tolerance_mm_s)  # the speeds the model stands for
-    spans = scanned_spans([v[(v >= lo) & (v <= hi)] for _, v in prepared], fs)
+    spans = scanned_spans([v for _, v in prepared], fs,
+                          modelled_speed_range(got_speeds, tolerance_mm_s))
     model.provenance["speed_coverage_mm_s"] = [list(sp) for sp in spans]
     model.provenance["interpolated_mm_s"] = [list(g) for g in gaps_between(spans)]
     if lines not in (None, "off"):  # what the fit found, lines or not
@@ -291,10 +291,11 @@ def _fit_lines(prepared: list[tuple[Array, Array]], fs: float, speeds_mm_s: Sequ
         return LineFit.none(signals, "not fitted (lines off)")
     period = None if lines == "auto" else float(lines)
     return fit_lines(signals, [v for _, v in prepared], fs,
-                     _speed_range(speeds_mm_s, tolerance_mm_s), period_mm=period)
+                     modelled_speed_range(speeds_mm_s, tolerance_mm_s), period_mm=period)
 
 
-def _speed_range(speeds_mm_s: Sequence[float], tolerance_mm_s: float) -> tuple[float, float]:
+def modelled_speed_range(speeds_mm_s: Sequence[float], tolerance_mm_s: float
+                         ) -> tuple[float, float]:
     """The speeds a fit over ``speeds_mm_s`` reads: each within the tolerance, above 0.5."""
     return max(min(speeds_mm_s) - tolerance_mm_s, 0.5), max(speeds_mm_s) + tolerance_mm_s
 
@@ -327,7 +328,7 @@ def _fit_spectrum(
 ) -> _Spectrum:
     """The two-part and/or free-form spectrum of ``fit_texture`` and its all-pole fits;
     ScansTooShort where the scans hold too little for it, UserError on other failures."""
-    lo, hi = _speed_range(got_speeds, tolerance_mm_s)
+    lo, hi = modelled_speed_range(got_speeds, tolerance_mm_s)
     runs, traces = [w[0] for w in whole], [w[1] for w in whole]
     s_of = spectrum = free = its = None
     if two_part or free_form != "free":

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import matplotlib
@@ -14,14 +15,19 @@ from numpy.typing import NDArray
 
 
 def plot_spectra(path: str | Path, panels: Sequence[tuple[str, NDArray, NDArray, NDArray]],
-                 title: str = "", band: tuple[float, float] = (20.0, 500.0)) -> Path:
-    """One panel per (label, f_hz, P_recorded, P_model), dB re 1 (m/s^2)^2/Hz."""
+                 title: str = "", band: tuple[float, float] = (20.0, 500.0),
+                 coverage: SpeedCoverage | None = None) -> Path:
+    """One panel per (label, f_hz, P_recorded, P_model), dB re 1 (m/s^2)^2/Hz; with
+    ``coverage``, a last panel of where the scans went along speed (seconds per bin),
+    the fitted speeds and the gaps the model interpolates across."""
     n = max(1, len(panels))
     cols = min(2, n)
     rows = (n + cols - 1) // cols
-    fig, axes = plt.subplots(rows, cols, figsize=(6 * cols, 3 * rows), squeeze=False,
-                             constrained_layout=True)
-    for ax, (label, f, pr, pm) in zip(axes.flat, panels, strict=False):
+    extra = 1 if coverage is not None else 0
+    fig = plt.figure(figsize=(6 * cols, 3 * (rows + extra)), constrained_layout=True)
+    grid = fig.add_gridspec(rows + extra, cols)
+    axes = [fig.add_subplot(grid[i // cols, i % cols]) for i in range(rows * cols)]
+    for ax, (label, f, pr, pm) in zip(axes, panels, strict=False):
         sel = (f >= band[0]) & (f <= band[1])
         ax.plot(f[sel], 10 * np.log10(pr[sel]), label="recorded (DFT321)")
         ax.plot(f[sel], 10 * np.log10(pm[sel]), label="model", alpha=0.85)
@@ -29,11 +35,43 @@ def plot_spectra(path: str | Path, panels: Sequence[tuple[str, NDArray, NDArray,
         ax.set_xlabel("frequency [Hz]")
         ax.set_ylabel("PSD [dB (m/s²)²/Hz]")
         ax.grid(alpha=0.3)
-    for ax in list(axes.flat)[len(panels):]:
+    for ax in axes[len(panels):]:
         ax.axis("off")
-    axes.flat[0].legend()
+    axes[0].legend()
+    if coverage is not None:
+        _plot_coverage(fig.add_subplot(grid[rows, :]), coverage)
     if title:
         fig.suptitle(title)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return Path(path)
+
+
+@dataclass
+class SpeedCoverage:
+    """What the coverage panel shows: coverage.speed_histogram's (edges, seconds), the
+    fitted speeds and the gaps (mm/s)."""
+
+    edges_mm_s: NDArray
+    seconds: NDArray
+    fitted_mm_s: Sequence[float]
+    gaps_mm_s: Sequence[tuple[float, float]]
+
+
+def _plot_coverage(ax, cov: SpeedCoverage) -> None:
+    e = np.asarray(cov.edges_mm_s, float)
+    ax.bar(e[:-1], cov.seconds, width=np.diff(e), align="edge", color="tab:blue",
+           alpha=0.7, label="scans (s per bin)")
+    for i, (lo, hi) in enumerate(cov.gaps_mm_s):
+        ax.axvspan(lo, hi, color="tab:red", alpha=0.15,
+                   label="no scan: interpolated" if i == 0 else None)
+    for i, v in enumerate(cov.fitted_mm_s):
+        ax.axvline(v, color="k", lw=1, ls="--", label="fitted speeds" if i == 0 else None)
+    used = np.flatnonzero(np.asarray(cov.seconds) > 0)
+    if used.size:
+        ax.set_xlim(max(e[used[0]] - 2.0, 0.0), e[used[-1] + 1] + 2.0)
+    ax.set_xlabel("speed [mm/s]")
+    ax.set_ylabel("scan time [s]")
+    ax.set_title("speed coverage")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper right")
