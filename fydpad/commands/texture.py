@@ -480,7 +480,7 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
     if lines is not None:
         print(f"  lines: {lines['note']}" + ("; the LPC models below are fitted on what they "
                                              "leave" if model.lines is not None else ""))
-    gaps = model_gaps(model.provenance, args.out)
+    gaps = model_gaps(model.provenance, args.out) or []
     print(f"  scanned speeds: {describe(model.provenance['speed_coverage_mm_s'])}"
           + (f"; no scan between {describe(gaps)}: the model interpolates there (less "
              "accurately: docs/texture.md, 'Speed coverage'); scan there to close the gaps"
@@ -579,12 +579,12 @@ def run_synth(args: argparse.Namespace) -> int:
         a = r.block(args.speed_mm_s, True, n)
     for w in caught:
         print(f"fydpad texture synth: warning: {args.model}: {w.message}", file=sys.stderr)
-    gap = [g for g in model_gaps(model.provenance, args.model)
-           if inside(args.speed_mm_s, [g])]
-    if gap:
+    gaps_here = [g for g in model_gaps(model.provenance, args.model) or []
+                 if inside(args.speed_mm_s, [g])]
+    if gaps_here:
         print(f"fydpad texture synth: note: {args.model}: no scan went at "
-              f"{args.speed_mm_s:g} mm/s (none between {describe(gap)}): the spectrum is "
-              "the model's interpolation there (docs/texture.md, 'Speed coverage')",
+              f"{args.speed_mm_s:g} mm/s (none between {describe(gaps_here)}): the spectrum "
+              "is the model's interpolation there (docs/texture.md, 'Speed coverage')",
               file=sys.stderr)
     with CsvRowWriter(args.out, ("t_s", "a"), comment=f"surface={model.surface} "
                       f"speed_mm_s={args.speed_mm_s:g} method={args.method}") as wr:
@@ -748,16 +748,18 @@ def run_evaluate(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise UserError(str(exc)) from None
     gaps = model_gaps(model.provenance, args.model)
-    in_gaps = float(np.mean(inside(scan.speed_mm_s[mask], gaps))) if gaps else 0.0
+    # None: a model fitted before coverage was recorded (unknown, not "none").
+    share_in_gaps = None if gaps is None else float(np.mean(inside(scan.speed_mm_s[mask],
+                                                                   gaps)))
     out = {"model": args.model, "scan": args.scan, "method": args.method, **c.to_json(),
-           "interpolated_share": in_gaps,
+           "interpolated_share": share_in_gaps,
            "note": "time_correlation compares independent realisations: ~0 expected"}
     print(f"power-spectrum correlation (20-500 Hz): {c.psd_correlation:.3f} "
           f"(dB spectra {c.psd_correlation_db:.3f}); log-spectral distance {c.lsd_db:.2f} dB; "
           f"time correlation {c.time_correlation:.3f} (independent realisations: ~0 expected)")
-    if in_gaps > 0:
-        print(f"{in_gaps:.0%} of the compared samples are at speeds no scan of the fit went "
-              f"at ({describe(gaps)}): the model interpolates there")
+    if share_in_gaps:
+        print(f"{share_in_gaps:.1%} of the compared samples are at speeds no scan of the fit "
+              f"went at ({describe(gaps)}): the model interpolates there")
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
     if args.plot:

@@ -1,61 +1,93 @@
 """Which speeds the scans went at, and where a model only interpolates (docs/texture.md,
 "Speed coverage: where a model interpolates").
 
-A model is measured only where the scans' strokes went. A hand asked for 10 mm/s
-wanders about 8.5-11.5 mm/s, so strokes at the paper's 10, 20, 30 and 40 mm/s leave
-gaps about 5 mm/s wide between them. Inside a gap the spectrum is the spectral model's
-interpolation, and on held-out strokes it is measurably less accurate there than at the
-scanned speeds (15 mm/s against 10 and 20 in docs/texture.md). The fit records the gaps
-so that a lab knows where to scan more. ``evaluate`` and ``synth`` then say when they
-work inside a gap.
+A model is measured only where the scans' strokes went. A hand asked for a speed
+wanders about +-2 mm/s around it (the generator's hand; faster strokes more), so
+strokes at the paper's 10, 20, 30 and 40 mm/s leave gaps between them. Inside a gap the
+spectrum is the spectral model's interpolation, and on held-out strokes it is
+measurably less accurate there than at the scanned speeds (15 mm/s against 10 and 20 in
+docs/texture.md). The fit records the gaps so that a lab knows where to scan more;
+``evaluate`` and ``synth`` say when they work inside one.
 """
 
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Iterable, Sequence
+from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from fydpad.errors import UserError
+from fydpad.texture.lines import MAX_SPEED_RATE
 
 #: Speed bins of the coverage histogram (mm/s): the render smears +-1 mm/s anyway.
 BIN_MM_S = 0.5
-#: Seconds of scan a bin needs to count as scanned. A stroke's start and end sweep
-#: through every slower speed in a few ms per bin; a hand's wander around its target
-#: stays 0.5-3 s per bin (the generator's 10 s strokes at 10-40 mm/s).
+#: Seconds of steady scan a bin needs to count as scanned (a hand's wander stays
+#: 0.5-4 s per bin in the generator's 10 s strokes at 10-40 mm/s).
 MIN_SECONDS_PER_BIN = 0.1
-#: Narrower gaps between scanned spans are bridged (two bins: within the render's smear).
+#: A one-bin hole between scanned spans is bridged (within the render's smear); a gap
+#: of two bins (1 mm/s) or more is reported.
 MIN_GAP_MM_S = 1.0
 #: Slower is a finger at rest, not a scan (the renderer is silent below its still_mm_s,
 #: 1 mm/s by default); a stroke's start and end dwell there.
 STILL_MM_S = 1.0
+#: A sample counts only where its speed changes by less than this share of itself per
+#: second, over RATE_WINDOW_S (the lines fit's rule: a hand's sway 0.5 /s at most, a
+#: stroke's start 3 /s and more). A start or end sweeps every slower speed in a few ms
+#: per bin, and over many strokes those ms would add up to "scanned".
+STEADY_RATE_PER_S = MAX_SPEED_RATE
+RATE_WINDOW_S = 0.1
+#: Faster than any finger (10 m/s): left out, so that a corrupt sample cannot make the
+#: histogram enormous.
+MAX_SPEED_MM_S = 1e4
 
 Span = tuple[float, float]
 
 
+def steady(speed_mm_s: ArrayLike, fs_hz: float) -> NDArray[np.bool_]:
+    """Samples of one speed trace whose speed changes slower than STEADY_RATE_PER_S of
+    itself per second (the change over RATE_WINDOW_S, centred)."""
+    v = np.asarray(speed_mm_s, float)
+    half = max(1, round(RATE_WINDOW_S * fs_hz / 2))
+    if v.size <= 2 * half:
+        return np.zeros(v.size, bool)
+    rate = np.full(v.size, np.inf)
+    rate[half:-half] = np.abs(v[2 * half:] - v[:-2 * half]) * fs_hz / (2 * half)
+    with np.errstate(invalid="ignore"):
+        return rate <= STEADY_RATE_PER_S * np.maximum(v, STILL_MM_S)
+
+
 def speed_histogram(speeds_mm_s: Iterable[ArrayLike], fs_hz: float,
                     speed_range_mm_s: tuple[float, float] | None = None
-                    ) -> tuple[np.ndarray, np.ndarray]:
-    """Seconds of scan per ``BIN_MM_S`` bin: (bin edges from 0 mm/s, seconds). NaN speeds
-    (a lost track), speeds below ``STILL_MM_S`` (at rest) and, if given, speeds outside
-    ``speed_range_mm_s`` are left out."""
-    v = np.concatenate([np.asarray(s, float).ravel() for s in speeds_mm_s] or [np.zeros(0)])
-    ok = np.isfinite(v) & (v >= STILL_MM_S)
-    if speed_range_mm_s is not None:
-        ok &= (v >= speed_range_mm_s[0]) & (v <= speed_range_mm_s[1])
-    counts = np.bincount(np.floor(v[ok] / BIN_MM_S).astype(np.int64))
-    seconds = counts / fs_hz if fs_hz > 0 else np.zeros(0)
-    return np.arange(seconds.size + 1) * BIN_MM_S, seconds
+                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Seconds of steady scan per ``BIN_MM_S`` bin over the speed traces (one per scan
+    or stroke): (bin edges from 0 mm/s, seconds). Speeds that are not finite (a lost
+    track), below ``STILL_MM_S`` (at rest), changing fast (:func:`steady`), or outside
+    ``speed_range_mm_s`` (lo <= v < hi) are left out."""
+    lo, hi = speed_range_mm_s if speed_range_mm_s is not None else (0.0, MAX_SPEED_MM_S)
+    hi = min(hi, MAX_SPEED_MM_S)
+    kept = []
+    for trace in speeds_mm_s:
+        v = np.asarray(trace, float).ravel()
+        ok = steady(v, fs_hz) & np.isfinite(v) & (v >= max(lo, STILL_MM_S)) & (v < hi)
+        kept.append(v[ok])
+    v = np.concatenate(kept) if kept else np.zeros(0)
+    top = math.ceil((v.max() if v.size else 0.0) / BIN_MM_S) + 1
+    edges = np.arange(top + 1) * BIN_MM_S
+    counts, _ = np.histogram(v, edges)
+    return edges, counts / fs_hz if fs_hz > 0 else np.zeros(counts.size)
 
 
 def scanned_spans(speeds_mm_s: Iterable[ArrayLike], fs_hz: float,
                   speed_range_mm_s: tuple[float, float] | None = None,
                   min_seconds_per_bin: float = MIN_SECONDS_PER_BIN) -> list[Span]:
-    """The speed ranges (mm/s, ascending, disjoint) in which the speed traces spent at
-    least ``min_seconds_per_bin`` per ``BIN_MM_S`` bin (:func:`speed_histogram`'s
-    speeds). Gaps narrower than ``MIN_GAP_MM_S`` are bridged."""
+    """The speed ranges (mm/s, ascending, disjoint) in which the traces spent at least
+    ``min_seconds_per_bin`` of steady scan per ``BIN_MM_S`` bin (:func:`speed_histogram`);
+    holes narrower than ``MIN_GAP_MM_S`` are bridged, and the ends clipped to
+    ``speed_range_mm_s``."""
     edges, seconds = speed_histogram(speeds_mm_s, fs_hz, speed_range_mm_s)
     spans: list[Span] = []
     for i in np.flatnonzero(seconds >= min_seconds_per_bin):
@@ -64,15 +96,26 @@ def scanned_spans(speeds_mm_s: Iterable[ArrayLike], fs_hz: float,
             spans[-1] = (spans[-1][0], hi)
         else:
             spans.append((lo, hi))
+    if speed_range_mm_s is not None and spans:
+        lo, hi = speed_range_mm_s
+        spans = [(max(a, lo), min(b, hi)) for a, b in spans]
     return spans
 
 
-def gaps_between(spans: Sequence[Span]) -> list[Span]:
-    """The speed ranges between scanned spans: where a model interpolates."""
-    return [(a[1], b[0]) for a, b in itertools.pairwise(spans)]
+def gaps_within(spans: Sequence[Span], lo_mm_s: float, hi_mm_s: float) -> list[Span]:
+    """The parts of [lo, hi] (the fitted speeds' range) outside every span, at least
+    ``MIN_GAP_MM_S`` wide: where a model interpolates between the speeds it was fitted
+    at with no scan to go by."""
+    edges = [(lo_mm_s, lo_mm_s), *spans, (hi_mm_s, hi_mm_s)]
+    out = []
+    for (_, a), (b, _) in itertools.pairwise(edges):
+        a, b = max(a, lo_mm_s), min(b, hi_mm_s)
+        if b - a >= MIN_GAP_MM_S:
+            out.append((a, b))
+    return out
 
 
-def inside(speed_mm_s: ArrayLike, spans: Sequence[Sequence[float]]) -> np.ndarray:
+def inside(speed_mm_s: ArrayLike, spans: Sequence[Span]) -> NDArray[np.bool_]:
     """Whether each speed lies strictly inside one of ``spans`` (boolean array)."""
     v = np.asarray(speed_mm_s, float)
     out = np.zeros(v.shape, bool)
@@ -81,25 +124,38 @@ def inside(speed_mm_s: ArrayLike, spans: Sequence[Sequence[float]]) -> np.ndarra
     return out
 
 
-def describe(spans: Sequence[Sequence[float]]) -> str:
+def describe(spans: Sequence[Span]) -> str:
     """'12.5-17.5, 22.5-27.5 mm/s' (or 'none')."""
     if not spans:
         return "none"
     return ", ".join(f"{lo:g}-{hi:g}" for lo, hi in spans) + " mm/s"
 
 
-def model_gaps(provenance: dict, where: str = "model") -> list[Span]:
-    """The gaps a fitted model records (``provenance["interpolated_mm_s"]``: [[lo, hi],
-    ...]; files fitted before coverage was recorded have none). UserError naming
-    ``where`` and the field when it is malformed."""
+def checked_spans(raw: Any, where: str, key: str) -> list[Span]:
+    """``provenance[key]`` read as speed spans: a list of [lo, hi] numbers (mm/s),
+    0 <= lo < hi, ascending and disjoint; UserError naming ``where`` and the key."""
+    def number(x: Any) -> bool:
+        return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+    ok = isinstance(raw, list) and all(
+        isinstance(p, list) and len(p) == 2 and number(p[0]) and number(p[1])
+        and 0 <= p[0] < p[1] for p in raw)
+    spans = [(float(a), float(b)) for a, b in raw] if ok else []
+    if not ok or any(b[0] < a[1] for a, b in itertools.pairwise(spans)):
+        raise UserError(f"{where}: provenance.{key} must be a list of [lo, hi] speed pairs "
+                        f"(mm/s, 0 <= lo < hi, ascending, disjoint), not {repr(raw)[:60]}")
+    return spans
+
+
+def model_gaps(provenance: dict, where: str = "model") -> list[Span] | None:
+    """The gaps a fitted model records (``provenance["interpolated_mm_s"]``), or None for
+    a model fitted before coverage was recorded (unknown, not "no gaps")."""
     raw = provenance.get("interpolated_mm_s")
-    if raw is None:
-        return []
-    try:
-        gaps = [(float(a), float(b)) for a, b in raw]
-    except (TypeError, ValueError):
-        gaps = None
-    if gaps is None or not all(np.isfinite(a) and np.isfinite(b) and a < b for a, b in gaps):
-        raise UserError(f"{where}: provenance.interpolated_mm_s must be a list of [lo, hi] "
-                        f"speed pairs (mm/s, lo < hi), not {str(raw)[:60]}")
-    return gaps
+    return None if raw is None else checked_spans(raw, where, "interpolated_mm_s")
+
+
+def check_provenance(provenance: dict, where: str) -> None:
+    """The coverage keys of a model file's provenance, if present (on reading)."""
+    for key in ("speed_coverage_mm_s", "interpolated_mm_s"):
+        if key in provenance:
+            checked_spans(provenance[key], where, key)

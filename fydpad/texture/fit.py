@@ -13,7 +13,7 @@ import scipy.signal as ss
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.coverage import gaps_between, scanned_spans
+from fydpad.texture.coverage import gaps_within, scanned_spans
 from fydpad.texture.dft321 import preprocess
 from fydpad.texture.free_form import (
     AUTO,
@@ -242,11 +242,15 @@ def fit_texture(
     )
     if normalised is not None:
         model.provenance["speed_normalised"] = normalised
-    # Where the strokes went and where the model only interpolates (coverage.py).
-    spans = scanned_spans([v for _, v in prepared], fs,
-                          modelled_speed_range(got_speeds, tolerance_mm_s))
+    # Where the strokes the model was fitted on went, and where it only interpolates
+    # (coverage.py): a spectral model reads every chunk within the modelled speeds, the
+    # per-speed fits only each speed's runs.
+    traces = ([v for _, v in prepared] if spectral is not None
+              else [v for s in got_speeds for v in speeds_of[s]])
+    spans = scanned_spans(traces, fs, modelled_speed_range(got_speeds, tolerance_mm_s))
     model.provenance["speed_coverage_mm_s"] = [list(sp) for sp in spans]
-    model.provenance["interpolated_mm_s"] = [list(g) for g in gaps_between(spans)]
+    model.provenance["interpolated_mm_s"] = [
+        list(g) for g in gaps_within(spans, min(got_speeds), max(got_speeds))]
     if lines not in (None, "off"):  # what the fit found, lines or not
         model.provenance["lines"] = {
             "period_mm": line_fit.period_mm, "share": round(line_fit.share, 4),

@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError, read_json
+from fydpad.texture.coverage import check_provenance
 from fydpad.texture.lines import LineSpectrum
 from fydpad.texture.lpc import is_stable, poly_from_h
 
@@ -135,6 +136,7 @@ def _header(data: dict[str, Any], where: str) -> tuple[float, dict[str, Any]]:
     if not isinstance(provenance, dict):
         raise UserError(f"{where}: key 'provenance' must be an object, not "
                         f"{_short(provenance)}")
+    check_provenance(provenance, where)
     return fs, {
         "highpass_hz": hp,
         "fit_band_hz": _band(data, "fit_band_hz", where, (hp, fs / 2), fs, False),

@@ -11,7 +11,21 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.axes import Axes
 from numpy.typing import NDArray
+
+from fydpad.texture.coverage import MIN_SECONDS_PER_BIN
+
+
+@dataclass
+class SpeedCoverage:
+    """What the coverage panel shows: coverage.speed_histogram's (edges, seconds of
+    steady scan), the fitted speeds and the gaps (mm/s)."""
+
+    edges_mm_s: NDArray
+    seconds: NDArray
+    fitted_mm_s: Sequence[float]
+    gaps_mm_s: Sequence[tuple[float, float]]
 
 
 def plot_spectra(path: str | Path, panels: Sequence[tuple[str, NDArray, NDArray, NDArray]],
@@ -47,24 +61,15 @@ def plot_spectra(path: str | Path, panels: Sequence[tuple[str, NDArray, NDArray,
     return Path(path)
 
 
-@dataclass
-class SpeedCoverage:
-    """What the coverage panel shows: coverage.speed_histogram's (edges, seconds), the
-    fitted speeds and the gaps (mm/s)."""
-
-    edges_mm_s: NDArray
-    seconds: NDArray
-    fitted_mm_s: Sequence[float]
-    gaps_mm_s: Sequence[tuple[float, float]]
-
-
-def _plot_coverage(ax, cov: SpeedCoverage) -> None:
+def _plot_coverage(ax: Axes, cov: SpeedCoverage) -> None:
     e = np.asarray(cov.edges_mm_s, float)
     ax.bar(e[:-1], cov.seconds, width=np.diff(e), align="edge", color="tab:blue",
            alpha=0.7, label="scans (s per bin)")
     for i, (lo, hi) in enumerate(cov.gaps_mm_s):
         ax.axvspan(lo, hi, color="tab:red", alpha=0.15,
                    label="no scan: interpolated" if i == 0 else None)
+    ax.axhline(MIN_SECONDS_PER_BIN, color="tab:blue", lw=0.8, ls=":",
+               label=f"{MIN_SECONDS_PER_BIN:g} s: counts as scanned")
     for i, v in enumerate(cov.fitted_mm_s):
         ax.axvline(v, color="k", lw=1, ls="--", label="fitted speeds" if i == 0 else None)
     used = np.flatnonzero(np.asarray(cov.seconds) > 0)

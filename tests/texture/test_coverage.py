@@ -4,18 +4,25 @@
 from __future__ import annotations
 
 import json
+import warnings
 
+import matplotlib.image as mpimg
 import numpy as np
 import pytest
 
 from fydpad.errors import UserError
 from fydpad.texture.coverage import (
+    checked_spans,
     describe,
-    gaps_between,
+    gaps_within,
     inside,
-    model_gaps,
     scanned_spans,
+    speed_histogram,
+    steady,
 )
+from fydpad.texture.fit import fit_texture
+from fydpad.texture.model_file import load_model
+from fydpad.texture.plots import SpeedCoverage, plot_spectra
 from fydpad.texture.scan_generator import generate_scan
 from tests.texture_families.helpers import run_cli as run
 
@@ -23,42 +30,76 @@ FS = 1000.0
 
 
 def test_a_hands_strokes_cover_their_wander_not_their_ramps():
-    """Strokes at 10 and 40 mm/s (the generator's hand: a wander of a few mm/s, ramps of
-    0.25 s at each end). The ramps pass through every slower speed in a few ms per 0.5
-    mm/s bin, so 15-35 mm/s is a gap; each stroke's median speed is covered."""
-    strokes = [generate_scan("felt", v, 8.0, seed=3) for v in (10.0, 40.0)]
-    spans = scanned_spans([s.speed_mm_s for s in strokes], FS)
-    assert len(spans) == 2, spans
-    for s, (lo, hi) in zip(strokes, spans, strict=True):
-        v = s.speed_mm_s
-        assert lo <= np.median(v) <= hi
-        # Most of the stroke is inside its span; the span is the wander, not the ramp.
-        assert np.mean((v >= lo) & (v <= hi)) > 0.9
-        assert hi - lo < 15.0
-    (gap,) = gaps_between(spans)
-    assert gap[0] < 15.0 and gap[1] > 35.0, gap
-    # The ramp of the 40 mm/s stroke reached 20-30 mm/s, yet no time was spent there.
-    ramp = strokes[1].speed_mm_s
-    assert np.any((ramp > 20) & (ramp < 30))
-    assert inside(np.array([20.0, 25.0, 30.0]), [gap]).all()
+    """Strokes at 10 and 40 mm/s (the generator's hand: a wander of a few mm/s, 0.25 s
+    ramps at each end through every slower speed). One stroke each, and 24 each: the
+    ramps add 2-3 ms per 0.5 mm/s bin per stroke, so without the steady-speed rule 24
+    strokes' ramps cover 15-30 mm/s (checked below); with it the gap stays."""
+    for strokes_per_speed in (1, 24):
+        strokes = [generate_scan("felt", v, 4.0, seed=3 + k) for v in (10.0, 40.0)
+                   for k in range(strokes_per_speed)]
+        spans = scanned_spans([s.speed_mm_s for s in strokes], FS)
+        assert len(spans) == 2, (strokes_per_speed, spans)
+        for v, (lo, hi) in zip((10.0, 40.0), spans, strict=True):
+            v_all = np.concatenate([s.speed_mm_s for s in strokes
+                                    if abs(np.median(s.speed_mm_s) - v) < 5])
+            assert lo <= v <= hi
+            assert np.mean((v_all >= lo) & (v_all <= hi)) > 0.85  # the wander is covered
+        (gap,) = gaps_within(spans, 10.0, 40.0)  # 40 mm/s strokes wander down to ~33
+        assert gap[0] < 15.0 and gap[1] > 30.0, gap
+        assert inside(np.array([15.0, 20.0, 25.0, 30.0]), [gap]).all()
+    # The rule matters: counting every sample, the 24 strokes' ramps fill the gap.
+    every = np.concatenate([s.speed_mm_s for s in strokes])
+    edges, _ = speed_histogram([every], FS)
+    counts, _ = np.histogram(every[np.isfinite(every)], edges)
+    assert np.all(counts[(edges[:-1] >= 15) & (edges[:-1] < 30)] >= 0.1 * FS)
 
 
-def test_spans_ignore_lost_tracks_and_bridge_narrow_gaps():
-    v = np.concatenate([np.full(500, 10.2), np.full(500, 11.2), [np.nan] * 3000,
-                        np.zeros(2000), np.full(500, 20.1)])
-    # 10-10.5 and 11-11.5 are 0.5 mm/s apart: bridged; NaN and standstill are no speed.
-    assert scanned_spans([v], FS) == [(10.0, 11.5), (20.0, 20.5)]
-    assert scanned_spans([np.full(50, 10.0)], FS) == []  # 50 ms: not scanned
+def test_steady_is_the_wander_not_the_ramp():
+    s = generate_scan("cork", 20.0, 6.0, seed=1)
+    ok = steady(s.speed_mm_s, FS)
+    assert ok[1000:-1000].all()  # the hand's wander
+    ramp = s.speed_mm_s < 0.8 * np.median(s.speed_mm_s)
+    ramp[2000:-2000] = False
+    assert ramp.sum() > 50 and not ok[ramp].any()
+
+
+def test_spans_bridge_one_bin_and_ignore_rest_lost_tracks_and_the_range_end():
+    def hold(v, n=500):
+        return np.full(n, float(v))
+
+    # 10-10.5 and 11-11.5: a one-bin hole, bridged; 12.5 is two bins from 11.5: a gap.
+    v = np.concatenate([hold(10.2), hold(11.2), hold(12.7), [np.nan] * 3000, hold(0.7),
+                        hold(0.0), hold(20.1)])
+    assert scanned_spans([v], FS) == [(10.0, 11.5), (12.5, 13.0), (20.0, 20.5)]
+    assert gaps_within(scanned_spans([v], FS), 10.0, 20.0) == [(11.5, 12.5), (13.0, 20.0)]
+    assert scanned_spans([hold(10.0, 50)], FS) == []  # 50 ms is not a scan
+    assert scanned_spans([hold(45.0)], FS, (5.0, 45.0)) == []  # the range is lo <= v < hi
+    assert scanned_spans([hold(44.9)], FS, (5.0, 45.0)) == [(44.5, 45.0)]
     assert scanned_spans([], FS) == [] and scanned_spans([[np.nan]], FS) == []
+    assert scanned_spans([np.linspace(5, 40, 4000)], FS) == []  # 8.75 mm/s/s at 5 mm/s
+    edges, sec = speed_histogram([np.r_[hold(10.0), 1e11]], FS)  # a corrupt sample
+    assert edges[-1] < 100 and sec.sum() == pytest.approx(0.5 - 0.1, abs=0.02)
+    # No span at all: the whole fitted range is a gap; edge pieces under 1 mm/s are not.
+    assert gaps_within([], 10.0, 40.0) == [(10.0, 40.0)]
+    assert gaps_within([(10.5, 39.5)], 10.0, 40.0) == []
     assert describe([]) == "none" and describe([(12.5, 17.5)]) == "12.5-17.5 mm/s"
 
 
-def test_model_gaps_are_checked():
-    assert model_gaps({}) == []
-    assert model_gaps({"interpolated_mm_s": [[12, 17.5]]}) == [(12.0, 17.5)]
-    for bad in ([[17.5, 12]], [[1, 2, 3]], "12-17", [[0, float("nan")]], [["a", 1]]):
-        with pytest.raises(UserError, match=r"m\.json: provenance\.interpolated_mm_s"):
-            model_gaps({"interpolated_mm_s": bad}, "m.json")
+@pytest.mark.parametrize("bad", [[[17.5, 12]], [[1, 2, 3]], "12-17", [["12"]], {"12": 1},
+                                 [["1", "2"]], [[True, 2]], [[-1, 2]], [[10, 20], [15, 30]],
+                                 [[20, 30], [10, 15]], [[0, float("nan")]]])
+def test_malformed_spans_are_refused_naming_file_and_key(bad):
+    with pytest.raises(UserError, match=r"m\.json: provenance\.interpolated_mm_s must be"):
+        checked_spans(bad, "m.json", "interpolated_mm_s")
+
+
+def test_model_file_with_malformed_coverage_is_refused_on_reading(tmp_path, felt):
+    d = json.loads((felt / "felt.json").read_text())
+    d["provenance"]["speed_coverage_mm_s"] = [[12, "x"]]
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(d))
+    with pytest.raises(UserError, match=r"bad\.json: provenance\.speed_coverage_mm_s"):
+        load_model(bad)
 
 
 @pytest.fixture(scope="module")
@@ -82,7 +123,19 @@ def test_fit_records_and_says_where_it_interpolates(felt, tmp_path, capsys):
     (gap,) = prov["interpolated_mm_s"]
     assert gap[0] < 15.0 and gap[1] > 25.0
     assert len(prov["speed_coverage_mm_s"]) == 2
-    assert "no scan between" in said and describe([gap]) in said
+    assert "no scan between" in said and describe([tuple(gap)]) in said
+
+
+def test_a_per_speed_fit_reports_the_speeds_it_did_not_use():
+    """Strokes at 10, 20 and 30 mm/s fitted at 10 and 30 only, pooled: the 20 mm/s
+    stroke is in no model (outside both tolerances), so 20 mm/s is interpolated."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scans = [generate_scan("felt", v, 4.0, seed=1) for v in (10.0, 20.0, 30.0)]
+        pooled, _ = fit_texture(scans, speeds_mm_s=(10.0, 30.0), tolerance_mm_s=4.0,
+                                order=40, free_form=None)
+    (gap,) = pooled.provenance["interpolated_mm_s"]
+    assert gap[0] <= 15.0 and gap[1] >= 25.0, pooled.provenance
 
 
 def test_synth_and_evaluate_say_when_they_are_in_a_gap(felt, tmp_path, capsys):
@@ -103,3 +156,27 @@ def test_synth_and_evaluate_say_when_they_are_in_a_gap(felt, tmp_path, capsys):
     # The 20 mm/s stroke is all gap but for its ramps; the 10 mm/s one is the fit's own.
     assert share[20] > 0.8 and share[10] < 0.1, share
     assert "the model interpolates there" in capsys.readouterr().out
+
+
+def test_a_model_from_before_coverage_reads_as_unknown(felt, tmp_path, capsys):
+    d = json.loads((felt / "felt.json").read_text())
+    for key in ("speed_coverage_mm_s", "interpolated_mm_s"):
+        del d["provenance"][key]
+    old = tmp_path / "old.json"
+    old.write_text(json.dumps(d))
+    j = tmp_path / "e.json"
+    assert run("evaluate", str(old), str(felt / "felt_20mms_s1.csv"), "--json", str(j)) == 0
+    assert json.loads(j.read_text())["interpolated_share"] is None
+    assert "interpolates" not in capsys.readouterr().out
+    assert run("synth", str(old), "--speed-mm-s", "20", "--seconds", "0.2",
+               "--out", str(tmp_path / "a.csv")) == 0
+
+
+def test_the_fit_plot_has_a_coverage_panel(tmp_path):
+    f = np.linspace(20, 500, 50)
+    panels = [(f"{v} mm/s", f, np.ones(50), np.ones(50)) for v in (10, 30)]
+    cov = SpeedCoverage(np.arange(0, 45.5, 0.5), np.r_[np.zeros(16), np.ones(74)],
+                        [10.0, 30.0], [(12.0, 27.0)])
+    heights = [mpimg.imread(plot_spectra(tmp_path / f"{k}.png", panels, coverage=c)).shape[0]
+               for k, c in (("plain", None), ("coverage", cov))]
+    assert heights[1] == 2 * heights[0]  # one more row of panels, the spectra's height

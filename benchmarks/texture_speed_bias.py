@@ -1,0 +1,96 @@
+"""The default fit's bias along speed, against the truth: the mean Welch spectrum of many
+held-out strokes (docs/texture.md, "Speed coverage: where a model interpolates").
+
+For each texture: two 10 s training strokes at each of 10, 20, 30 and 40 mm/s (seeds
+TRAIN_SEED, TRAIN_SEED + 1), the default fit; at each speed, HELD held-out 12 s strokes
+(seeds 100, 101, ...), each synthesized along its own speed trace with its own seed;
+the bias is 10 log10(mean synthesized / mean recorded Welch PSD) over 20-500 Hz (4 Hz
+bins), as an RMS in dB, and with ``--bands`` per band. Also the correlation of the
+calibrated form's corrections log C_i at neighbouring fitted speeds (does a correction
+carry across a gap?). Minutes; prints, asserts nothing.
+
+    python benchmarks/texture_speed_bias.py [--textures all] [--speeds 10,15,...,40]
+        [--train-seed 1] [--held 8] [--bands]
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import warnings
+
+import numpy as np
+
+from fydpad.texture.dft321 import preprocess
+from fydpad.texture.evaluate import evaluation_mask, synthesize, welch_psd
+from fydpad.texture.fit import fit_texture
+from fydpad.texture.free_form import CalibratedSpectrum, spectrum_of
+from fydpad.texture.scan_generator import TEXTURES, generate_scan
+
+TRAIN_SPEEDS = (10.0, 20.0, 30.0, 40.0)
+BAND_EDGES_HZ = (20, 30, 45, 60, 80, 100, 130, 160, 200, 250, 300, 400, 500)
+WITHIN_DB = 0.6  # about what a held-out stroke tolerates within the target (docs)
+
+
+def correction_correlations(spec: CalibratedSpectrum) -> list[float]:
+    """Correlation over 20-500 Hz of log C_i and log C_i+1 (the fitted speeds')."""
+    sel = (spec.f_hz >= 20) & (spec.f_hz <= 500)
+    c = spec.log_c[:, sel]
+    return [float(np.dot(a, b) / np.sqrt(np.dot(a, a) * np.dot(b, b)))
+            for a, b in itertools.pairwise(c)]
+
+
+def bias_db(name: str, model, speed_mm_s: float, held: int) -> tuple[float, np.ndarray,
+                                                                       np.ndarray]:
+    """(RMS bias over 20-500 Hz, f_hz, bias per bin) at one speed."""
+    rec, syn = [], []
+    for seed in range(100, 100 + held):
+        scan = generate_scan(name, speed_mm_s, 12.0, seed=seed)
+        mask = evaluation_mask(scan, model)
+        f, p = welch_psd(preprocess(scan.acc, scan.fs_hz), scan.fs_hz, mask)
+        rec.append(p)
+        syn.append(welch_psd(synthesize(model, scan.speed_mm_s, seed=seed), scan.fs_hz,
+                             mask)[1])
+    d = 10 * np.log10(np.mean(syn, axis=0) / np.mean(rec, axis=0))
+    sel = (f >= 20) & (f <= 500)
+    return float(np.sqrt(np.mean(d[sel] ** 2))), f, d
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--textures", default="all", help="comma-separated, or all")
+    ap.add_argument("--speeds", default="10,15,20,25,30,35,40", help="mm/s, comma-separated")
+    ap.add_argument("--train-seed", type=int, default=1)
+    ap.add_argument("--held", type=int, default=8, help="held-out strokes per speed")
+    ap.add_argument("--bands", action="store_true", help="also the bias per band")
+    args = ap.parse_args()
+    names = list(TEXTURES) if args.textures == "all" else args.textures.split(",")
+    speeds = [float(v) for v in args.speeds.split(",")]
+    warnings.simplefilter("ignore")
+    per_speed: dict[float, list[float]] = {v: [] for v in speeds}
+    for name in names:
+        train = [generate_scan(name, v, 10.0, seed=args.train_seed + j)
+                 for v in TRAIN_SPEEDS for j in range(2)]
+        model, _ = fit_texture(train)
+        if model.free_form is not None:
+            spec = spectrum_of(model)
+            if isinstance(spec, CalibratedSpectrum):
+                cc = ", ".join(f"{c:+.2f}" for c in correction_correlations(spec))
+                print(f"{name:15s} correlation of neighbouring corrections: {cc}")
+        for v in speeds:
+            rms, f, d = bias_db(name, model, v, args.held)
+            per_speed[v].append(rms)
+            print(f"{name:15s} {v:4g} mm/s  bias {rms:.2f} dB RMS", flush=True)
+            if args.bands:
+                bands = "  ".join(f"{lo}-{hi} {np.mean(d[(f >= lo) & (f < hi)]):+.1f}"
+                                  for lo, hi in itertools.pairwise(BAND_EDGES_HZ))
+                print(f"{'':15s} per band (Hz dB): {bands}")
+    print(f"\n{len(names)} textures, train seed {args.train_seed}, {args.held} held-out "
+          "strokes per speed:")
+    for v, r in per_speed.items():
+        print(f"  {v:4g} mm/s: median {np.median(r):.2f} dB, mean {np.mean(r):.2f}, "
+              f"within {WITHIN_DB} dB: {sum(x <= WITHIN_DB for x in r)}/{len(r)}")
+
+
+if __name__ == "__main__":
+    main()
