@@ -207,6 +207,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     e.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD,
                    help=INTERPOLATION_HELP)
     e.add_argument("--seed", type=int, default=0, help="noise seed of the synthesis (default 0)")
+    e.add_argument("--second", metavar="SECOND.csv",
+                   help="a second recording of the same surface at about the same speed: "
+                        "the ceiling (it scored against SCAN.csv as the model is; no model "
+                        "can beat it) and whether the model meets issue 7's targets "
+                        "(correlation >= 0.95, LSD <= the ceiling's + 0.25 dB)")
     e.set_defaults(func=run_evaluate)
 
     i = tsub.add_parser(
@@ -757,18 +762,72 @@ def run_evaluate(args: argparse.Namespace) -> int:
     print(f"power-spectrum correlation (20-500 Hz): {c.psd_correlation:.3f} "
           f"(dB spectra {c.psd_correlation_db:.3f}); log-spectral distance {c.lsd_db:.2f} dB; "
           f"time correlation {c.time_correlation:.3f} (independent realisations: ~0 expected)")
+    p_second = None
+    if args.second:
+        ceil, p_second = _ceiling(args, scan, extra["f_hz"], extra["recorded"],
+                                  model.highpass_hz, lambda sc: evaluation_mask(sc, model))
+        _report_ceiling(args, c, ceil, out)
     if share_in_gaps:
         print(f"{share_in_gaps:.1%} of the compared samples are at speeds no scan of the fit "
               f"went at ({describe(gaps)}): the model interpolates there")
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
     if args.plot:
-        from fydpad.texture.plots import plot_spectra
+        from fydpad.texture.plots import plot_against_ceiling, plot_spectra
 
-        plot_spectra(args.plot, [(f"{scan.surface} vs {model.surface}", extra["f_hz"],
-                                  extra["recorded"], extra["synthesized"])],
-                     f"corr {c.psd_correlation:.3f}, LSD {c.lsd_db:.2f} dB")
+        title = f"corr {c.psd_correlation:.3f}, LSD {c.lsd_db:.2f} dB"
+        if p_second is None:
+            plot_spectra(args.plot, [(f"{scan.surface} vs {model.surface}", extra["f_hz"],
+                                      extra["recorded"], extra["synthesized"])], title)
+        else:
+            plot_against_ceiling(args.plot, extra["f_hz"], extra["recorded"],
+                                 extra["synthesized"], p_second,
+                                 f"{scan.surface} vs {model.surface}: {title} (ceiling "
+                                 f"{out['ceiling']['lsd_db']:.2f} dB)")
     return 0
+
+
+def _ceiling(args: argparse.Namespace, scan, f_hz: np.ndarray, recorded_psd: np.ndarray,
+             highpass_hz: float, mask_of):
+    """(Ceiling, the second recording's Welch spectrum) for ``--second``: over its own
+    samples that ``mask_of(scan)`` keeps (those within the model's speeds), with the
+    scan's high-pass and DFT321."""
+    from fydpad.texture.dft321 import preprocess
+    from fydpad.texture.evaluate import ceiling, welch_psd
+
+    second = _load_scans([args.second])[0]
+    if abs(second.fs_hz - scan.fs_hz) > 1e-6 * scan.fs_hz:
+        raise UserError(f"{args.second}: column 't_s': sample rate {second.fs_hz:g} Hz, the "
+                        f"scan's {scan.fs_hz:g} Hz")
+    if second.surface != scan.surface:
+        print(f"fydpad texture evaluate: warning: {args.second} is of {second.surface!r}, "
+              f"{args.scan} of {scan.surface!r}: the ceiling is a second recording of the "
+              "same surface", file=sys.stderr)
+    try:
+        _, p2 = welch_psd(preprocess(second.acc, second.fs_hz, highpass_hz), second.fs_hz,
+                          mask_of(second))
+    except ValueError as exc:
+        raise UserError(f"{args.second}: column 'speed_mm_s': too little of it within the "
+                        f"model's speeds ({exc})") from None
+    return ceiling(recorded_psd, p2, f_hz), p2
+
+
+def _report_ceiling(args: argparse.Namespace, c, ceil, out: dict) -> None:
+    """Print the ceiling and the targets' verdict; add them to the JSON ``out``."""
+    from fydpad.texture.evaluate import (
+        TARGET_LSD_OVER_CEILING_DB,
+        TARGET_PSD_CORRELATION,
+        meets_targets,
+    )
+
+    met = meets_targets(c, ceil)
+    out.update(second=args.second, ceiling=ceil.to_json(),
+               lsd_over_ceiling_db=c.lsd_db - ceil.lsd_db, targets_met=met)
+    print(f"ceiling ({args.second} against the scan): correlation "
+          f"{ceil.psd_correlation:.3f}, LSD {ceil.lsd_db:.2f} dB; the model's LSD is "
+          f"{c.lsd_db - ceil.lsd_db:+.2f} dB over it: targets "
+          f"{'met' if met else 'not met'} (correlation >= {TARGET_PSD_CORRELATION:g}, "
+          f"LSD <= ceiling + {TARGET_LSD_OVER_CEILING_DB:g} dB)")
 
 
 def _run_evaluate_family(args: argparse.Namespace) -> int:
@@ -796,6 +855,9 @@ def _run_evaluate_family(args: argparse.Namespace) -> int:
         out["mu_rms_error_rel"] = err
         msg += f"; mu(x) RMS error {100 * err:.2f} % of the mean (unfiltered recording)"
     print(msg)
+    if args.second:
+        ceil, _ = _ceiling(args, scan, f, pr, 10.0, lambda sc: sc.speed_mm_s > 1.0)
+        _report_ceiling(args, c, ceil, out)
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
     if args.plot:

@@ -98,6 +98,39 @@ def compare(recorded: Array, synthesized: Array, fs: float, mask: ArrayLike | No
     return c, f, pr, ps
 
 
+#: Issue 7's targets: the power-spectrum correlation at least this, and the log-spectral
+#: distance within this of what a second recording of the surface scores (the ceiling).
+TARGET_PSD_CORRELATION = 0.95
+TARGET_LSD_OVER_CEILING_DB = 0.25
+
+
+@dataclass
+class Ceiling:
+    """A second recording of the same surface scored against the scan as a model is:
+    what no model can beat (two realisations of the same texture)."""
+
+    psd_correlation: float
+    lsd_db: float
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+
+def ceiling(recorded_psd: Array, second_psd: Array, f_hz: Array,
+            band: tuple[float, float] = BAND_HZ) -> Ceiling:
+    """The ceiling from the two recordings' Welch spectra (each over its own samples
+    within the model's speeds, so the recordings may differ in length)."""
+    sel = _band(f_hz, band)
+    return Ceiling(psd_correlation(recorded_psd[sel], second_psd[sel]),
+                   lsd_db(recorded_psd[sel], second_psd[sel]))
+
+
+def meets_targets(c: Comparison, ceil: Ceiling) -> bool:
+    """Issue 7's targets: correlation >= 0.95 and LSD <= the ceiling's + 0.25 dB."""
+    return (c.psd_correlation >= TARGET_PSD_CORRELATION
+            and c.lsd_db <= ceil.lsd_db + TARGET_LSD_OVER_CEILING_DB)
+
+
 def evaluation_mask(scan: Scan, model: TextureModel, tolerance_mm_s: float | None = None
                     ) -> NDArray[np.bool_]:
     """Samples within the model's speed range (widened by its tolerance)."""

@@ -80,3 +80,36 @@ def _plot_coverage(ax: Axes, cov: SpeedCoverage) -> None:
     ax.set_title("speed coverage")
     ax.grid(alpha=0.3)
     ax.legend(loc="upper right")
+
+
+def plot_against_ceiling(path: str | Path, f_hz: NDArray, recorded: NDArray, model: NDArray,
+                         second: NDArray, title: str = "",
+                         band: tuple[float, float] = (20.0, 500.0)) -> Path:
+    """``evaluate --second``: the three spectra, and below them the model's and the second
+    recording's difference to the recording in dB (where the model strays further from
+    the recording than another recording of the surface does)."""
+    sel = (f_hz >= band[0]) & (f_hz <= band[1])
+    f = f_hz[sel]
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True,
+                                      constrained_layout=True,
+                                      gridspec_kw={"height_ratios": [2, 1]})
+    top.plot(f, 10 * np.log10(recorded[sel]), label="recorded (DFT321)")
+    top.plot(f, 10 * np.log10(model[sel]), label="model", alpha=0.85)
+    top.plot(f, 10 * np.log10(second[sel]), color="0.5", lw=0.8, label="second recording")
+    top.set_ylabel("PSD [dB (m/s²)²/Hz]")
+    top.legend()
+    bottom.axhline(0.0, color="k", lw=0.6)
+    bottom.plot(f, 10 * np.log10(model[sel] / recorded[sel]), color="tab:orange",
+                label="model − recorded")
+    bottom.plot(f, 10 * np.log10(second[sel] / recorded[sel]), color="0.5", lw=0.8,
+                label="second − recorded (the ceiling)")
+    bottom.set_ylabel("difference [dB]")
+    bottom.set_xlabel("frequency [Hz]")
+    bottom.legend(fontsize="small")
+    for ax in (top, bottom):
+        ax.grid(alpha=0.3)
+    if title:
+        fig.suptitle(title)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)

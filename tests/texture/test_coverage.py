@@ -1,5 +1,6 @@
 """Speed coverage: the speeds the scans went at, and the gaps where a model interpolates
-(fydpad/texture/coverage.py), through the fit, the model file and the commands."""
+(fydpad/texture/coverage.py), through the fit, the model file and the commands; and
+``evaluate --second``, the ceiling a second recording sets."""
 
 from __future__ import annotations
 
@@ -23,7 +24,7 @@ from fydpad.texture.coverage import (
 from fydpad.texture.fit import fit_texture
 from fydpad.texture.model_file import load_model
 from fydpad.texture.plots import SpeedCoverage, plot_spectra
-from fydpad.texture.scan_generator import generate_scan
+from fydpad.texture.scan_generator import generate_scan, save_generated
 from tests.texture_families.helpers import run_cli as run
 
 FS = 1000.0
@@ -180,3 +181,44 @@ def test_the_fit_plot_has_a_coverage_panel(tmp_path):
     heights = [mpimg.imread(plot_spectra(tmp_path / f"{k}.png", panels, coverage=c)).shape[0]
                for k, c in (("plain", None), ("coverage", cov))]
     assert heights[1] == 2 * heights[0]  # one more row of panels, the spectra's height
+
+
+def test_evaluate_against_a_second_recording(felt, tmp_path, capsys):
+    """--second: the ceiling and the targets' verdict. Ground truth: the scan as its own
+    second recording is a ceiling of 0 dB and correlation 1; another stroke of felt is
+    a ceiling above 0; the verdict is the targets' rule on the printed figures."""
+    model, scan = str(felt / "felt.json"), str(felt / "felt_10mms_s1.csv")
+    other = tmp_path / "felt_10_b.csv"
+    save_generated(generate_scan("felt", 10.0, 6.0, seed=7), other)
+    figures = {}
+    for name, second in (("self", scan), ("other", str(other))):
+        j = tmp_path / f"{name}.json"
+        assert run("evaluate", model, scan, "--second", second, "--json", str(j),
+                   "--plot", str(tmp_path / f"{name}.png")) == 0
+        figures[name] = json.loads(j.read_text())
+        assert (tmp_path / f"{name}.png").stat().st_size > 1000
+    own = figures["self"]["ceiling"]
+    assert own["lsd_db"] == 0.0 and own["psd_correlation"] == pytest.approx(1.0)
+    for e in figures.values():
+        assert e["lsd_over_ceiling_db"] == pytest.approx(e["lsd_db"] - e["ceiling"]["lsd_db"])
+        assert e["targets_met"] == (e["psd_correlation"] >= 0.95
+                                    and e["lsd_over_ceiling_db"] <= 0.25)
+    assert 0.2 < figures["other"]["ceiling"]["lsd_db"] < 3.0
+    assert "targets" in capsys.readouterr().out
+
+
+def test_evaluate_second_recording_errors(felt, tmp_path, capsys):
+    model, scan = str(felt / "felt.json"), str(felt / "felt_10mms_s1.csv")
+    slow = tmp_path / "felt_500hz.csv"
+    save_generated(generate_scan("felt", 10.0, 6.0, seed=7, fs_hz=500.0), slow)
+    with pytest.raises(UserError, match=r"felt_500hz\.csv: column 't_s': sample rate 500 Hz"):
+        run("evaluate", model, scan, "--second", str(slow))
+    fast = tmp_path / "felt_90.csv"
+    save_generated(generate_scan("felt", 90.0, 4.0, seed=7), fast)
+    with pytest.raises(UserError, match=r"felt_90\.csv: column 'speed_mm_s': too little"):
+        run("evaluate", model, scan, "--second", str(fast))
+    cork = tmp_path / "cork.csv"
+    save_generated(generate_scan("cork", 10.0, 6.0, seed=7), cork)
+    capsys.readouterr()
+    assert run("evaluate", model, scan, "--second", str(cork)) == 0
+    assert "is of 'cork'" in capsys.readouterr().err

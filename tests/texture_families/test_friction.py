@@ -137,6 +137,12 @@ def test_cli_generate_fit_synth_evaluate(tmp_path):
 
     e = json.loads((d / "e.json").read_text())
     assert e["kind"] == "friction" and e["mu_rms_error_rel"] < 0.05
+    # The scan as its own second recording: a ceiling of 0 dB (ground truth).
+    assert run_cli("evaluate", str(d / "c.json"), scan_path, "--second", scan_path,
+                   "--json", str(d / "e2.json")) == 0
+    e2 = json.loads((d / "e2.json").read_text())
+    assert e2["ceiling"]["lsd_db"] == 0.0 and e2["targets_met"] == (
+        e2["psd_correlation"] >= 0.95 and e2["lsd_db"] <= 0.25)
 
 
 def test_fydpad_vibration_follows_mu_while_sliding_only(fitted):
