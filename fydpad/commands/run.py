@@ -206,6 +206,19 @@ def _stiffness(args: argparse.Namespace) -> float:
     return math.nan if args.softness is None else args.softness
 
 
+def _say_texture_gaps(family, spec: str) -> None:
+    """One line at start when an LPC texture's scans left speeds unscanned (its model
+    interpolates there: docs/texture.md, 'Speed coverage')."""
+    from fydpad.texture.coverage import describe, model_gaps
+    from fydpad.texture.model_file import TextureModel
+
+    model = getattr(family, "model", None)
+    gaps = model_gaps(model.provenance, spec) if isinstance(model, TextureModel) else None
+    if gaps:
+        print(f"texture {spec}: no scan between {describe(gaps)}; the texture felt there is "
+              "the model's interpolation (docs/texture.md, 'Speed coverage')", file=sys.stderr)
+
+
 def _check_channels(args: argparse.Namespace, render_hz: float) -> None:
     """--channel: the spec parses, the texture renders its signal, the card is there. The
     channels themselves are opened by the render process."""
@@ -255,6 +268,7 @@ def run(args: argparse.Namespace) -> int:
 
         family = load_family(args.texture)
         check_family_rate(family, config.loops.render_hz, args.texture)  # else a wrong pitch
+        _say_texture_gaps(family, args.texture)
         if (args.texture_method or args.drive_filter) and not hasattr(family, "drive_filter"):
             raise UserError(f"{args.texture}: --texture-method and --drive-filter apply to LPC "
                             f"texture models, this one is {family.kind!r}")

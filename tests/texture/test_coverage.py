@@ -222,3 +222,16 @@ def test_evaluate_second_recording_errors(felt, tmp_path, capsys):
     capsys.readouterr()
     assert run("evaluate", model, scan, "--second", str(cork)) == 0
     assert "is of 'cork'" in capsys.readouterr().err
+
+
+def test_run_says_where_the_texture_is_interpolated(felt, capsys):
+    """`fydpad run --texture` (the station, synthetic finger, simulated motors, 0.2 s):
+    one line at start names the gaps."""
+    from fydpad.cli import main
+
+    assert main(["run", "--synthetic", "circle", "--motors", "sim", "--texture",
+                 str(felt / "felt.json"), "--duration", "0.2", "--as-fast-as-possible",
+                 "--no-realtime"]) == 0
+    err = capsys.readouterr().err
+    gaps = json.loads((felt / "felt.json").read_text())["provenance"]["interpolated_mm_s"]
+    assert f"no scan between {describe([tuple(g) for g in gaps])}" in err
