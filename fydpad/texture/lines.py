@@ -18,7 +18,9 @@ Fit (:func:`fit_lines`), on the preprocessed (high-passed, DFT321) signal of eac
    where the lines are at fixed spatial frequencies n / lambda whatever the speed; the
    candidate that puts significant peaks on the most harmonics wins, then lambda is
    refined on the coherent power of its strongest harmonics (the high harmonics need it
-   to 1e-5: their phase over a 100 mm stroke).
+   to 1e-5: their phase over a 100 mm stroke). Without a comb, one line that is the
+   strongest peak of every stroke able to see it (a sinusoidal rib: corduroy's wale,
+   searched from 10 Hz, :func:`_single_line`) is modelled alone, its harmonics not.
 2. Per stroke and harmonic, the complex amplitude as (v / med)^2 times a piecewise
    linear function of speed, by least squares on the signal demodulated at the
    harmonic's phase 2 pi n s / lambda (the harmonics are orthogonal over a stroke of many
@@ -67,6 +69,12 @@ MAX_SPEED_RATE = 1.5
 EDGE_S = 0.25
 #: Speed grid of the amplitude table (mm/s).
 GRID_STEP_MM_S = 0.5
+#: A single line without a comb is searched from here (the 10 Hz high-pass's corner: a
+#: 2.5 mm rib sits at 4-16 Hz at 10-40 mm/s, below the comb search's 15 Hz but for the
+#: fastest strokes), and must be every stroke's strongest peak that can see it, in at
+#: least this many strokes.
+SINGLE_LINE_F_LO = 10.0
+SINGLE_LINE_MIN_STROKES = 2
 #: Harmonics up to this fraction of Nyquist (the scans' anti-alias filter ends there);
 #: the renderer tapers them from TAPER_START of Nyquist so none drops out with a click.
 BAND_TOP = 0.99
@@ -326,10 +334,17 @@ def _comb_score(specs: Sequence[_Spectrum], lam: float) -> float:
 
 def estimate_period(strokes: Sequence[_Stroke], f_lo: float, f_hi: float,
                     period_mm: float | None = None) -> tuple[float, int] | None:
-    """The spatial period (mm) and the median number of comb peaks per stroke, or None
-    without a comb. ``period_mm``: a given period, refined (within 2 %)."""
+    """The spatial period (mm) and the median number of comb peaks per stroke (1: a
+    single line, :func:`_single_line`), or None without either. ``period_mm``: a given
+    period, refined (within 2 %)."""
     if period_mm is not None:  # given: refined on the coherent power alone
         return _refine(strokes, float(period_mm), f_lo, f_hi, 0.02), 0
+    return _comb_period(strokes, f_lo, f_hi) or _single_line(strokes, f_hi)
+
+
+def _comb_period(strokes: Sequence[_Stroke], f_lo: float, f_hi: float
+                 ) -> tuple[float, int] | None:
+    """A comb's period (mm) and its median number of peaks per stroke, or None."""
     specs = [sp for st in strokes if (sp := _spatial_spectrum(st, f_lo, f_hi)) is not None]
     if not specs or not any(sp.peaks_k.size for sp in specs):
         return None
@@ -363,6 +378,30 @@ def estimate_period(strokes: Sequence[_Stroke], f_lo: float, f_hi: float,
     if score < MIN_COMB_SCORE or np.median(hits) < 3:
         return None
     return _refine(strokes, lam, f_lo, f_hi, 2e-3), int(np.median(hits))
+
+
+def _single_line(strokes: Sequence[_Stroke], f_hi: float) -> tuple[float, int] | None:
+    """A surface with one spatial line and no comb (a sinusoidal rib: corduroy's wale),
+    searched from SINGLE_LINE_F_LO: (the period, 1) when every stroke whose band holds
+    the line (at least SINGLE_LINE_MIN_STROKES) has it as its strongest peak, and it
+    scores as a comb would (MIN_COMB_SCORE); else None. A rough surface's strongest
+    peaks, where any clear the median filter, fall at a different k in every stroke."""
+    specs = [sp for st in strokes
+             if (sp := _spatial_spectrum(st, SINGLE_LINE_F_LO, f_hi)) is not None]
+    tops = [float(sp.peaks_k[0]) for sp in specs if sp.peaks_k.size]
+    if not tops:
+        return None
+    dk = min(float(sp.k[1] - sp.k[0]) for sp in specs)
+    best = None
+    for k in tops:
+        seen = [sp for sp in specs if sp.k_lo <= k <= sp.k_hi]
+        agree = sum(sp.peaks_k.size > 0 and abs(float(sp.peaks_k[0]) - k) <= _TOL_BINS * dk
+                    for sp in seen)
+        if agree >= SINGLE_LINE_MIN_STROKES and agree == len(seen):
+            best = k if best is None else best
+    if best is None or _comb_score(specs, 1.0 / best) < MIN_COMB_SCORE:
+        return None
+    return _refine(strokes, 1.0 / best, SINGLE_LINE_F_LO, f_hi, 2e-3), 1
 
 
 def _refine(strokes: Sequence[_Stroke], lam: float, f_lo: float, f_hi: float,
@@ -735,12 +774,19 @@ def fit_lines(signals: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
         return whole
     found = estimate_period(strokes, f_lo, f_top, period_mm)
     if found is None:
-        whole.note = "no spatial period (no harmonic comb stands out of the spectrum)"
+        whole.note = ("no spatial period (no harmonic comb, nor one line in every stroke, "
+                      "stands out of the spectrum)")
         return whole
-    lam, _ = found
+    lam, peaks = found
     n_max = int(max(math.floor(f_top * lam / float(st.v[st.valid].min())) for st in strokes))
     capped = n_max > MAX_HARMONICS
     n_max = min(n_max, MAX_HARMONICS)
+    if peaks == 1:
+        # One line and no comb: its harmonics, if any, did not stand out of the noise,
+        # and kept at the noise rule's odds (a few cells per thousand over every
+        # harmonic and row) they were narrow lines of noise: corduroy kept 47, and its
+        # held-out strokes scored 0.04-0.11 dB better with the fundamental alone.
+        n_max = 1
     if n_max < 1:
         whole.note = f"period {lam:.4g} mm: no harmonic within the band"
         return whole
@@ -835,8 +881,9 @@ def fit_lines(signals: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     phase = np.angle(fits[ref].at(np.array([strokes[ref].med]))[0])
     spectrum = LineSpectrum(lam, grid, amplitude, phase)
     kept = int(np.sum(present.any(axis=0)))
-    note = (f"period {lam:.4f} mm, {kept} harmonics kept, {100 * share:.1f} % of the "
-            "power in lines")
+    note = (f"period {lam:.4f} mm, " + ("one line, no comb" if peaks == 1 else
+                                          f"{kept} harmonics kept")
+            + f", {100 * share:.1f} % of the power in lines")
     if capped:
         note += (f"; harmonics above the {MAX_HARMONICS}th (in band only at the slowest "
                  "speeds) are left to the all-pole model")
