@@ -206,7 +206,7 @@ def _stiffness(args: argparse.Namespace) -> float:
     return math.nan if args.softness is None else args.softness
 
 
-def _say_texture_gaps(family, spec: str) -> None:
+def _say_texture_gaps(family: object, spec: str) -> None:
     """One line at start when an LPC texture's scans left speeds unscanned (its model
     interpolates there: docs/texture.md, 'Speed coverage')."""
     from fydpad.texture.coverage import describe, model_gaps

@@ -106,8 +106,9 @@ TARGET_LSD_OVER_CEILING_DB = 0.25
 
 @dataclass
 class Ceiling:
-    """A second recording of the same surface scored against the scan as a model is:
-    what no model can beat (two realisations of the same texture)."""
+    """A second recording of the same surface, at the same speed and about as long,
+    scored against the scan as a model is: the reference of issue 7's target (what two
+    realisations of the texture score against each other)."""
 
     psd_correlation: float
     lsd_db: float
@@ -123,6 +124,25 @@ def ceiling(recorded_psd: Array, second_psd: Array, f_hz: Array,
     sel = _band(f_hz, band)
     return Ceiling(psd_correlation(recorded_psd[sel], second_psd[sel]),
                    lsd_db(recorded_psd[sel], second_psd[sel]))
+
+
+def unfair_ceiling(scan_speeds_mm_s: Array, second_speeds_mm_s: Array, fs_hz: float,
+                   tolerance_mm_s: float, scan_surface: str | None = None,
+                   second_surface: str | None = None) -> str | None:
+    """Why a second recording (its samples within the model's speeds) sets no fair
+    ceiling for the scan, or None: another surface (when both name theirs), a median
+    speed further than the tolerance from the scan's (another spectrum), or less than
+    half the scan's duration (its spectrum scatters more, which raises the ceiling)."""
+    if scan_surface and second_surface and scan_surface != second_surface:
+        return f"it is of {second_surface!r}, the scan of {scan_surface!r}"
+    v1, v2 = float(np.median(scan_speeds_mm_s)), float(np.median(second_speeds_mm_s))
+    if abs(v2 - v1) > tolerance_mm_s:
+        return (f"its median speed {v2:.1f} mm/s is more than {tolerance_mm_s:g} mm/s from "
+                f"the scan's {v1:.1f}")
+    if second_speeds_mm_s.size < 0.5 * scan_speeds_mm_s.size:
+        return (f"it holds {second_speeds_mm_s.size / fs_hz:.1f} s within the model's "
+                f"speeds, less than half the scan's {scan_speeds_mm_s.size / fs_hz:.1f} s")
+    return None
 
 
 def meets_targets(c: Comparison, ceil: Ceiling) -> bool:

@@ -18,9 +18,9 @@ Fit (:func:`fit_lines`), on the preprocessed (high-passed, DFT321) signal of eac
    where the lines are at fixed spatial frequencies n / lambda whatever the speed; the
    candidate that puts significant peaks on the most harmonics wins, then lambda is
    refined on the coherent power of its strongest harmonics (the high harmonics need it
-   to 1e-5: their phase over a 100 mm stroke). Without a comb, one line that is the
-   strongest peak of every stroke able to see it (a sinusoidal rib: corduroy's wale,
-   searched from 10 Hz, :func:`_single_line`) is modelled alone, its harmonics not.
+   to 1e-5: their phase over a 100 mm stroke). Without a comb, a rib: one line that is
+   the strongest peak of every stroke able to see it, with the harmonics that stand as
+   peaks (corduroy's wale, searched from 10 Hz, :func:`_rib`).
 2. Per stroke and harmonic, the complex amplitude as (v / med)^2 times a piecewise
    linear function of speed, by least squares on the signal demodulated at the
    harmonic's phase 2 pi n s / lambda (the harmonics are orthogonal over a stroke of many
@@ -69,12 +69,20 @@ MAX_SPEED_RATE = 1.5
 EDGE_S = 0.25
 #: Speed grid of the amplitude table (mm/s).
 GRID_STEP_MM_S = 0.5
-#: A single line without a comb is searched from here (the 10 Hz high-pass's corner: a
-#: 2.5 mm rib sits at 4-16 Hz at 10-40 mm/s, below the comb search's 15 Hz but for the
-#: fastest strokes), and must be every stroke's strongest peak that can see it, in at
-#: least this many strokes.
-SINGLE_LINE_F_LO = 10.0
-SINGLE_LINE_MIN_STROKES = 2
+#: A rib without a comb (:func:`_rib`) is searched from here (the 10 Hz high-pass's
+#: corner: a 2.5 mm rib sits at 4-16 Hz at 10-40 mm/s, below the comb search's 15 Hz
+#: but for the fastest strokes); its line must be the strongest peak of every stroke
+#: that can see it, in at least RIB_MIN_STROKES strokes whose median speeds span
+#: RIB_MIN_SPEED_RATIO (a hum on a constant-speed rig stands at one k in every stroke).
+RIB_F_LO = 10.0
+RIB_MIN_STROKES = 2
+RIB_MIN_SPEED_RATIO = 1.2
+#: ... among the RIB_TOP_PEAKS strongest peaks of each of them (and the strongest in at
+#: least half: a rounded rib's 2nd harmonic may outdo its line in one stroke), holding
+#: RIB_MIN_SCORE of their spatial power (_comb_score; a comb needs MIN_COMB_SCORE, but a
+#: rib on a rough surface, 0.003 mm RMS, scored 0.10; fit_lines' MIN_SHARE follows).
+RIB_TOP_PEAKS = 3
+RIB_MIN_SCORE = 0.1
 #: Harmonics up to this fraction of Nyquist (the scans' anti-alias filter ends there);
 #: the renderer tapers them from TAPER_START of Nyquist so none drops out with a click.
 BAND_TOP = 0.99
@@ -332,19 +340,29 @@ def _comb_score(specs: Sequence[_Spectrum], lam: float) -> float:
     return score / len(specs)
 
 
+@dataclass
+class Period:
+    """What the period search found: the period, how (``"comb"``; ``"rib"``, a line
+    and at most a few harmonics without a comb, :func:`_rib`; ``"given"``), and the
+    highest harmonic worth modelling (None: every one in band)."""
+
+    period_mm: float
+    kind: str
+    harmonics: int | None = None
+
+
 def estimate_period(strokes: Sequence[_Stroke], f_lo: float, f_hi: float,
-                    period_mm: float | None = None) -> tuple[float, int] | None:
-    """The spatial period (mm) and the median number of comb peaks per stroke (1: a
-    single line, :func:`_single_line`), or None without either. ``period_mm``: a given
+                    period_mm: float | None = None) -> Period | None:
+    """The spatial period, or None without a comb or a rib. ``period_mm``: a given
     period, refined (within 2 %)."""
     if period_mm is not None:  # given: refined on the coherent power alone
-        return _refine(strokes, float(period_mm), f_lo, f_hi, 0.02), 0
-    return _comb_period(strokes, f_lo, f_hi) or _single_line(strokes, f_hi)
+        return Period(_refine(strokes, float(period_mm), f_lo, f_hi, 0.02), "given")
+    comb = _comb_period(strokes, f_lo, f_hi)
+    return Period(comb, "comb") if comb is not None else _rib(strokes, f_hi)
 
 
-def _comb_period(strokes: Sequence[_Stroke], f_lo: float, f_hi: float
-                 ) -> tuple[float, int] | None:
-    """A comb's period (mm) and its median number of peaks per stroke, or None."""
+def _comb_period(strokes: Sequence[_Stroke], f_lo: float, f_hi: float) -> float | None:
+    """A comb's period (mm), or None."""
     specs = [sp for st in strokes if (sp := _spatial_spectrum(st, f_lo, f_hi)) is not None]
     if not specs or not any(sp.peaks_k.size for sp in specs):
         return None
@@ -377,31 +395,63 @@ def _comb_period(strokes: Sequence[_Stroke], f_lo: float, f_hi: float
                            key=lambda t: t[0])
     if score < MIN_COMB_SCORE or np.median(hits) < 3:
         return None
-    return _refine(strokes, lam, f_lo, f_hi, 2e-3), int(np.median(hits))
+    return _refine(strokes, lam, f_lo, f_hi, 2e-3)
 
 
-def _single_line(strokes: Sequence[_Stroke], f_hi: float) -> tuple[float, int] | None:
-    """A surface with one spatial line and no comb (a sinusoidal rib: corduroy's wale),
-    searched from SINGLE_LINE_F_LO: (the period, 1) when every stroke whose band holds
-    the line (at least SINGLE_LINE_MIN_STROKES) has it as its strongest peak, and it
-    scores as a comb would (MIN_COMB_SCORE); else None. A rough surface's strongest
-    peaks, where any clear the median filter, fall at a different k in every stroke."""
-    specs = [sp for st in strokes
-             if (sp := _spatial_spectrum(st, SINGLE_LINE_F_LO, f_hi)) is not None]
-    tops = [float(sp.peaks_k[0]) for sp in specs if sp.peaks_k.size]
-    if not tops:
+def _rib(strokes: Sequence[_Stroke], f_hi: float) -> Period | None:
+    """A rib without a comb: one spatial line, perhaps with a harmonic or two (a
+    sinusoidal or rounded rib: corduroy's wale), searched from RIB_F_LO.
+
+    Taken when a spatial frequency k is among the strongest peaks of every stroke whose
+    band holds it (the strongest in half of them), in at least RIB_MIN_STROKES strokes
+    whose median speeds differ by RIB_MIN_SPEED_RATIO (a fixed tone on strokes at one
+    speed stands at one k too; a surface's line moves in f with the speed), and scores
+    RIB_MIN_SCORE on those strokes. The fundamental is k / m (m = 3, 2) where every
+    stroke that can see k / m has a peak there (the strongest line may be a harmonic);
+    the harmonics modelled are those that stand as peaks in at least half the strokes
+    that can see them. A rough surface's strongest peaks, where any clear the median
+    filter, fall at a different k in every stroke."""
+    pairs = [(sp, float(np.median(st.v[st.valid]))) for st in strokes
+             if (sp := _spatial_spectrum(st, RIB_F_LO, f_hi)) is not None]
+    if not pairs:
         return None
-    dk = min(float(sp.k[1] - sp.k[0]) for sp in specs)
-    best = None
-    for k in tops:
-        seen = [sp for sp in specs if sp.k_lo <= k <= sp.k_hi]
-        agree = sum(sp.peaks_k.size > 0 and abs(float(sp.peaks_k[0]) - k) <= _TOL_BINS * dk
-                    for sp in seen)
-        if agree >= SINGLE_LINE_MIN_STROKES and agree == len(seen):
-            best = k if best is None else best
-    if best is None or _comb_score(specs, 1.0 / best) < MIN_COMB_SCORE:
+    specs, meds = [p for p, _ in pairs], [m for _, m in pairs]
+    tol = _TOL_BINS * min(float(sp.k[1] - sp.k[0]) for sp in specs)
+
+    def seen(k: float) -> list[int]:
+        return [i for i, sp in enumerate(specs) if sp.k_lo <= k <= sp.k_hi]
+
+    def has_peak(i: int, k: float) -> bool:
+        return bool(np.any(np.abs(specs[i].peaks_k - k) <= tol))
+
+    def rank(i: int, k: float) -> int:  # k's place among stroke i's peaks (99: absent)
+        near = np.flatnonzero(np.abs(specs[i].peaks_k - k) <= tol)
+        return int(near[0]) if near.size else 99
+
+    line = None
+    for k in (float(sp.peaks_k[0]) for sp in specs if sp.peaks_k.size):
+        idx = seen(k)
+        ranks = [rank(i, k) for i in idx]
+        if (len(idx) >= RIB_MIN_STROKES and max(ranks) < RIB_TOP_PEAKS
+                and 2 * ranks.count(0) >= len(idx)
+                and max(meds[i] for i in idx) >= RIB_MIN_SPEED_RATIO * min(meds[i] for i in idx)
+                and _comb_score([specs[i] for i in idx], 1.0 / k) >= RIB_MIN_SCORE):
+            line = k
+            break
+    if line is None:
         return None
-    return _refine(strokes, 1.0 / best, SINGLE_LINE_F_LO, f_hi, 2e-3), 1
+    k0 = line
+    for m in (3, 2):  # the strongest line may be the 2nd or 3rd harmonic
+        idx = seen(line / m)
+        if idx and all(has_peak(i, line / m) for i in idx):
+            k0 = line / m
+            break
+    harmonics = 1
+    for n in range(2, 13):
+        idx = seen(n * k0)
+        if idx and 2 * sum(has_peak(i, n * k0) for i in idx) >= len(idx):
+            harmonics = n
+    return Period(_refine(strokes, 1.0 / k0, RIB_F_LO, f_hi, 2e-3), "rib", harmonics)
 
 
 def _refine(strokes: Sequence[_Stroke], lam: float, f_lo: float, f_hi: float,
@@ -774,19 +824,19 @@ def fit_lines(signals: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
         return whole
     found = estimate_period(strokes, f_lo, f_top, period_mm)
     if found is None:
-        whole.note = ("no spatial period (no harmonic comb, nor one line in every stroke, "
-                      "stands out of the spectrum)")
+        whole.note = ("no spatial period (no harmonic comb stands out of the spectrum, nor "
+                      "a rib's line in every stroke whose band holds it)")
         return whole
-    lam, peaks = found
+    lam = found.period_mm
     n_max = int(max(math.floor(f_top * lam / float(st.v[st.valid].min())) for st in strokes))
+    if found.harmonics is not None:
+        # A rib: only the harmonics that stood as spatial peaks. Every harmonic in band,
+        # kept at the noise rule's odds (a few cells per thousand over every harmonic
+        # and row), gave corduroy 47 narrow lines of noise, and its held-out strokes
+        # scored 0.04-0.11 dB better with its one line alone.
+        n_max = min(n_max, found.harmonics)
     capped = n_max > MAX_HARMONICS
     n_max = min(n_max, MAX_HARMONICS)
-    if peaks == 1:
-        # One line and no comb: its harmonics, if any, did not stand out of the noise,
-        # and kept at the noise rule's odds (a few cells per thousand over every
-        # harmonic and row) they were narrow lines of noise: corduroy kept 47, and its
-        # held-out strokes scored 0.04-0.11 dB better with the fundamental alone.
-        n_max = 1
     if n_max < 1:
         whole.note = f"period {lam:.4g} mm: no harmonic within the band"
         return whole
@@ -881,9 +931,12 @@ def fit_lines(signals: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     phase = np.angle(fits[ref].at(np.array([strokes[ref].med]))[0])
     spectrum = LineSpectrum(lam, grid, amplitude, phase)
     kept = int(np.sum(present.any(axis=0)))
-    note = (f"period {lam:.4f} mm, " + ("one line, no comb" if peaks == 1 else
-                                          f"{kept} harmonics kept")
-            + f", {100 * share:.1f} % of the power in lines")
+    if found.kind == "rib":
+        what = ("a rib: one line" if kept == 1 else f"a rib: {kept} harmonics") + ", no comb"
+    else:
+        what = f"{kept} harmonics kept"
+    note = (f"period {lam:.4f} mm, {what}, {100 * share:.1f} % of the power in "
+            + ("the line" if kept == 1 else "lines"))
     if capped:
         note += (f"; harmonics above the {MAX_HARMONICS}th (in band only at the slowest "
                  "speeds) are left to the all-pole model")

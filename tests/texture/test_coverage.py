@@ -207,21 +207,41 @@ def test_evaluate_against_a_second_recording(felt, tmp_path, capsys):
     assert "targets" in capsys.readouterr().out
 
 
-def test_evaluate_second_recording_errors(felt, tmp_path, capsys):
+def test_evaluate_second_recording_errors(felt, tmp_path):
     model, scan = str(felt / "felt.json"), str(felt / "felt_10mms_s1.csv")
     slow = tmp_path / "felt_500hz.csv"
     save_generated(generate_scan("felt", 10.0, 6.0, seed=7, fs_hz=500.0), slow)
     with pytest.raises(UserError, match=r"felt_500hz\.csv: column 't_s': sample rate 500 Hz"):
         run("evaluate", model, scan, "--second", str(slow))
-    fast = tmp_path / "felt_90.csv"
+    fast = tmp_path / "felt_90.csv"  # only its ramps pass through the model's speeds
     save_generated(generate_scan("felt", 90.0, 4.0, seed=7), fast)
-    with pytest.raises(UserError, match=r"felt_90\.csv: column 'speed_mm_s': too little"):
+    with pytest.raises(UserError, match=r"felt_90\.csv: \d+ of its 4000 samples are within "
+                       r"the model's speeds \(column 'speed_mm_s'\), in no run of the 250"):
         run("evaluate", model, scan, "--second", str(fast))
-    cork = tmp_path / "cork.csv"
-    save_generated(generate_scan("cork", 10.0, 6.0, seed=7), cork)
+
+
+@pytest.mark.parametrize("what, second, note", [
+    ("another surface", ("cork", 10.0, 6.0), "it is of 'cork', the scan of 'felt'"),
+    ("another speed", ("felt", 30.0, 6.0), "median speed"),
+    ("much shorter", ("felt", 10.0, 1.5), "less than half the scan's"),
+])
+def test_an_unfair_second_recording_gives_no_verdict(felt, tmp_path, capsys, what, second,
+                                                     note):
+    """A ceiling from another surface, another speed (both within the model's speeds) or
+    a much shorter recording is far above what a fair one is (19 dB for felt at 30 mm/s
+    against a scan at 10): any model would 'meet' it. The figures are written, the
+    verdict is null, and the reason is said."""
+    name, v, seconds = second
+    path = tmp_path / f"{name}_{v:g}_{seconds:g}.csv"
+    save_generated(generate_scan(name, v, seconds, seed=7), path)
+    j = tmp_path / "e.json"
     capsys.readouterr()
-    assert run("evaluate", model, scan, "--second", str(cork)) == 0
-    assert "is of 'cork'" in capsys.readouterr().err
+    assert run("evaluate", str(felt / "felt.json"), str(felt / "felt_10mms_s1.csv"),
+               "--second", str(path), "--json", str(j)) == 0
+    e = json.loads(j.read_text())
+    assert e["targets_met"] is None and note in e["ceiling_note"], (what, e)
+    assert "no verdict" in capsys.readouterr().out
+    assert e["second_surface"] == name and e["second_seconds"] > 0
 
 
 def test_run_says_where_the_texture_is_interpolated(felt, capsys):

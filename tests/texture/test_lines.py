@@ -160,7 +160,7 @@ def test_a_single_rib_is_one_line():
                         [sc.speed_mm_s for sc in scans], FS, (5.0, 45.0))
     assert fit.spectrum is not None, fit.note
     assert fit.period_mm == pytest.approx(2.5, rel=1e-3)
-    assert fit.spectrum.harmonics == 1 and "one line, no comb" in fit.note
+    assert fit.spectrum.harmonics == 1 and "a rib: one line, no comb" in fit.note
     assert fit.share > 0.3
     # Truth at 40 mm/s (16 Hz): the rib's vertical acceleration (2 pi f)^2 x 0.075 mm =
     # 0.758 m/s^2, x 1.06 for the tangential axes' share (0.3 and 0.18 of it, DFT321
@@ -168,6 +168,73 @@ def test_a_single_rib_is_one_line():
     # high-pass and the tip's smoothing: 0.80 m/s^2 (measured 0.79).
     a40 = fit.spectrum.amplitudes_at(40.0)[0]
     assert a40 == pytest.approx(0.80, rel=0.1)
+
+
+def _lines_of(scans) -> object:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return fit_lines([preprocess(sc.acc, FS) for sc in scans],
+                         [sc.speed_mm_s for sc in scans], FS, (5.0, 45.0))
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_a_rounded_rib_keeps_the_harmonics_that_stand_out(seed):
+    """A rounded rib (70 % ridge, smoothed over 0.35 mm): a line and a few harmonics, no
+    comb of three peaks a stroke. Its harmonics stand as spatial peaks and are kept
+    (one line alone held 58 % of the power); with seed 4 the 2nd harmonic outdoes the
+    line in one stroke."""
+    from fydpad.texture.scan_generator import Texture
+
+    rib = Texture("round_rib_0.35", period_mm=2.5, ridge_fraction=0.7, relief_mm=0.15,
+                  tip_mm=0.35, rough_mm=0.001, resonance_hz=120.0, damping=0.15)
+    fit = _lines_of([generate_scan(rib, v, 6.0, seed=seed) for v in SPEEDS])
+    assert fit.period_mm == pytest.approx(2.5, rel=1e-3), fit.note
+    assert fit.spectrum.harmonics >= 2 and fit.share > 0.95, fit.note
+
+
+class _Strokes:
+    def __init__(self, acc: np.ndarray, v: np.ndarray) -> None:
+        self.acc, self.speed_mm_s = acc, v
+
+
+def test_a_rib_whose_second_harmonic_is_as_loud_is_not_taken_at_half_its_period():
+    """A 2.5 mm rib with a 2nd harmonic of the fundamental's acceleration: in some
+    strokes the 1.25 mm line is the strongest peak. The period is the rib's, and both
+    lines are modelled."""
+    scans = []
+    for i, v_t in enumerate(SPEEDS):
+        rng = np.random.default_rng(10 + i)
+        v = hand_speed(v_t, 6.0, FS, rng)
+        s = arc_length_mm(v, FS)
+        a = 0.075e-3 * (2 * np.pi * v / 2.5) ** 2
+        z = a * np.cos(2 * np.pi * s / 2.5) + a * np.cos(4 * np.pi * s / 2.5 + 0.5)
+        scans.append(_Strokes(np.column_stack([0.3 * z, 0.15 * z, z])
+                              + 0.01 * rng.standard_normal((v.size, 3)), v))
+    fit = _lines_of(scans)
+    assert fit.period_mm == pytest.approx(2.5, rel=1e-3), fit.note
+    assert fit.spectrum.harmonics == 2
+
+
+def test_a_hum_on_strokes_at_one_speed_is_not_a_rib():
+    """A 50 Hz hum on three strokes at one rig speed stands at one spatial frequency in
+    every stroke, as a rib's line would; a surface's line moves with the speed, a hum
+    does not, so strokes whose speeds do not differ by 20 % make no rib."""
+    scans = []
+    for seed in (1, 2, 3):
+        sc = generate_scan("felt", 20.0, 6.0, seed=seed, hand_variation=0.0)
+        sc.acc = sc.acc + 0.2 * np.sin(2 * np.pi * 50.0 * np.arange(sc.acc.shape[0]) / FS
+                                       )[:, None]
+        scans.append(sc)
+    fit = _lines_of(scans)
+    assert fit.spectrum is None and "no spatial period" in fit.note, fit.note
+
+
+def test_a_rib_is_found_among_strokes_too_slow_to_see_it():
+    """Corduroy with four strokes at 10-20 mm/s, where the line is below 10 Hz, and
+    two at 30-40: only those two see it, and they decide."""
+    fit = _lines_of([generate_scan("corduroy", v, 6.0, seed=3 + j)
+                     for v, j in ((10, 0), (10, 1), (20, 0), (20, 1), (30, 0), (40, 0))])
+    assert fit.period_mm == pytest.approx(2.5, rel=1e-3), fit.note
 
 
 @pytest.mark.parametrize("name", ["felt", "sandpaper_p80", "sandpaper_p320", "glass",
@@ -178,7 +245,7 @@ def test_surfaces_without_a_period_get_no_lines(name):
     scans = [generate_scan(name, s, 6.0, seed=3) for s in SPEEDS]
     fit = fit_lines([preprocess(sc.acc, FS) for sc in scans],
                     [sc.speed_mm_s for sc in scans], FS, (5.0, 45.0))
-    assert fit.spectrum is None, fit.note
+    assert fit.spectrum is None and "no spatial period" in fit.note, fit.note
     assert all(k.all() for k in fit.keep)
 
 
@@ -249,7 +316,7 @@ def test_a_given_period_is_used_and_refined():
             fit_texture(scans, lines=bad)
 
 
-def _single_line(amplitude: float, harmonic: int, period: float = 1.0) -> LineSpectrum:
+def _one_line_spectrum(amplitude: float, harmonic: int, period: float = 1.0) -> LineSpectrum:
     v = np.arange(5.0, 45.5, 0.5)
     amp = np.zeros((v.size, harmonic))
     amp[:, harmonic - 1] = amplitude
@@ -260,7 +327,7 @@ def test_a_line_is_rendered_at_its_frequency_and_level():
     """One harmonic (n = 12 of a 1 mm period) at 30 mm/s sounds at 360 Hz with its
     amplitude (RMS A / sqrt 2 within 0.5 %); what the wavetable's interpolation adds
     elsewhere is 30 dB or more below it."""
-    voice = LineVoice(_single_line(0.4, 12), FS)
+    voice = LineVoice(_one_line_spectrum(0.4, 12), FS)
     y = voice.block(np.full(20_000, 30.0))
     assert np.sqrt(np.mean(y ** 2)) == pytest.approx(0.4 / math.sqrt(2), rel=5e-3)
     f, p = ss.welch(y, FS, nperseg=1000)
@@ -337,7 +404,7 @@ def test_above_the_tables_fastest_speed_the_lines_hold_their_pitch():
     """The table keeps every harmonic in band up to its fastest speed (45 mm/s here);
     faster, the lines hold that pitch and level (as the process is clamped) instead of
     folding back from above Nyquist: 90 mm/s renders what 45 does."""
-    sp = _single_line(0.4, 10)  # 10 x 45 / 1 mm = 450 Hz at the top
+    sp = _one_line_spectrum(0.4, 10)  # 10 x 45 / 1 mm = 450 Hz at the top
     fast = LineVoice(sp, FS).block(np.full(4000, 90.0))
     top = LineVoice(sp, FS).block(np.full(4000, 45.0))
     np.testing.assert_allclose(fast, top, atol=1e-12)
@@ -348,7 +415,7 @@ def test_above_the_tables_fastest_speed_the_lines_hold_their_pitch():
 def test_a_lines_block_the_renderer_cannot_play_is_refused():
     """Uneven speed steps (the renderer indexes rows by one step) and absurd periods are
     errors on reading, not a wrong sound or a crash in the 1 kHz loop."""
-    good = _single_line(0.4, 3).to_json()
+    good = _one_line_spectrum(0.4, 3).to_json()
     for key, value in (("v_mm_s", [5.0, 10.0, 40.0]), ("period_mm", 1e-310),
                        ("period_mm", 5e3)):
         d = dict(good)
