@@ -495,10 +495,11 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
         print(f"  lines: {lines['note']}" + ("; the LPC models below are fitted on what they "
                                              "leave" if model.lines is not None else ""))
     gaps = model_gaps(model.provenance, args.out) or []
+    middles = ", ".join(f"{round(a + b) / 2:g}" for a, b in gaps)  # to 0.5 mm/s
     print(f"  scanned speeds: {describe(model.provenance['speed_coverage_mm_s'])}"
           + (f"; no scan between {describe(gaps)}: the model interpolates there (less "
-             "accurately: docs/texture.md, 'Speed coverage'); scan there to close the gaps"
-             if gaps else ""))
+             "accurately: docs/texture.md, 'Speed coverage'); to close the gaps, scan "
+             f"strokes at {middles} mm/s" if gaps else ""))
     for r in reports:
         print(f"  {r.speed_mm_s:5.1f} mm/s: {r.n_samples} samples in {r.n_segments} runs, "
               f"sigma2 {r.sigma2:.3g} (m/s^2)^2 = {r.sigma2 / g2:.3g} g^2, "

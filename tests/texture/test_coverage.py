@@ -125,6 +125,7 @@ def test_fit_records_and_says_where_it_interpolates(felt, tmp_path, capsys):
     assert gap[0] < 15.0 and gap[1] > 25.0
     assert len(prov["speed_coverage_mm_s"]) == 2
     assert "no scan between" in said and describe([tuple(gap)]) in said
+    assert f"scan strokes at {round(gap[0] + gap[1]) / 2:g} mm/s" in said  # the gap's middle
 
 
 def test_a_per_speed_fit_reports_the_speeds_it_did_not_use():
