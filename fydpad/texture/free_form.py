@@ -13,7 +13,8 @@ S averaged over v +- 1 mm/s; the 1 kHz path unchanged):
   lines the factorisation misplaces), while S_two still follows the finger's speed
   within the stroke (what the pooled fit gets wrong: spectra that jump with speed).
   log C is weighted by a tent of half-width ``taper_mm_s`` around each v_i (7.5 mm/s,
-  chosen on seed set C), so between the speeds S leans back towards S_two.
+  chosen on seed set C; at most 0.75 x the distance to the next v_i), so between the
+  speeds S leans back towards S_two.
 - ``"free"``: S free in f, piecewise linear in v between knots every 2.5 mm/s; chunk c
   predicted as sum_k m_ck S_k(f) (m_ck: its samples' hat weights on the knots, weighted
   by the window's energy), fitted bin by bin by Itakura-Saito multiplicative updates
@@ -55,6 +56,10 @@ FORMS = ("calibrated", "free", "surface")
 DEFAULT_FORM = "calibrated"
 AUTO = "auto"
 TAPER_MM_S = 7.5  # chosen on seed set C (docs/texture.md); 5 and log-linear also tried
+#: ... and at most this times the distance to the next fitted speed: fitted every 5 mm/s,
+#: 7.5 mm/s tents summed three corrections at every speed (15 mm/s met 6 of 14 on two
+#: seed sets, against 11 and 10 scaled; docs/texture.md, "Left to do").
+TAPER_PER_SPACING = 0.75
 #: IS-NMF iterations of the calibrated form's two-part base (the two-part model alone
 #: takes two_part.ITERATIONS = 600). C_i makes the spectrum at each fitted speed the
 #: recorded one whatever the base, so the base only shapes what lies between: 14
@@ -94,12 +99,22 @@ class CalibratedSpectrum:
         return self.two.f_hz
 
     def weights(self, speed_mm_s: float) -> Array:
-        """w_i(v): a tent of half-width ``taper_mm_s`` around each v_i (speeds clamped to
-        the fitted range), or the hat weights of linear interpolation."""
+        """w_i(v): a tent of half-width :attr:`half_widths_mm_s` around each v_i (speeds
+        clamped to the fitted range), or the hat weights of linear interpolation."""
         v = float(np.clip(speed_mm_s, self.v_mm_s[0], self.v_mm_s[-1]))
         if self.taper_mm_s is None:
             return _hats(np.array([v]), self.v_mm_s)[0]
-        return np.maximum(0.0, 1.0 - np.abs(v - self.v_mm_s) / self.taper_mm_s)
+        return np.maximum(0.0, 1.0 - np.abs(v - self.v_mm_s) / self.half_widths_mm_s)
+
+    @property
+    def half_widths_mm_s(self) -> Array:
+        """Each correction's tent: ``taper_mm_s``, at most TAPER_PER_SPACING x the
+        distance to the next fitted speed (7.5 mm/s at the paper's 10 mm/s steps)."""
+        if self.v_mm_s.size < 2:
+            return np.full(self.v_mm_s.size, float(self.taper_mm_s))
+        gap = np.diff(self.v_mm_s)
+        near = np.minimum(np.r_[np.inf, gap], np.r_[gap, np.inf])
+        return np.minimum(float(self.taper_mm_s), TAPER_PER_SPACING * near)
 
     def psd(self, speed_mm_s: float) -> Array:
         return self.two.psd(speed_mm_s) * np.exp(self.weights(speed_mm_s) @ self.log_c)

@@ -21,6 +21,7 @@ from fydpad.errors import UserError
 from fydpad.texture.fit import fit_texture
 from fydpad.texture.free_form import (
     RENDER_SMEAR_MM_S,
+    CalibratedSpectrum,
     fit_calibrated,
     fit_free_form,
     spectrum_of,
@@ -318,3 +319,45 @@ def test_a_spectral_forms_table_spans_the_speeds_its_fit_saw(scan_model):
     assert not np.allclose(table.polys[table.index(34.0)], table.polys[table.index(30.0)])
     pooled = replace(scan_model, free_form=None, two_part=None)
     assert table_range(pooled) == (10.0, 30.0)
+
+
+def test_tents_scale_with_the_spacing_of_the_fitted_speeds():
+    """At the paper's 10 mm/s steps each correction's tent is 7.5 mm/s wide (the default,
+    unchanged); fitted every 5 mm/s it is 3.75, so at a fitted speed its own correction
+    has all the weight and no neighbour's adds to it (7.5 mm/s tents summed three)."""
+    two = None  # weights do not touch the base
+    ten = CalibratedSpectrum(two, np.array([10.0, 20.0, 30.0, 40.0]), np.zeros((4, 3)))
+    np.testing.assert_allclose(ten.half_widths_mm_s, 7.5)
+    np.testing.assert_allclose(ten.weights(15.0), [1 / 3, 1 / 3, 0, 0])
+    five = CalibratedSpectrum(two, np.arange(10.0, 41.0, 5.0), np.zeros((7, 3)))
+    np.testing.assert_allclose(five.half_widths_mm_s, 3.75)
+    for v in np.arange(10.0, 40.01, 0.25):
+        assert five.weights(v).sum() <= 1.0 + 1e-12
+    np.testing.assert_allclose(five.weights(15.0), [0, 1, 0, 0, 0, 0, 0])
+    uneven = CalibratedSpectrum(two, np.array([10.0, 15.0, 30.0]), np.zeros((3, 3)))
+    np.testing.assert_allclose(uneven.half_widths_mm_s, [3.75, 3.75, 7.5])
+
+
+def test_speeds_fitted_every_5_mm_s_meet_the_target_between(monkeypatch):
+    """Ground truth: cork scanned and fitted at 10, 15, 20, 25 and 30 mm/s, a held-out
+    stroke at 15 mm/s: +0.15 dB over the ceiling with tents scaled to the spacing, +0.55
+    with the 7.5 mm/s tents, which summed three corrections there."""
+    import fydpad.texture.free_form as free_form
+    from fydpad.texture.dft321 import preprocess
+    from fydpad.texture.evaluate import compare, evaluate_scan, evaluation_mask
+
+    speeds = (10.0, 15.0, 20.0, 25.0, 30.0)
+    train = [generate_scan("cork", v, 8.0, seed=3 + j) for v in speeds for j in (0, 1)]
+    held = generate_scan("cork", 15.0, 12.0, seed=50)
+    second = generate_scan("cork", 15.0, 12.0, seed=51)
+    over = {}
+    for label, per_spacing in (("scaled", free_form.TAPER_PER_SPACING), ("7.5", np.inf)):
+        monkeypatch.setattr(free_form, "TAPER_PER_SPACING", per_spacing)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            model, _ = fit_texture(train, speeds_mm_s=speeds)
+        mask = evaluation_mask(held, model)
+        ceil, *_ = compare(preprocess(held.acc, FS), preprocess(second.acc, FS), FS,
+                           mask & evaluation_mask(second, model))
+        over[label] = evaluate_scan(model, held, mask=mask)[0].lsd_db - ceil.lsd_db
+    assert over["scaled"] <= 0.25 < over["7.5"], over
