@@ -421,12 +421,12 @@ def _rib(strokes: Sequence[_Stroke], f_hi: float) -> Period | None:
     def seen(k: float) -> list[int]:
         return [i for i, sp in enumerate(specs) if sp.k_lo <= k <= sp.k_hi]
 
-    def has_peak(i: int, k: float) -> bool:
-        return bool(np.any(np.abs(specs[i].peaks_k - k) <= tol))
-
     def rank(i: int, k: float) -> int:  # k's place among stroke i's peaks (99: absent)
         near = np.flatnonzero(np.abs(specs[i].peaks_k - k) <= tol)
         return int(near[0]) if near.size else 99
+
+    def has_peak(i: int, k: float) -> bool:
+        return rank(i, k) < 99
 
     line = None
     for k in (float(sp.peaks_k[0]) for sp in specs if sp.peaks_k.size):

@@ -8,11 +8,12 @@ from fydpad.texture.evaluate import compare, evaluation_mask
 from fydpad.texture.scan_generator import generate_scan
 
 
-def held_out(name: str, speed_mm_s: float, model):
+def held_out(name: str, speed_mm_s: float, model, seconds: float = 8.0, seed: int = 100,
+             second_seed: int = 200):
     """(held-out scan, its evaluation mask, the ceiling: a second recording scored
     against it over the same mask)."""
-    held = generate_scan(name, speed_mm_s, 8.0, seed=100)
-    second = generate_scan(name, speed_mm_s, 8.0, seed=200)
+    held = generate_scan(name, speed_mm_s, seconds, seed=seed)
+    second = generate_scan(name, speed_mm_s, seconds, seed=second_seed)
     mask = evaluation_mask(held, model)
     ceil, *_ = compare(preprocess(held.acc, 1000.0), preprocess(second.acc, 1000.0), 1000.0,
                        mask & evaluation_mask(second, model))

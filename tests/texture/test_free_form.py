@@ -343,21 +343,17 @@ def test_speeds_fitted_every_5_mm_s_meet_the_target_between(monkeypatch):
     stroke at 15 mm/s: +0.15 dB over the ceiling with tents scaled to the spacing, +0.55
     with the 7.5 mm/s tents, which summed three corrections there."""
     import fydpad.texture.free_form as free_form
-    from fydpad.texture.dft321 import preprocess
-    from fydpad.texture.evaluate import compare, evaluate_scan, evaluation_mask
+    from fydpad.texture.evaluate import evaluate_scan
+    from tests.texture.heldout import held_out
 
     speeds = (10.0, 15.0, 20.0, 25.0, 30.0)
     train = [generate_scan("cork", v, 8.0, seed=3 + j) for v in speeds for j in (0, 1)]
-    held = generate_scan("cork", 15.0, 12.0, seed=50)
-    second = generate_scan("cork", 15.0, 12.0, seed=51)
     over = {}
     for label, per_spacing in (("scaled", free_form.TAPER_PER_SPACING), ("7.5", np.inf)):
         monkeypatch.setattr(free_form, "TAPER_PER_SPACING", per_spacing)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             model, _ = fit_texture(train, speeds_mm_s=speeds)
-        mask = evaluation_mask(held, model)
-        ceil, *_ = compare(preprocess(held.acc, FS), preprocess(second.acc, FS), FS,
-                           mask & evaluation_mask(second, model))
+        held, mask, ceil = held_out("cork", 15.0, model, 12.0, 50, 51)
         over[label] = evaluate_scan(model, held, mask=mask)[0].lsd_db - ceil.lsd_db
     assert over["scaled"] <= 0.25 < over["7.5"], over

@@ -153,11 +153,7 @@ def test_a_single_rib_is_one_line():
     found. The single-line search finds the period and models the line alone (its
     harmonics stand nowhere out of the noise: 47 were kept before, each a narrow line
     of noise); the line is most of the power."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        scans = [generate_scan("corduroy", s, 6.0, seed=3) for s in SPEEDS]
-        fit = fit_lines([preprocess(sc.acc, FS) for sc in scans],
-                        [sc.speed_mm_s for sc in scans], FS, (5.0, 45.0))
+    fit = _lines_of([generate_scan("corduroy", s, 6.0, seed=3) for s in SPEEDS])
     assert fit.spectrum is not None, fit.note
     assert fit.period_mm == pytest.approx(2.5, rel=1e-3)
     assert fit.spectrum.harmonics == 1 and "a rib: one line, no comb" in fit.note
@@ -184,7 +180,8 @@ def test_a_ribs_residual_is_a_surface_and_gets_the_spectral_form():
     the pooled fit). Ground truth on strokes at 10, 15, 20, 30 and 40 mm/s: at 15 mm/s
     the held-out stroke meets the target with it (measured +0.06 dB over the ceiling)
     and misses with the residual pooled (+0.68 dB)."""
-    from fydpad.texture.evaluate import compare, evaluate_scan, evaluation_mask
+    from fydpad.texture.evaluate import evaluate_scan
+    from tests.texture.heldout import held_out
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -194,11 +191,7 @@ def test_a_ribs_residual_is_a_surface_and_gets_the_spectral_form():
         pooled, _ = fit_texture(train, free_form=None)
     assert default.lines is not None and default.free_form["form"] == "calibrated"
     assert default.provenance["lines"]["share"] < 0.9
-    held = generate_scan("corduroy", 15.0, 12.0, seed=50)
-    second = generate_scan("corduroy", 15.0, 12.0, seed=51)
-    mask = evaluation_mask(held, default)
-    ceil, *_ = compare(preprocess(held.acc, FS), preprocess(second.acc, FS), FS,
-                       mask & evaluation_mask(second, default))
+    held, mask, ceil = held_out("corduroy", 15.0, default, 12.0, 50, 51)
     over = {k: evaluate_scan(m, held, mask=mask)[0].lsd_db - ceil.lsd_db
             for k, m in (("default", default), ("pooled", pooled))}
     assert over["default"] <= 0.25 < over["pooled"], over
