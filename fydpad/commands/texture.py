@@ -594,19 +594,22 @@ def run_synth(args: argparse.Namespace) -> int:
         a = r.block(args.speed_mm_s, True, n)
     for w in caught:
         print(f"fydpad texture synth: warning: {args.model}: {w.message}", file=sys.stderr)
-    gaps_here = [g for g in model_gaps(model.provenance, args.model) or []
-                 if inside(args.speed_mm_s, [g])]
-    if gaps_here:
-        print(f"fydpad texture synth: note: {args.model}: no scan went at "
-              f"{args.speed_mm_s:g} mm/s (none between {describe(gaps_here)}): the spectrum "
-              "is the model's interpolation there (docs/texture.md, 'Speed coverage')",
-              file=sys.stderr)
+    _note_gap(model.provenance, args.model, args.speed_mm_s)
     with CsvRowWriter(args.out, ("t_s", "a"), comment=f"surface={model.surface} "
                       f"speed_mm_s={args.speed_mm_s:g} method={args.method}") as wr:
         for k, v in enumerate(a):
             wr.write(k / model.fs_hz, float(v))
     print(f"{args.out}: {n} samples, rms {float(np.sqrt(np.mean(a * a))):.4g} m/s^2")
     return 0
+
+
+def _note_gap(provenance: dict, spec: str, speed_mm_s: float) -> None:
+    """Say so on stderr when an LPC model's scans never went at this speed."""
+    gaps_here = [g for g in model_gaps(provenance, spec) or [] if inside(speed_mm_s, [g])]
+    if gaps_here:
+        print(f"fydpad texture synth: note: {spec}: no scan went at {speed_mm_s:g} mm/s "
+              f"(none between {describe(gaps_here)}): the spectrum is the model's "
+              "interpolation there (docs/texture.md, 'Speed coverage')", file=sys.stderr)
 
 
 def _run_synth_family(args: argparse.Namespace) -> int:
@@ -641,6 +644,8 @@ def _run_synth_family(args: argparse.Namespace) -> int:
         raise UserError(f"{args.model}: {exc}") from None
     for w in dict.fromkeys(str(c.message) for c in caught):
         print(f"fydpad texture synth: warning: {w}", file=sys.stderr)
+    if fam.kind == "lpc":
+        _note_gap(fam.model.provenance, args.model, args.speed_mm_s)
     if _is_audio(args.out):
         _play_audio(args.out, y, rate, channel)
     elif args.out.lower().endswith(".wav"):

@@ -146,6 +146,10 @@ def test_synth_and_evaluate_say_when_they_are_in_a_gap(felt, tmp_path, capsys):
     assert run("synth", str(model), "--speed-mm-s", "20", "--seconds", "0.2",
                "--out", str(tmp_path / "a.csv")) == 0
     assert "no scan went at 20 mm/s" in capsys.readouterr().err
+    # The family path (a channel named, a WAV file) says it too.
+    assert run("synth", str(model), "--speed-mm-s", "20", "--seconds", "0.2",
+               "--channel", "vibration", "--out", str(tmp_path / "a.wav")) == 0
+    assert "no scan went at 20 mm/s" in capsys.readouterr().err
     assert run("synth", str(model), "--speed-mm-s", "10", "--seconds", "0.2",
                "--out", str(tmp_path / "b.csv")) == 0
     assert "no scan went" not in capsys.readouterr().err
