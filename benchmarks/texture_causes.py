@@ -37,7 +37,9 @@ FORMS), the pooled fit ("stretch"), the two-part model, the paper's linear
 interpolation of the pooled fit, the calibrated two-part model (``fit --free-form``), and
 on request (FORMS, comma-separated) ``free``, ``surface`` (free_form.py's other forms)
 and ``hold5`` (the pooled fit held over the whole +-5 mm/s of each fitted speed: what the
-paper's linear way approximates near a fitted speed). Gap (LSD - ceiling) / correlation,
+paper's linear way approximates near a fitted speed), and ``third``: a third recording
+(seed SECOND_SEED + 1) scored in the model's place, what a perfect replica of the
+surface that is itself a recording meets. Gap (LSD - ceiling) / correlation,
 ``*`` where both targets are met, the fit time, and the met count per form and speed.
 ``constant``: how well the speed-resolved spectra (two-part, calibrated; fitted on two
 10 s strokes per speed from TRAIN_SEED, default 8) match the texture's spectrum at a
@@ -315,11 +317,13 @@ def forms(speeds: list[float], held_seed: int, second_seed: int, train_seed: int
         t = [generate_scan(n, s, train_s, seed=train_seed + j) for s in SPEEDS for j in range(k)]
         models, cost = {}, {}
         for f in which:
+            if f == "third":
+                continue
             same = "pooled" if f in ("linear", "hold5") and "pooled" in models else None
             t0 = time.process_time()
             models[f] = models[same] if same else fit_texture(t, **FORM_FIT[f])[0]
             cost[f] = time.process_time() - t0
-        ref = models[which[0]]
+        ref = next(m for m in models.values())
         for v in speeds:
             held = generate_scan(n, v, held_s, seed=held_seed)
             second = generate_scan(n, v, held_s, seed=second_seed)
@@ -328,7 +332,13 @@ def forms(speeds: list[float], held_seed: int, second_seed: int, train_seed: int
                                1000.0, mask & evaluation_mask(second, ref))
             row = []
             for f in which:
-                c = _evaluate(models[f], held, mask, f)
+                if f == "third":  # a third recording in the model's place
+                    third = generate_scan(n, v, held_s, seed=second_seed + 1)
+                    c, *_ = compare(preprocess(held.acc, 1000.0),
+                                    preprocess(third.acc, 1000.0), 1000.0,
+                                    mask & evaluation_mask(third, ref))
+                else:
+                    c = _evaluate(models[f], held, mask, f)
                 ok = c.psd_correlation >= 0.95 and c.lsd_db <= ceil.lsd_db + 0.25
                 met[(f, v)] += [n] if ok else []
                 row.append(f"{f} {c.lsd_db - ceil.lsd_db:+.2f}/{c.psd_correlation:.3f}"

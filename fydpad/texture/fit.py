@@ -90,11 +90,6 @@ def fit_speed(
     return a, s2
 
 
-#: Lines holding at least this share of the power leave no surface to the stochastic
-#: part (the generator's combs: 96-99 %), which is then the pooled per-speed fit; below
-#: it (corduroy's rib: 50-53 %, the rest its roughness through the tool) the default
-#: spectral form fits what they leave (docs/texture.md, "Which lags matter").
-LINES_OWN_SHARE = 0.9
 
 
 def fit_texture(
@@ -205,12 +200,6 @@ def fit_texture(
     if not got_speeds:
         raise UserError("no part of the scans is near any target speed (column 'speed_mm_s')")
     label = surface or scans[0].surface
-    if auto and line_fit.spectrum is not None and line_fit.share >= LINES_OWN_SHARE:
-        # What a comb's lines leave (sensor noise, slips, the incoherent rest) does not
-        # stretch with speed as a surface does: the two-part base has nothing to resolve
-        # there and its extrapolation between speeds cost R1 and R2 0.3-3 dB
-        # (docs/texture.md). A rib on a rough surface leaves the roughness, which does.
-        free_form = None
     if auto and len(got_speeds) < 2:
         # Nothing lies between fitted speeds to resolve; within one speed's wander a
         # spectrum following the finger fitted on that little data did worse (one 6 s
