@@ -90,8 +90,6 @@ def fit_speed(
     return a, s2
 
 
-
-
 def fit_texture(
     scans: Iterable[Scan], *, order: int = 200, speeds_mm_s: Sequence[float] = DEFAULT_SPEEDS_MM_S,
     tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S, highpass_hz: float = 10.0,
