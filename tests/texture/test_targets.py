@@ -293,6 +293,58 @@ def test_targets_at_a_modelled_speed_over_every_texture(every_texture_long):
     assert not misses, misses
 
 
+def _mean_misses(models, speed: float, strokes: int = 4) -> list[str]:
+    """Textures whose means over ``strokes`` held-out 12 s strokes (seeds 1100 + j, each
+    with its own second recording, seeds 2100 + j: benchmarks/texture_targets.py with
+    train seed 1) miss the targets: mean correlation < 0.95, or mean LSD more than
+    0.25 dB over the mean ceiling. One stroke and one second recording make the target
+    a comparison of two draws, which a third recording of the surface fails in about one
+    cell in five (docs/texture.md, "The targets on several strokes per cell")."""
+    out = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for model in models:
+            gap, corr = [], []
+            for j in range(strokes):
+                held = generate_scan(model.surface, speed, HELD_S, seed=1100 + j)
+                second = generate_scan(model.surface, speed, HELD_S, seed=2100 + j)
+                mask = evaluation_mask(held, model)
+                ceil, *_ = compare(preprocess(held.acc, 1000.0),
+                                   preprocess(second.acc, 1000.0), 1000.0,
+                                   mask & evaluation_mask(second, model))
+                c, _ = evaluate_scan(model, held, mask=mask)
+                gap.append(c.lsd_db - ceil.lsd_db)
+                corr.append(c.psd_correlation)
+            if np.mean(corr) < 0.95 or np.mean(gap) > 0.25:
+                out.append(f"{model.surface} corr {np.mean(corr):.3f} LSD - ceiling "
+                           f"{np.mean(gap):+.2f} dB")
+    return out
+
+
+@pytest.mark.parametrize("speed", [30.0, 35.0])
+def test_targets_on_four_strokes_per_texture_at_and_between_modelled_speeds(
+        every_texture_long, speed):
+    """On the means of four held-out strokes every texture meets both targets at 30 mm/s
+    (a modelled speed) and at 35 mm/s (between modelled speeds). Measured LSD over the
+    ceiling -4.86 to +0.23 dB, correlation 0.976-1.000; the closest is sandpaper_p80 at
+    30 mm/s, +0.23 +- 1.76 dB (its contact loss makes every stroke's spectrum a draw:
+    the ceiling itself is 2.86 dB)."""
+    misses = _mean_misses(every_texture_long[0], speed)
+    assert not misses, misses
+
+
+@pytest.mark.xfail(strict=True, reason="measured at 15 mm/s, the middle of the gap between "
+                   "the 10 and 20 mm/s training strokes, on the means of four held-out "
+                   "strokes: 7 of 14 meet both targets; R1 +0.43, sandpaper_p80 +1.85 "
+                   "(corr 0.942), sandpaper_p320 +0.27, glass +0.40, cork +0.29, brick "
+                   "+0.60, corduroy +0.61 dB over the ceiling, where a third recording of "
+                   "the surface meets 11-12 of 14 (docs/texture.md, 'The targets on several "
+                   "strokes per cell')")
+def test_targets_on_four_strokes_per_texture_in_the_middle_of_a_gap(every_texture_long):
+    misses = _mean_misses(every_texture_long[0], 15.0)
+    assert not misses, misses
+
+
 @pytest.fixture(scope="module")
 def identification(every_texture):
     models, scans = every_texture

@@ -1,0 +1,131 @@
+"""Issue 7's accuracy targets measured on several held-out strokes per cell
+(docs/texture.md, "The targets on several strokes per cell").
+
+The target: on strokes the fit never saw, power-spectrum correlation >= 0.95 and LSD
+within 0.25 dB of what a second recording of the same surface scores against the same
+stroke (the ceiling). One held-out stroke and one second recording per cell make that a
+comparison of two random draws: a third recording of the surface, scored in the model's
+place, misses it in about one cell in five (``texture_causes.py forms ... third``). Here
+each cell (texture x speed) takes HELD held-out strokes, each with its own second
+recording, and compares the means: the model's mean LSD over the mean ceiling, and its
+mean correlation. ``--third`` scores a third recording per stroke the same way (what a
+replica of the surface that is itself a recording meets).
+
+Training as in the 14-texture protocol: two 10 s strokes at each of 10, 20, 30, 40 mm/s
+(seeds TRAIN_SEED, TRAIN_SEED + 1), the default fit; held-out strokes of 12 s, seeds
+1000 + j (second recordings 2000 + j, third 3000 + j; offset by 100 x TRAIN_SEED so that
+seed sets do not share strokes). Minutes to tens of minutes; prints, asserts nothing.
+
+    python benchmarks/texture_targets.py [--textures all] [--speeds 10,15,...,40]
+        [--train-seed 1] [--held 4] [--third]
+"""
+
+from __future__ import annotations
+
+import argparse
+import warnings
+
+import numpy as np
+
+from fydpad.texture.dft321 import preprocess
+from fydpad.texture.evaluate import compare, evaluate_scan, evaluation_mask
+from fydpad.texture.fit import fit_texture
+from fydpad.texture.scan_generator import TEXTURES, generate_scan
+
+TRAIN_SPEEDS = (10.0, 20.0, 30.0, 40.0)
+HELD_S = 12.0
+CORR_TARGET = 0.95
+LSD_OVER_CEILING_DB = 0.25
+
+
+def _score(held, other, mask, model) -> tuple[float, float]:
+    c, *_ = compare(preprocess(held.acc, held.fs_hz), preprocess(other.acc, other.fs_hz),
+                    held.fs_hz, mask & evaluation_mask(other, model))
+    return c.lsd_db, c.psd_correlation
+
+
+def cell(name: str, model, speed: float, held: int, base: int, third: bool) -> dict:
+    """Per held-out stroke: the ceiling, the model's and (``third``) a replica's LSD and
+    correlation."""
+    out = {"ceiling": [], "model": [], "model_corr": [], "third": [], "third_corr": []}
+    for j in range(held):
+        stroke = generate_scan(name, speed, HELD_S, seed=base + 1000 + j)
+        second = generate_scan(name, speed, HELD_S, seed=base + 2000 + j)
+        mask = evaluation_mask(stroke, model)
+        out["ceiling"].append(_score(stroke, second, mask, model)[0])
+        c, _ = evaluate_scan(model, stroke, mask=mask)
+        out["model"].append(c.lsd_db)
+        out["model_corr"].append(c.psd_correlation)
+        if third:
+            lsd, corr = _score(stroke, generate_scan(name, speed, HELD_S,
+                                                     seed=base + 3000 + j), mask, model)
+            out["third"].append(lsd)
+            out["third_corr"].append(corr)
+    return {k: np.asarray(v) for k, v in out.items()}
+
+
+def verdict(lsd: np.ndarray, corr: np.ndarray, ceiling: np.ndarray) -> tuple[bool, float]:
+    """(met on the means, the mean gap LSD - ceiling)."""
+    gap = float(np.mean(lsd - ceiling))
+    return gap <= LSD_OVER_CEILING_DB and float(np.mean(corr)) >= CORR_TARGET, gap
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--textures", default="all", help="comma-separated, or all")
+    ap.add_argument("--speeds", default="10,15,20,25,30,35,40", help="mm/s, comma-separated")
+    ap.add_argument("--train-seed", type=int, default=1)
+    ap.add_argument("--held", type=int, default=4, help="held-out strokes per cell")
+    ap.add_argument("--third", action="store_true", help="also score a third recording")
+    args = ap.parse_args()
+    names = list(TEXTURES) if args.textures == "all" else args.textures.split(",")
+    speeds = [float(v) for v in args.speeds.split(",")]
+    base = 100 * args.train_seed
+    warnings.simplefilter("ignore")
+    met = {v: {"model": 0, "single": 0, "third": 0, "third_single": 0} for v in speeds}
+    for name in names:
+        train = [generate_scan(name, v, 10.0, seed=args.train_seed + j)
+                 for v in TRAIN_SPEEDS for j in range(2)]
+        model, _ = fit_texture(train)
+        for v in speeds:
+            r = cell(name, model, v, args.held, base, args.third)
+            ok, gap = verdict(r["model"], r["model_corr"], r["ceiling"])
+            single = (r["model"] - r["ceiling"] <= LSD_OVER_CEILING_DB) & (
+                r["model_corr"] >= CORR_TARGET)
+            met[v]["model"] += ok
+            met[v]["single"] += int(single.sum())
+            sd = float(np.std(r["model"] - r["ceiling"], ddof=1)) / np.sqrt(args.held)
+            line = (f"{name:15s} {v:4g} mm/s  ceiling {np.mean(r['ceiling']):.2f} dB  model "
+                    f"{gap:+.2f} +- {sd:.2f} / {np.mean(r['model_corr']):.3f}"
+                    f"{'*' if ok else ' '} ({int(single.sum())}/{args.held} strokes)")
+            if args.third:
+                tok, tgap = verdict(r["third"], r["third_corr"], r["ceiling"])
+                tsingle = (r["third"] - r["ceiling"] <= LSD_OVER_CEILING_DB) & (
+                    r["third_corr"] >= CORR_TARGET)
+                met[v]["third"] += tok
+                met[v]["third_single"] += int(tsingle.sum())
+                line += (f"  third {tgap:+.2f} / {np.mean(r['third_corr']):.3f}"
+                         f"{'*' if tok else ' '} ({int(tsingle.sum())}/{args.held})")
+            print(line, flush=True)
+    n = len(names)
+    print(f"\n{n} textures, train seed {args.train_seed}, {args.held} held-out strokes per "
+          "cell; met on the means (and single strokes meeting it):")
+    tot = {k: 0 for k in ("model", "single", "third", "third_single")}
+    for v, m in met.items():
+        for k in tot:
+            tot[k] += m[k]
+        line = (f"  {v:4g} mm/s: model {m['model']}/{n} ({m['single']}/{n * args.held} "
+                "strokes)")
+        if args.third:
+            line += f", third {m['third']}/{n} ({m['third_single']}/{n * args.held})"
+        print(line)
+    line = (f"  all: model {tot['model']}/{n * len(speeds)} ({tot['single']}/"
+            f"{n * len(speeds) * args.held} strokes)")
+    if args.third:
+        line += (f", third {tot['third']}/{n * len(speeds)} ({tot['third_single']}/"
+                 f"{n * len(speeds) * args.held})")
+    print(line)
+
+
+if __name__ == "__main__":
+    main()
