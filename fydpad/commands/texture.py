@@ -208,14 +208,18 @@ def register(sub: argparse._SubParsersAction) -> None:
             "realisations of a random process do not correlate sample by sample)."),
     )
     e.add_argument("model", metavar="MODEL.json", help="model file from 'fydpad texture fit'")
-    e.add_argument("scan", metavar="SCAN.csv", help="a texture scan recording to compare with")
+    e.add_argument("scan", nargs="+", metavar="SCAN.csv",
+                   help="texture scan recording(s) to compare with; with several, their "
+                   "figures are averaged too (and, with --second, the targets judged on "
+                   "the means: one stroke against one second recording is a draw)")
     e.add_argument("--json", metavar="OUT.json", help="write the figures as JSON")
     e.add_argument("--plot", metavar="FIG.png", help="recorded against synthesized spectra")
     e.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD,
                    help=INTERPOLATION_HELP)
     e.add_argument("--seed", type=int, default=0, help="noise seed of the synthesis (default 0)")
-    e.add_argument("--second", metavar="SECOND.csv",
-                   help="another recording of the same surface at the same speed and about "
+    e.add_argument("--second", nargs="+", metavar="SECOND.csv",
+                   help="one per SCAN.csv, in the same order: another recording of the same "
+                        "surface at the same speed and about "
                         "as long (a held-out stroke the fit never saw): the ceiling (it "
                         "scored against SCAN.csv as the model is) and whether the model "
                         "meets issue 7's targets (correlation >= 0.95, LSD <= the ceiling's "
@@ -747,24 +751,57 @@ def run_staircase(args: argparse.Namespace) -> int:
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
-    from fydpad.texture.families import spec_kind
+    from fydpad.texture.families import load_family, spec_kind
 
     _check_out(args.json, "--json")
     _check_out(args.plot, "--plot")
-    if spec_kind(args.model) != "lpc":
-        return _run_evaluate_family(args)
+    seconds = args.second or []
+    if seconds and len(seconds) != len(args.scan):
+        raise UserError(f"--second: {len(seconds)} recording(s) for {len(args.scan)} "
+                        "scan(s): give one per scan, in the same order")
+    lpc = spec_kind(args.model) == "lpc"
+    model = _load_model(args.model) if lpc else None
+    results = []
+    for i, path in enumerate(args.scan):
+        if len(args.scan) > 1:
+            print(f"{path}:")
+        second = seconds[i] if seconds else None
+        results.append(_evaluate_lpc(args, model, path, second) if lpc else
+                       _evaluate_family(args, load_family(args.model), path, second))
+    out = results[0].out if len(results) == 1 else _over_scans(args.model, results)
+    if args.json:
+        Path(args.json).write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
+    if args.plot:
+        _plot_evaluation(args.plot, results)
+    return 0
+
+
+@dataclass
+class _Evaluated:
+    """One scan's evaluation: its JSON fields and what the plot needs."""
+
+    out: dict
+    c: Comparison
+    f_hz: np.ndarray
+    recorded: np.ndarray
+    synthesized: np.ndarray
+    sec: _Second | None
+    label: str
+
+
+def _evaluate_lpc(args: argparse.Namespace, model, path: str,
+                  second: str | None) -> _Evaluated:
     from fydpad.texture.evaluate import evaluate_scan, evaluation_mask
 
-    model = _load_model(args.model)
-    scan = _load_scans([args.scan])[0]
+    scan = _load_scans([path])[0]
     mask = evaluation_mask(scan, model)
     if mask.sum() < model.fs_hz / 4 * 2:
         raise UserError(
-            f"{args.scan}: column 'speed_mm_s': too little of the scan "
+            f"{path}: column 'speed_mm_s': too little of the scan "
             f"({mask.sum()} samples) is within the model's speeds "
             f"{model.speeds_mm_s[0]:g}-{model.speeds_mm_s[-1]:g} mm/s")
-    sec = (None if not args.second else
-           _second(args, scan, mask, model.highpass_hz, model.tolerance_mm_s,
+    sec = (None if not second else
+           _second(second, scan, mask, model.highpass_hz, model.tolerance_mm_s,
                    lambda sc: evaluation_mask(sc, model)))
     try:
         c, extra = evaluate_scan(model, scan, method=args.method, seed=args.seed, mask=mask)
@@ -774,7 +811,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
     # None: a model fitted before coverage was recorded (unknown, not "none").
     share_in_gaps = None if gaps is None else float(np.mean(inside(scan.speed_mm_s[mask],
                                                                    gaps)))
-    out = {"model": args.model, "scan": args.scan, "method": args.method, **c.to_json(),
+    out = {"model": args.model, "scan": path, "method": args.method, **c.to_json(),
            "interpolated_share": share_in_gaps,
            "note": "time_correlation compares independent realisations: ~0 expected"}
     print(f"power-spectrum correlation (20-500 Hz): {c.psd_correlation:.3f} "
@@ -785,26 +822,72 @@ def run_evaluate(args: argparse.Namespace) -> int:
     if share_in_gaps:
         print(f"{share_in_gaps:.1%} of the compared samples are at speeds no scan of the fit "
               f"went at ({describe(gaps)}): the model interpolates there")
-    if args.json:
-        Path(args.json).write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
-    if args.plot:
-        _plot_evaluation(args.plot, f"{scan.surface} vs {model.surface}", c, extra["f_hz"],
-                         extra["recorded"], extra["synthesized"], sec, out)
-    return 0
+    return _Evaluated(out, c, extra["f_hz"], extra["recorded"], extra["synthesized"], sec,
+                      f"{scan.surface} vs {model.surface}")
 
 
-def _plot_evaluation(path: str, label: str, c: Comparison, f_hz: np.ndarray,
-                     recorded: np.ndarray, synthesized: np.ndarray, sec: _Second | None,
-                     out: dict) -> None:
-    """``evaluate --plot``: the spectra, and with ``--second`` their differences."""
+def _over_scans(model_path: str, results: list[_Evaluated]) -> dict:
+    """Several scans: the means of their figures and, where second recordings set fair
+    ceilings, issue 7's targets on the means (mean correlation, mean LSD over the mean
+    ceiling): one scan and one second recording are two random draws, which a third
+    recording of the surface fails about one time in five (docs/texture.md, "The
+    targets on several strokes per cell")."""
+    from fydpad.texture.evaluate import TARGET_LSD_OVER_CEILING_DB, TARGET_PSD_CORRELATION
+
+    n = len(results)
+    mean = {"psd_correlation": float(np.mean([r.c.psd_correlation for r in results])),
+            "lsd_db": float(np.mean([r.c.lsd_db for r in results]))}
+    print(f"mean over {n} scans: power-spectrum correlation {mean['psd_correlation']:.3f}, "
+          f"log-spectral distance {mean['lsd_db']:.2f} dB")
+    if any(r.sec is not None for r in results):
+        fair = [r for r in results if r.sec is not None and not r.sec.unfair]
+        mean["fair_pairs"] = len(fair)
+        mean["targets_met"] = None
+        if fair:
+            corr = float(np.mean([r.c.psd_correlation for r in fair]))
+            ceil = float(np.mean([r.out["ceiling"]["lsd_db"] for r in fair]))
+            gap = float(np.mean([r.c.lsd_db for r in fair])) - ceil
+            met = corr >= TARGET_PSD_CORRELATION and gap <= TARGET_LSD_OVER_CEILING_DB
+            mean.update(fair_psd_correlation=corr, ceiling_lsd_db=ceil,
+                        lsd_over_ceiling_db=gap, targets_met=met)
+            print(f"on the means of the {len(fair)} scan(s) with a fair ceiling: correlation "
+                  f"{corr:.3f}, LSD {gap:+.2f} dB over the mean ceiling {ceil:.2f} dB: "
+                  f"{'targets met' if met else 'targets not met'} (correlation >= "
+                  f"{TARGET_PSD_CORRELATION:g}, LSD <= ceiling + "
+                  f"{TARGET_LSD_OVER_CEILING_DB:g} dB)")
+        else:
+            print("no scan has a fair ceiling: no verdict")
+    return {"model": model_path, "scans": [r.out for r in results], "mean": mean}
+
+
+def _plot_evaluation(path: str, results: list[_Evaluated]) -> None:
+    """``evaluate --plot``: the spectra, and with ``--second`` their differences; with
+    several scans their mean spectra."""
     from fydpad.texture.plots import plot_against_ceiling, plot_spectra
 
-    title = f"corr {c.psd_correlation:.3f}, LSD {c.lsd_db:.2f} dB"
-    if sec is None:
-        plot_spectra(path, [(label, f_hz, recorded, synthesized)], title)
+    r = results[0]
+    if len(results) == 1:
+        f, rec, syn = r.f_hz, r.recorded, r.synthesized
+        sec = None if r.sec is None else r.sec.psd
+        title = f"corr {r.c.psd_correlation:.3f}, LSD {r.c.lsd_db:.2f} dB"
+        label = r.label
+        ceil = r.out.get("ceiling", {}).get("lsd_db")
     else:
-        plot_against_ceiling(path, f_hz, recorded, synthesized, sec.psd,
-                             f"{label}: {title} (ceiling {out['ceiling']['lsd_db']:.2f} dB)")
+        f = r.f_hz
+        rec = np.mean([x.recorded for x in results], axis=0)
+        syn = np.mean([x.synthesized for x in results], axis=0)
+        with_second = all(x.sec is not None for x in results)
+        sec = np.mean([x.sec.psd for x in results], axis=0) if with_second else None
+        title = (f"mean corr {np.mean([x.c.psd_correlation for x in results]):.3f}, mean "
+                 f"LSD {np.mean([x.c.lsd_db for x in results]):.2f} dB")
+        label = f"{r.label}, mean of {len(results)} scans"
+        ceil = (float(np.mean([x.out["ceiling"]["lsd_db"] for x in results]))
+                if with_second else None)
+    if sec is None:
+        plot_spectra(path, [(label, f, rec, syn)], title)
+    else:
+        plot_against_ceiling(path, f, rec, syn, sec,
+                             f"{label}: {title} (ceiling {ceil:.2f} dB)")
 
 
 @dataclass
@@ -817,16 +900,17 @@ class _Second:
     facts: dict
 
 
-def _second(args: argparse.Namespace, scan: Scan, scan_mask: np.ndarray, highpass_hz: float,
+def _second(path: str, scan: Scan, scan_mask: np.ndarray, highpass_hz: float,
             tolerance_mm_s: float, mask_of: Callable[[Scan], np.ndarray]) -> _Second:
-    """Read and check ``--second`` (before the synthesis): its samples that ``mask_of``
-    keeps (those within the model's speeds), the scan's high-pass and DFT321."""
+    """Read and check a ``--second`` recording (before the synthesis): its samples that
+    ``mask_of`` keeps (those within the model's speeds), the scan's high-pass and
+    DFT321."""
     from fydpad.texture.dft321 import preprocess
     from fydpad.texture.evaluate import BIN_HZ, unfair_ceiling, welch_psd
 
-    second = _load_scans([args.second])[0]
+    second = _load_scans([path])[0]
     if abs(second.fs_hz - scan.fs_hz) > 1e-6 * scan.fs_hz:
-        raise UserError(f"{args.second}: column 't_s': sample rate {second.fs_hz:g} Hz, the "
+        raise UserError(f"{path}: column 't_s': sample rate {second.fs_hz:g} Hz, the "
                         f"scan's {scan.fs_hz:g} Hz")
     mask = mask_of(second)
     need = round(second.fs_hz / BIN_HZ)
@@ -834,7 +918,7 @@ def _second(args: argparse.Namespace, scan: Scan, scan_mask: np.ndarray, highpas
         _, p2 = welch_psd(preprocess(second.acc, second.fs_hz, highpass_hz), second.fs_hz,
                           mask)
     except ValueError:
-        raise UserError(f"{args.second}: {int(mask.sum())} of its {mask.size} samples are "
+        raise UserError(f"{path}: {int(mask.sum())} of its {mask.size} samples are "
                         f"within the model's speeds (column 'speed_mm_s'), in no run of the "
                         f"{need} a {BIN_HZ:g} Hz-bin spectrum needs") from None
     v1, v2 = scan.speed_mm_s[scan_mask], second.speed_mm_s[mask]
@@ -844,7 +928,7 @@ def _second(args: argparse.Namespace, scan: Scan, scan_mask: np.ndarray, highpas
              "second_median_speed_mm_s": float(np.median(v2)),
              "scan_seconds": v1.size / scan.fs_hz,
              "scan_median_speed_mm_s": float(np.median(v1))}
-    return _Second(args.second, p2, unfair, facts)
+    return _Second(path, p2, unfair, facts)
 
 
 def _report_ceiling(sec: _Second, c: Comparison, f_hz: np.ndarray, recorded_psd: np.ndarray,
@@ -874,21 +958,21 @@ def _report_ceiling(sec: _Second, c: Comparison, f_hz: np.ndarray, recorded_psd:
     return ceil
 
 
-def _run_evaluate_family(args: argparse.Namespace) -> int:
+def _evaluate_family(args: argparse.Namespace, fam, path: str,
+                     second: str | None) -> _Evaluated:
     from fydpad.texture.dft321 import preprocess
     from fydpad.texture.evaluate import compare
-    from fydpad.texture.families import finger_from_scan, load_family, read_scans
+    from fydpad.texture.families import finger_from_scan, read_scans
 
-    fam = load_family(args.model)
-    scan = read_scans([args.scan])[0]
+    scan = read_scans([path])[0]
     finger = finger_from_scan(scan)
     syn = fam.render(finger, "vibration")
     rec = preprocess(scan.acc, scan.fs_hz, 10.0)
     moving = scan.speed_mm_s > 1.0
-    sec = (None if not args.second else
-           _second(args, scan, moving, 10.0, 5.0, lambda sc: sc.speed_mm_s > 1.0))
+    sec = (None if not second else
+           _second(second, scan, moving, 10.0, 5.0, lambda sc: sc.speed_mm_s > 1.0))
     c, f, pr, ps = compare(rec, syn, scan.fs_hz, moving)
-    out = {"model": args.model, "kind": fam.kind, "scan": args.scan, **c.to_json()}
+    out = {"model": args.model, "kind": fam.kind, "scan": path, **c.to_json()}
     msg = (f"{fam.kind}: power-spectrum correlation (20-500 Hz) {c.psd_correlation:.3f} "
            f"(dB spectra {c.psd_correlation_db:.3f}); log-spectral distance {c.lsd_db:.2f} dB")
     ff = getattr(scan, "friction_n", None)
@@ -904,11 +988,7 @@ def _run_evaluate_family(args: argparse.Namespace) -> int:
     print(msg)
     if sec is not None:
         _report_ceiling(sec, c, f, pr, out)
-    if args.json:
-        Path(args.json).write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
-    if args.plot:
-        _plot_evaluation(args.plot, f"{scan.surface} vs {fam.kind}", c, f, pr, ps, sec, out)
-    return 0
+    return _Evaluated(out, c, f, pr, ps, sec, f"{scan.surface} vs {fam.kind}")
 
 
 def run_identify(args: argparse.Namespace) -> int:

@@ -212,6 +212,49 @@ def test_evaluate_against_a_second_recording(felt, tmp_path, capsys):
     assert "targets" in capsys.readouterr().out
 
 
+def test_evaluate_several_scans_judges_the_targets_on_the_means(felt, tmp_path, capsys):
+    """Several scans, one second recording each: every scan's figures as alone, their
+    means, and the targets' rule applied to the means over the pairs with a fair ceiling
+    (a second recording of cork sets none and is left out of the verdict)."""
+    model = str(felt / "felt.json")
+    paths = {}
+    for name, surface, seed in (("a2", "felt", 8), ("b1", "felt", 7), ("b2", "felt", 9),
+                                ("c1", "felt", 10), ("cork", "cork", 11)):
+        paths[name] = tmp_path / f"{name}.csv"
+        save_generated(generate_scan(surface, 10.0, 6.0, seed=seed), paths[name])
+    scans = [str(felt / "felt_10mms_s1.csv"), str(paths["a2"]), str(paths["c1"])]
+    seconds = [str(paths["b1"]), str(paths["b2"]), str(paths["cork"])]
+    alone = []
+    for i, (scan, second) in enumerate(zip(scans, seconds, strict=True)):
+        j = tmp_path / f"alone{i}.json"
+        assert run("evaluate", model, scan, "--second", second, "--json", str(j)) == 0
+        alone.append(json.loads(j.read_text()))
+    j = tmp_path / "all.json"
+    capsys.readouterr()
+    assert run("evaluate", model, *scans, "--second", *seconds, "--json", str(j),
+               "--plot", str(tmp_path / "all.png")) == 0
+    said = capsys.readouterr().out
+    e = json.loads(j.read_text())
+    assert [s["scan"] for s in e["scans"]] == scans
+    for got, want in zip(e["scans"], alone, strict=True):
+        assert got["lsd_db"] == pytest.approx(want["lsd_db"])
+        assert got["targets_met"] == want["targets_met"]
+    m = e["mean"]
+    assert m["lsd_db"] == pytest.approx(np.mean([a["lsd_db"] for a in alone]))
+    fair = alone[:2]
+    assert alone[2]["targets_met"] is None and m["fair_pairs"] == 2
+    ceil = np.mean([a["ceiling"]["lsd_db"] for a in fair])
+    assert m["ceiling_lsd_db"] == pytest.approx(ceil)
+    assert m["lsd_over_ceiling_db"] == pytest.approx(np.mean([a["lsd_db"] for a in fair])
+                                                     - ceil)
+    corr = np.mean([a["psd_correlation"] for a in fair])
+    assert m["targets_met"] == (corr >= 0.95 and m["lsd_over_ceiling_db"] <= 0.25)
+    assert "on the means of the 2 scan(s) with a fair ceiling" in said
+    assert (tmp_path / "all.png").stat().st_size > 1000
+    with pytest.raises(UserError, match=r"--second: 1 recording\(s\) for 3 scan\(s\)"):
+        run("evaluate", model, *scans, "--second", seconds[0])
+
+
 def test_evaluate_second_recording_errors(felt, tmp_path):
     model, scan = str(felt / "felt.json"), str(felt / "felt_10mms_s1.csv")
     slow = tmp_path / "felt_500hz.csv"
