@@ -312,6 +312,9 @@ def forms(speeds: list[float], held_seed: int, second_seed: int, train_seed: int
 
     k, train_s = int(train.split("x")[0]), float(train.split("x")[1])
     which = which or ["pooled", "two-part", "linear", "calibrated"]
+    if all(f == "third" for f in which):
+        raise SystemExit("forms: 'third' needs a model form beside it (its evaluation "
+                         "mask is the model's), e.g. default,third")
     met = {(f, v): [] for f in which for v in speeds}
     for n in names or list(TEXTURES):
         t = [generate_scan(n, s, train_s, seed=train_seed + j) for s in SPEEDS for j in range(k)]

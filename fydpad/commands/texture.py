@@ -216,7 +216,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     e.add_argument("--plot", metavar="FIG.png", help="recorded against synthesized spectra")
     e.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD,
                    help=INTERPOLATION_HELP)
-    e.add_argument("--seed", type=int, default=0, help="noise seed of the synthesis (default 0)")
+    e.add_argument("--seed", type=int, default=0,
+                   help="noise seed of the synthesis (default 0; the i-th of several scans "
+                   "takes SEED + i, a draw of its own)")
     e.add_argument("--second", nargs="+", metavar="SECOND.csv",
                    help="one per SCAN.csv, in the same order: another recording of the same "
                         "surface at the same speed and about "
@@ -766,7 +768,9 @@ def run_evaluate(args: argparse.Namespace) -> int:
         if len(args.scan) > 1:
             print(f"{path}:")
         second = seconds[i] if seconds else None
-        results.append(_evaluate_lpc(args, model, path, second) if lpc else
+        # Each scan its own draw of the synthesis (--seed, --seed + 1, ...): one draw
+        # for all would make the model's scores share their noise.
+        results.append(_evaluate_lpc(args, model, path, second, args.seed + i) if lpc else
                        _evaluate_family(args, load_family(args.model), path, second))
     out = results[0].out if len(results) == 1 else _over_scans(args.model, results)
     if args.json:
@@ -789,8 +793,8 @@ class _Evaluated:
     label: str
 
 
-def _evaluate_lpc(args: argparse.Namespace, model, path: str,
-                  second: str | None) -> _Evaluated:
+def _evaluate_lpc(args: argparse.Namespace, model, path: str, second: str | None,
+                  seed: int) -> _Evaluated:
     from fydpad.texture.evaluate import evaluate_scan, evaluation_mask
 
     scan = _load_scans([path])[0]
@@ -804,7 +808,7 @@ def _evaluate_lpc(args: argparse.Namespace, model, path: str,
            _second(second, scan, mask, model.highpass_hz, model.tolerance_mm_s,
                    lambda sc: evaluation_mask(sc, model)))
     try:
-        c, extra = evaluate_scan(model, scan, method=args.method, seed=args.seed, mask=mask)
+        c, extra = evaluate_scan(model, scan, method=args.method, seed=seed, mask=mask)
     except ValueError as exc:
         raise UserError(str(exc)) from None
     gaps = model_gaps(model.provenance, args.model)

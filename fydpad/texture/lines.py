@@ -681,8 +681,8 @@ def _factor_model(power: Array, present: Mask, grid: Array, lam: float, fs_hz: f
     shape), a function of frequency (the tool's response, piecewise linear every 10 Hz)
     and one of speed (the drive, one value per grid row), fitted by least squares to the
     log power of the harmonics present, second differences of t and g penalised; g across
-    speeds without data is linear in log speed between the rows with data. Returns exp of
-    the fit at every (row, harmonic)."""
+    rows where no harmonic is present is linear in log speed between the rows where one
+    is. Returns exp of the fit at every (row, harmonic)."""
     nb, n_h = power.shape
     rows, harm = np.nonzero(present & (power > 0))
     if rows.size == 0:
@@ -702,7 +702,9 @@ def _factor_model(power: Array, present: Mask, grid: Array, lam: float, fs_hz: f
                       shape=(m, n_h + nf + nb))
 
     def second_diff(k: int, start: int) -> sparse.csr_matrix:
-        d = sparse.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(max(k - 2, 0), k))
+        if k < 3:  # a one- or two-row speed grid (a constant-speed rig): nothing to bend
+            return sparse.csr_matrix((0, n_h + nf + nb))
+        d = sparse.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(k - 2, k))
         return sparse.hstack([sparse.csr_matrix((d.shape[0], start)), d,
                           sparse.csr_matrix((d.shape[0], n_h + nf + nb - start - k))])
 
@@ -711,9 +713,10 @@ def _factor_model(power: Array, present: Mask, grid: Array, lam: float, fs_hz: f
            + 1e-6 * sparse.identity(n_h + nf + nb)).tocsc()
     sol = spla.spsolve(lhs, a.T @ np.log(power[rows, harm]))
     u, t, g = sol[:n_h], sol[n_h:n_h + nf], sol[n_h + nf:]
-    # Across a gap between rows with data, g is a power law (linear in log speed) between
-    # its ends: the penalty alone bends it by the slopes it has at them (R1 at 15 mm/s,
-    # between strokes at 10 and 20: +2 dB on every line).
+    # Across a gap between rows with lines (no stroke went there, or its lines were under
+    # the noise), g is a power law (linear in log speed) between its ends: the penalty
+    # alone bends it by the slopes it has at them (R1 at 15 mm/s, between strokes at 10
+    # and 20: +2 dB on every line).
     have = np.unique(rows)
     gap = np.setdiff1d(np.arange(have[0] + 1, have[-1]), have)
     g = g.copy()

@@ -227,7 +227,8 @@ def test_evaluate_several_scans_judges_the_targets_on_the_means(felt, tmp_path, 
     alone = []
     for i, (scan, second) in enumerate(zip(scans, seconds, strict=True)):
         j = tmp_path / f"alone{i}.json"
-        assert run("evaluate", model, scan, "--second", second, "--json", str(j)) == 0
+        assert run("evaluate", model, scan, "--second", second, "--json", str(j),
+                   "--seed", str(i)) == 0  # the i-th of several scans draws seed i
         alone.append(json.loads(j.read_text()))
     j = tmp_path / "all.json"
     capsys.readouterr()

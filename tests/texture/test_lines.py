@@ -468,6 +468,17 @@ def test_a_constant_speed_rig_keeps_its_lines():
         assert abs(10 * np.log10(np.mean(syn ** 2) / np.mean(rec ** 2))) < 1.0
 
 
+def test_a_rig_at_one_speed_with_no_tolerance_gets_its_lines():
+    """One speed, tolerance 0: the lines' speed grid has a single row (the factor
+    model's smoothing has nothing to bend; it raised 'Offset 2 out of bounds' there)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model, _ = fit_texture([generate_scan("R1", 20.0, 6.0, seed=1, hand_variation=0.0)],
+                               speeds_mm_s=(20.0,), tolerance_mm_s=0.0)
+    assert model.lines is not None
+    assert LineSpectrum.from_json(model.lines, "").period_mm == pytest.approx(3.9, rel=1e-4)
+
+
 def test_above_the_tables_fastest_speed_the_lines_hold_their_pitch():
     """The table keeps every harmonic in band up to its fastest speed (45 mm/s here);
     faster, the lines hold that pitch and level (as the process is clamped) instead of
