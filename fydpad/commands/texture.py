@@ -848,17 +848,30 @@ def _over_scans(model_path: str, results: list[_Evaluated]) -> dict:
         mean["fair_pairs"] = len(fair)
         mean["targets_met"] = None
         if fair:
-            corr = float(np.mean([r.c.psd_correlation for r in fair]))
+            corrs = np.array([r.c.psd_correlation for r in fair])
+            gaps = np.array([r.c.lsd_db - r.out["ceiling"]["lsd_db"] for r in fair])
+            corr, gap = float(np.mean(corrs)), float(np.mean(gaps))
             ceil = float(np.mean([r.out["ceiling"]["lsd_db"] for r in fair]))
-            gap = float(np.mean([r.c.lsd_db for r in fair])) - ceil
             met = corr >= TARGET_PSD_CORRELATION and gap <= TARGET_LSD_OVER_CEILING_DB
             mean.update(fair_psd_correlation=corr, ceiling_lsd_db=ceil,
                         lsd_over_ceiling_db=gap, targets_met=met)
+            se = ""
+            if len(fair) > 1:
+                # Standard errors: a verdict within two of them of a limit is the draw's.
+                g_se = float(np.std(gaps, ddof=1) / np.sqrt(gaps.size))
+                c_se = float(np.std(corrs, ddof=1) / np.sqrt(corrs.size))
+                near = (abs(gap - TARGET_LSD_OVER_CEILING_DB) <= 2 * g_se
+                        or abs(corr - TARGET_PSD_CORRELATION) <= 2 * c_se)
+                mean.update(lsd_over_ceiling_se_db=g_se, psd_correlation_se=c_se,
+                            verdict_within_2_se=near)
+                se = f" (standard error {g_se:.2f})"
             print(f"on the means of the {len(fair)} scan(s) with a fair ceiling: correlation "
-                  f"{corr:.3f}, LSD {gap:+.2f} dB over the mean ceiling {ceil:.2f} dB: "
+                  f"{corr:.3f}, LSD {gap:+.2f} dB{se} over the mean ceiling {ceil:.2f} dB: "
                   f"{'targets met' if met else 'targets not met'} (correlation >= "
                   f"{TARGET_PSD_CORRELATION:g}, LSD <= ceiling + "
                   f"{TARGET_LSD_OVER_CEILING_DB:g} dB)")
+            if mean.get("verdict_within_2_se"):
+                print("  within two standard errors of a limit: more strokes would decide it")
         else:
             print("no scan has a fair ceiling: no verdict")
     return {"model": model_path, "scans": [r.out for r in results], "mean": mean}

@@ -250,6 +250,8 @@ def test_evaluate_several_scans_judges_the_targets_on_the_means(felt, tmp_path, 
                                                      - ceil)
     corr = np.mean([a["psd_correlation"] for a in fair])
     assert m["targets_met"] == (corr >= 0.95 and m["lsd_over_ceiling_db"] <= 0.25)
+    gaps = [a["lsd_over_ceiling_db"] for a in fair]
+    assert m["lsd_over_ceiling_se_db"] == pytest.approx(np.std(gaps, ddof=1) / np.sqrt(2))
     assert "on the means of the 2 scan(s) with a fair ceiling" in said
     assert (tmp_path / "all.png").stat().st_size > 1000
     with pytest.raises(UserError, match=r"--second: 1 recording\(s\) for 3 scan\(s\)"):
