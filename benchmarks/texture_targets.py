@@ -32,14 +32,19 @@ import warnings
 import numpy as np
 
 from fydpad.texture.dft321 import preprocess
-from fydpad.texture.evaluate import compare, evaluate_scan, evaluation_mask
+from fydpad.texture.evaluate import (
+    TARGET_LSD_OVER_CEILING_DB,
+    TARGET_PSD_CORRELATION,
+    compare,
+    evaluate_scan,
+    evaluation_mask,
+    verdict_on_means,
+)
 from fydpad.texture.fit import fit_texture
 from fydpad.texture.scan_generator import TEXTURES, generate_scan
 
 TRAIN_SPEEDS = (10.0, 20.0, 30.0, 40.0)
 HELD_S = 12.0
-CORR_TARGET = 0.95
-LSD_OVER_CEILING_DB = 0.25
 
 
 def _score(held, other, mask, model) -> tuple[float, float]:
@@ -70,21 +75,10 @@ def cell(name: str, model, speed: float, held: int, base: int, third: bool) -> d
 
 def verdict(lsd: np.ndarray, corr: np.ndarray, ceiling: np.ndarray
             ) -> tuple[bool, float, float, bool]:
-    """(met on the means, the mean gap LSD - ceiling, its standard error, decided: the
-    verdict stands with both means moved two standard errors either way, so it is not
-    the draw's)."""
-    d = lsd - ceiling
-    gap, corr_mean = float(np.mean(d)), float(np.mean(corr))
-    se = float(np.std(d, ddof=1) / np.sqrt(d.size))
-    se_corr = float(np.std(corr, ddof=1) / np.sqrt(corr.size))
-    met = gap <= LSD_OVER_CEILING_DB and corr_mean >= CORR_TARGET
-    if met:
-        decided = (gap + 2 * se <= LSD_OVER_CEILING_DB
-                   and corr_mean - 2 * se_corr >= CORR_TARGET)
-    else:
-        decided = (gap - 2 * se > LSD_OVER_CEILING_DB
-                   or corr_mean + 2 * se_corr < CORR_TARGET)
-    return met, gap, se, decided
+    """(met on the means, the mean gap LSD - ceiling, its standard error, decided):
+    :func:`fydpad.texture.evaluate.verdict_on_means`."""
+    v = verdict_on_means(corr, lsd - ceiling)
+    return v.met, v.lsd_over_ceiling_db, float(v.lsd_over_ceiling_se_db), v.decided
 
 
 def main() -> None:
@@ -117,8 +111,8 @@ def main() -> None:
         for v in speeds:
             r = cell(name, model, v, args.held, base, args.third)
             ok, gap, se, decided = verdict(r["model"], r["model_corr"], r["ceiling"])
-            single = (r["model"] - r["ceiling"] <= LSD_OVER_CEILING_DB) & (
-                r["model_corr"] >= CORR_TARGET)
+            single = (r["model"] - r["ceiling"] <= TARGET_LSD_OVER_CEILING_DB) & (
+                r["model_corr"] >= TARGET_PSD_CORRELATION)
             met[v]["model"] += ok
             met[v]["undecided"] += not decided
             met[v]["single"] += int(single.sum())
@@ -128,8 +122,8 @@ def main() -> None:
                     f"({int(single.sum())}/{args.held} strokes)")
             if args.third:
                 tok, tgap, _, tdec = verdict(r["third"], r["third_corr"], r["ceiling"])
-                tsingle = (r["third"] - r["ceiling"] <= LSD_OVER_CEILING_DB) & (
-                    r["third_corr"] >= CORR_TARGET)
+                tsingle = (r["third"] - r["ceiling"] <= TARGET_LSD_OVER_CEILING_DB) & (
+                    r["third_corr"] >= TARGET_PSD_CORRELATION)
                 met[v]["third"] += tok
                 met[v]["third_undecided"] += not tdec
                 met[v]["third_single"] += int(tsingle.sum())

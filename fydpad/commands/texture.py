@@ -217,10 +217,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     e.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD,
                    help=INTERPOLATION_HELP)
     e.add_argument("--seed", type=int, default=0,
-                   help="noise seed of the synthesis (default 0; the i-th of several scans "
-                   "takes SEED + i, a draw of its own)")
-    e.add_argument("--second", nargs="+", metavar="SECOND.csv",
-                   help="one per SCAN.csv, in the same order: another recording of the same "
+                   help="noise seed of an LPC model's synthesis (default 0; the i-th of "
+                   "several scans takes SEED + i, a draw of its own)")
+    e.add_argument("--second", action="append", metavar="SECOND.csv",
+                   help="once per SCAN.csv, in the same order: another recording of the same "
                         "surface at the same speed and about "
                         "as long (a held-out stroke the fit never saw): the ceiling (it "
                         "scored against SCAN.csv as the model is) and whether the model "
@@ -760,7 +760,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
     seconds = args.second or []
     if seconds and len(seconds) != len(args.scan):
         raise UserError(f"--second: {len(seconds)} recording(s) for {len(args.scan)} "
-                        "scan(s): give one per scan, in the same order")
+                        "scan(s): give --second once per scan, in the same order")
     lpc = spec_kind(args.model) == "lpc"
     model = _load_model(args.model) if lpc else None
     results = []
@@ -772,6 +772,10 @@ def run_evaluate(args: argparse.Namespace) -> int:
         # for all would make the model's scores share their noise.
         results.append(_evaluate_lpc(args, model, path, second, args.seed + i) if lpc else
                        _evaluate_family(args, load_family(args.model), path, second))
+    for path, r in zip(args.scan[1:], results[1:], strict=True):
+        if r.f_hz.shape != results[0].f_hz.shape:  # their means need one frequency grid
+            raise UserError(f"{path}: column 't_s': its sample rate differs from "
+                            f"{args.scan[0]}'s; several scans need one rate")
     out = results[0].out if len(results) == 1 else _over_scans(args.model, results)
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
@@ -836,7 +840,11 @@ def _over_scans(model_path: str, results: list[_Evaluated]) -> dict:
     ceiling): one scan and one second recording are two random draws, which a third
     recording of the surface fails about one time in five (docs/texture.md, "The
     targets on several strokes per cell")."""
-    from fydpad.texture.evaluate import TARGET_LSD_OVER_CEILING_DB, TARGET_PSD_CORRELATION
+    from fydpad.texture.evaluate import (
+        TARGET_LSD_OVER_CEILING_DB,
+        TARGET_PSD_CORRELATION,
+        verdict_on_means,
+    )
 
     n = len(results)
     mean = {"psd_correlation": float(np.mean([r.c.psd_correlation for r in results])),
@@ -844,37 +852,39 @@ def _over_scans(model_path: str, results: list[_Evaluated]) -> dict:
     print(f"mean over {n} scans: power-spectrum correlation {mean['psd_correlation']:.3f}, "
           f"log-spectral distance {mean['lsd_db']:.2f} dB")
     if any(r.sec is not None for r in results):
-        fair = [r for r in results if r.sec is not None and not r.sec.unfair]
-        mean["fair_pairs"] = len(fair)
-        mean["targets_met"] = None
+        fair = _fair(results)
+        mean.update(fair_pairs=len(fair), fair_psd_correlation=None, ceiling_lsd_db=None,
+                    lsd_over_ceiling_db=None, psd_correlation_se=None,
+                    lsd_over_ceiling_se_db=None, targets_met=None, verdict_decided=None)
         if fair:
-            corrs = np.array([r.c.psd_correlation for r in fair])
-            gaps = np.array([r.c.lsd_db - r.out["ceiling"]["lsd_db"] for r in fair])
-            corr, gap = float(np.mean(corrs)), float(np.mean(gaps))
+            v = verdict_on_means([r.c.psd_correlation for r in fair],
+                                 [r.out["lsd_over_ceiling_db"] for r in fair])
             ceil = float(np.mean([r.out["ceiling"]["lsd_db"] for r in fair]))
-            met = corr >= TARGET_PSD_CORRELATION and gap <= TARGET_LSD_OVER_CEILING_DB
-            mean.update(fair_psd_correlation=corr, ceiling_lsd_db=ceil,
-                        lsd_over_ceiling_db=gap, targets_met=met)
-            se = ""
-            if len(fair) > 1:
-                # Standard errors: a verdict within two of them of a limit is the draw's.
-                g_se = float(np.std(gaps, ddof=1) / np.sqrt(gaps.size))
-                c_se = float(np.std(corrs, ddof=1) / np.sqrt(corrs.size))
-                near = (abs(gap - TARGET_LSD_OVER_CEILING_DB) <= 2 * g_se
-                        or abs(corr - TARGET_PSD_CORRELATION) <= 2 * c_se)
-                mean.update(lsd_over_ceiling_se_db=g_se, psd_correlation_se=c_se,
-                            verdict_within_2_se=near)
-                se = f" (standard error {g_se:.2f})"
+            mean.update(fair_psd_correlation=v.psd_correlation, ceiling_lsd_db=ceil,
+                        lsd_over_ceiling_db=v.lsd_over_ceiling_db,
+                        psd_correlation_se=v.psd_correlation_se,
+                        lsd_over_ceiling_se_db=v.lsd_over_ceiling_se_db, targets_met=v.met,
+                        verdict_decided=v.decided if len(fair) > 1 else None)
+            se = ("" if v.lsd_over_ceiling_se_db is None else
+                  f" (standard error {v.lsd_over_ceiling_se_db:.2f})")
+            cse = ("" if v.psd_correlation_se is None else
+                   f" (standard error {v.psd_correlation_se:.3f})")
             print(f"on the means of the {len(fair)} scan(s) with a fair ceiling: correlation "
-                  f"{corr:.3f}, LSD {gap:+.2f} dB{se} over the mean ceiling {ceil:.2f} dB: "
-                  f"{'targets met' if met else 'targets not met'} (correlation >= "
+                  f"{v.psd_correlation:.3f}{cse}, LSD {v.lsd_over_ceiling_db:+.2f} dB{se} "
+                  f"over the mean ceiling {ceil:.2f} dB: "
+                  f"{'targets met' if v.met else 'targets not met'} (correlation >= "
                   f"{TARGET_PSD_CORRELATION:g}, LSD <= ceiling + "
                   f"{TARGET_LSD_OVER_CEILING_DB:g} dB)")
-            if mean.get("verdict_within_2_se"):
+            if len(fair) > 1 and not v.decided:
                 print("  within two standard errors of a limit: more strokes would decide it")
         else:
             print("no scan has a fair ceiling: no verdict")
     return {"model": model_path, "scans": [r.out for r in results], "mean": mean}
+
+
+def _fair(results: list[_Evaluated]) -> list[_Evaluated]:
+    """The scans whose second recording sets a fair ceiling."""
+    return [r for r in results if r.sec is not None and not r.sec.unfair]
 
 
 def _plot_evaluation(path: str, results: list[_Evaluated]) -> None:
@@ -891,15 +901,15 @@ def _plot_evaluation(path: str, results: list[_Evaluated]) -> None:
         ceil = r.out.get("ceiling", {}).get("lsd_db")
     else:
         f = r.f_hz
-        rec = np.mean([x.recorded for x in results], axis=0)
-        syn = np.mean([x.synthesized for x in results], axis=0)
-        with_second = all(x.sec is not None for x in results)
-        sec = np.mean([x.sec.psd for x in results], axis=0) if with_second else None
-        title = (f"mean corr {np.mean([x.c.psd_correlation for x in results]):.3f}, mean "
-                 f"LSD {np.mean([x.c.lsd_db for x in results]):.2f} dB")
-        label = f"{r.label}, mean of {len(results)} scans"
-        ceil = (float(np.mean([x.out["ceiling"]["lsd_db"] for x in results]))
-                if with_second else None)
+        fair = _fair(results)
+        pool = fair or results  # with fair ceilings, the pairs the verdict is on
+        rec = np.mean([x.recorded for x in pool], axis=0)
+        syn = np.mean([x.synthesized for x in pool], axis=0)
+        sec = np.mean([x.sec.psd for x in fair], axis=0) if fair else None
+        title = (f"mean corr {np.mean([x.c.psd_correlation for x in pool]):.3f}, mean "
+                 f"LSD {np.mean([x.c.lsd_db for x in pool]):.2f} dB")
+        label = f"{r.label}, mean of {len(pool)} scans"
+        ceil = float(np.mean([x.out["ceiling"]["lsd_db"] for x in fair])) if fair else None
     if sec is None:
         plot_spectra(path, [(label, f, rec, syn)], title)
     else:

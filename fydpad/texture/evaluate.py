@@ -151,6 +151,42 @@ def meets_targets(c: Comparison, ceil: Ceiling) -> bool:
             and c.lsd_db <= ceil.lsd_db + TARGET_LSD_OVER_CEILING_DB)
 
 
+@dataclass(frozen=True)
+class MeansVerdict:
+    """Issue 7's targets judged on the means of several strokes (each against its own
+    second recording): :func:`verdict_on_means`."""
+
+    psd_correlation: float
+    lsd_over_ceiling_db: float
+    psd_correlation_se: float | None  # None with one stroke
+    lsd_over_ceiling_se_db: float | None
+    met: bool
+    decided: bool  # the verdict stands with both means moved two standard errors
+
+
+def verdict_on_means(corr: ArrayLike, lsd_over_ceiling_db: ArrayLike) -> MeansVerdict:
+    """Mean correlation >= 0.95 and mean LSD - ceiling <= 0.25 dB over the strokes. One
+    stroke against one second recording is a comparison of two draws; the means are
+    steadier, and a verdict within two standard errors of a limit is the draw's: met is
+    decided when both means clear their limits by two standard errors, a miss when one
+    of them misses by two (docs/texture.md, "The targets on several strokes per cell")."""
+    c = np.asarray(corr, float)
+    d = np.asarray(lsd_over_ceiling_db, float)
+    corr_mean, gap = float(np.mean(c)), float(np.mean(d))
+    met = corr_mean >= TARGET_PSD_CORRELATION and gap <= TARGET_LSD_OVER_CEILING_DB
+    if d.size < 2:
+        return MeansVerdict(corr_mean, gap, None, None, met, False)
+    c_se = float(np.std(c, ddof=1) / np.sqrt(c.size))
+    g_se = float(np.std(d, ddof=1) / np.sqrt(d.size))
+    if met:
+        decided = (gap + 2 * g_se <= TARGET_LSD_OVER_CEILING_DB
+                   and corr_mean - 2 * c_se >= TARGET_PSD_CORRELATION)
+    else:
+        decided = (gap - 2 * g_se > TARGET_LSD_OVER_CEILING_DB
+                   or corr_mean + 2 * c_se < TARGET_PSD_CORRELATION)
+    return MeansVerdict(corr_mean, gap, c_se, g_se, met, decided)
+
+
 def evaluation_mask(scan: Scan, model: TextureModel, tolerance_mm_s: float | None = None
                     ) -> NDArray[np.bool_]:
     """Samples within the model's speed range (widened by its tolerance)."""

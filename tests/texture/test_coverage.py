@@ -21,6 +21,7 @@ from fydpad.texture.coverage import (
     speed_histogram,
     steady,
 )
+from fydpad.texture.evaluate import verdict_on_means
 from fydpad.texture.fit import fit_texture
 from fydpad.texture.model_file import load_model
 from fydpad.texture.plots import SpeedCoverage, plot_spectra
@@ -232,8 +233,8 @@ def test_evaluate_several_scans_judges_the_targets_on_the_means(felt, tmp_path, 
         alone.append(json.loads(j.read_text()))
     j = tmp_path / "all.json"
     capsys.readouterr()
-    assert run("evaluate", model, *scans, "--second", *seconds, "--json", str(j),
-               "--plot", str(tmp_path / "all.png")) == 0
+    assert run("evaluate", model, *scans, *(x for p in seconds for x in ("--second", p)),
+               "--json", str(j), "--plot", str(tmp_path / "all.png")) == 0
     said = capsys.readouterr().out
     e = json.loads(j.read_text())
     assert [s["scan"] for s in e["scans"]] == scans
@@ -252,10 +253,32 @@ def test_evaluate_several_scans_judges_the_targets_on_the_means(felt, tmp_path, 
     assert m["targets_met"] == (corr >= 0.95 and m["lsd_over_ceiling_db"] <= 0.25)
     gaps = [a["lsd_over_ceiling_db"] for a in fair]
     assert m["lsd_over_ceiling_se_db"] == pytest.approx(np.std(gaps, ddof=1) / np.sqrt(2))
+    v = verdict_on_means([a["psd_correlation"] for a in fair], gaps)
+    assert m["verdict_decided"] == v.decided
+    assert ("more strokes would decide it" in said) == (not v.decided)
     assert "on the means of the 2 scan(s) with a fair ceiling" in said
     assert (tmp_path / "all.png").stat().st_size > 1000
     with pytest.raises(UserError, match=r"--second: 1 recording\(s\) for 3 scan\(s\)"):
         run("evaluate", model, *scans, "--second", seconds[0])
+    # One scan, --second before it: the order of the options does not matter.
+    j1 = tmp_path / "order.json"
+    assert run("evaluate", model, "--second", seconds[0], scans[0], "--json", str(j1)) == 0
+    assert json.loads(j1.read_text())["lsd_db"] == pytest.approx(alone[0]["lsd_db"])
+
+
+@pytest.mark.parametrize("corr, gap, met, decided", [
+    ([0.99, 0.98, 0.99, 0.98], [0.00, 0.05, -0.05, 0.02], True, True),   # clear
+    ([0.99, 0.98, 0.99, 0.98], [0.60, -0.40, 0.50, -0.30], True, False),  # +0.10 +- 0.25
+    ([0.99, 0.98, 0.99, 0.98], [0.90, 0.80, 0.85, 0.95], False, True),   # LSD clearly over
+    # The correlation clearly under while the LSD sits near its limit: a decided miss.
+    ([0.80, 0.81, 0.79, 0.80], [0.20, 0.30, 0.15, 0.15], False, True),
+    ([0.97, 0.93, 0.96, 0.92], [0.0, 0.0, 0.0, 0.0], False, False),      # corr 0.945 +- 0.01
+    ([0.99], [0.1], True, False),                                         # one stroke
+])
+def test_verdict_on_means(corr, gap, met, decided):
+    v = verdict_on_means(corr, gap)
+    assert (v.met, v.decided) == (met, decided), v
+    assert v.lsd_over_ceiling_db == pytest.approx(np.mean(gap))
 
 
 def test_evaluate_second_recording_errors(felt, tmp_path):

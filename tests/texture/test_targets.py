@@ -316,8 +316,10 @@ def _mean_figures(models, speed: float, strokes: int = 4) -> dict[str, tuple]:
                 c, _ = evaluate_scan(model, held, mask=mask, seed=4100 + j)
                 gap.append(c.lsd_db - ceil.lsd_db)
                 corr.append(c.psd_correlation)
-            out[model.surface] = (float(np.mean(gap)), float(np.std(gap, ddof=1) / 2.0),
-                                  float(np.mean(corr)), float(np.std(corr, ddof=1) / 2.0))
+            root_n = np.sqrt(strokes)
+            out[model.surface] = (float(np.mean(gap)), float(np.std(gap, ddof=1) / root_n),
+                                  float(np.mean(corr)),
+                                  float(np.std(corr, ddof=1) / root_n))
     return out
 
 

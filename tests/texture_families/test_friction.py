@@ -143,6 +143,15 @@ def test_cli_generate_fit_synth_evaluate(tmp_path):
     e2 = json.loads((d / "e2.json").read_text())
     assert e2["ceiling"]["lsd_db"] == 0.0 and e2["targets_met"] == (
         e2["psd_correlation"] >= 0.95 and e2["lsd_db"] <= 0.25)
+    # Two scans (the same twice): each pair's figures as alone, and their means.
+    assert run_cli("evaluate", str(d / "c.json"), scan_path, scan_path, "--second", scan_path,
+                   "--second", scan_path, "--json", str(d / "e3.json"),
+                   "--plot", str(d / "e3.png")) == 0
+    e3 = json.loads((d / "e3.json").read_text())
+    assert [s["lsd_db"] for s in e3["scans"]] == [e2["lsd_db"]] * 2
+    assert e3["mean"]["lsd_over_ceiling_db"] == pytest.approx(e2["lsd_over_ceiling_db"])
+    assert e3["mean"]["targets_met"] == e2["targets_met"]
+    assert (d / "e3.png").stat().st_size > 1000
 
 
 def test_fydpad_vibration_follows_mu_while_sliding_only(fitted):
