@@ -81,6 +81,19 @@ def verdict(lsd: np.ndarray, corr: np.ndarray, ceiling: np.ndarray
     return v.met, v.lsd_over_ceiling_db, float(v.lsd_over_ceiling_se_db), v.decided
 
 
+def _tally(counts: dict, prefix: str, lsd: np.ndarray, corr: np.ndarray,
+           ceiling: np.ndarray) -> tuple[bool, float, float, bool, int]:
+    """verdict() of one cell plus the strokes meeting the target alone, added to
+    ``counts`` under ``prefix`` ("" for the model, "third_")."""
+    ok, gap, se, decided = verdict(lsd, corr, ceiling)
+    single = int(np.sum((lsd - ceiling <= TARGET_LSD_OVER_CEILING_DB)
+                        & (corr >= TARGET_PSD_CORRELATION)))
+    counts[prefix[:-1] or "model"] += ok
+    counts[prefix + "undecided"] += not decided
+    counts[prefix + "single"] += single
+    return ok, gap, se, decided, single
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--textures", default="all", help="comma-separated, or all")
@@ -110,47 +123,32 @@ def main() -> None:
         model, _ = fit_texture(train, speeds_mm_s=TRAIN_SPEEDS)
         for v in speeds:
             r = cell(name, model, v, args.held, base, args.third)
-            ok, gap, se, decided = verdict(r["model"], r["model_corr"], r["ceiling"])
-            single = (r["model"] - r["ceiling"] <= TARGET_LSD_OVER_CEILING_DB) & (
-                r["model_corr"] >= TARGET_PSD_CORRELATION)
-            met[v]["model"] += ok
-            met[v]["undecided"] += not decided
-            met[v]["single"] += int(single.sum())
+            ok, gap, se, decided, single = _tally(met[v], "", r["model"], r["model_corr"],
+                                                  r["ceiling"])
             line = (f"{name:15s} {v:4g} mm/s  ceiling {np.mean(r['ceiling']):.2f} dB  model "
                     f"{gap:+.2f} (SE {se:.2f}) / {np.mean(r['model_corr']):.3f}"
                     f"{'*' if ok else ' '}{' ' if decided else '?'} "
-                    f"({int(single.sum())}/{args.held} strokes)")
+                    f"({single}/{args.held} strokes)")
             if args.third:
-                tok, tgap, _, tdec = verdict(r["third"], r["third_corr"], r["ceiling"])
-                tsingle = (r["third"] - r["ceiling"] <= TARGET_LSD_OVER_CEILING_DB) & (
-                    r["third_corr"] >= TARGET_PSD_CORRELATION)
-                met[v]["third"] += tok
-                met[v]["third_undecided"] += not tdec
-                met[v]["third_single"] += int(tsingle.sum())
+                tok, tgap, _, tdec, tsingle = _tally(met[v], "third_", r["third"],
+                                                     r["third_corr"], r["ceiling"])
                 line += (f"  third {tgap:+.2f} / {np.mean(r['third_corr']):.3f}"
                          f"{'*' if tok else ' '}{' ' if tdec else '?'} "
-                         f"({int(tsingle.sum())}/{args.held})")
+                         f"({tsingle}/{args.held})")
             print(line, flush=True)
     n = len(names)
     print(f"\n{n} textures, train seed {args.train_seed}, {args.held} held-out strokes per "
           "cell; met on the means [of them undecided: a mean within 2 SE of its limit] "
           "(single strokes meeting it):")
-    tot = {k: 0 for k in met[speeds[0]]}
-    for v, m in met.items():
-        for k in tot:
-            tot[k] += m[k]
-        line = (f"  {v:4g} mm/s: model {m['model']}/{n} [{m['undecided']}] "
-                f"({m['single']}/{n * args.held} strokes)")
+    tot = {k: sum(m[k] for m in met.values()) for k in met[speeds[0]]}
+    for label, m, cells in [(f"{v:4g} mm/s", met[v], n) for v in speeds] + [
+            ("all", tot, n * len(speeds))]:
+        line = (f"  {label}: model {m['model']}/{cells} [{m['undecided']}] "
+                f"({m['single']}/{cells * args.held} strokes)")
         if args.third:
-            line += (f", third {m['third']}/{n} [{m['third_undecided']}] "
-                     f"({m['third_single']}/{n * args.held})")
+            line += (f", third {m['third']}/{cells} [{m['third_undecided']}] "
+                     f"({m['third_single']}/{cells * args.held})")
         print(line)
-    line = (f"  all: model {tot['model']}/{n * len(speeds)} [{tot['undecided']}] "
-            f"({tot['single']}/{n * len(speeds) * args.held} strokes)")
-    if args.third:
-        line += (f", third {tot['third']}/{n * len(speeds)} [{tot['third_undecided']}] "
-                 f"({tot['third_single']}/{n * len(speeds) * args.held})")
-    print(line)
 
 
 if __name__ == "__main__":
