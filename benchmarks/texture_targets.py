@@ -35,6 +35,7 @@ from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import (
     TARGET_LSD_OVER_CEILING_DB,
     TARGET_PSD_CORRELATION,
+    MeansVerdict,
     compare,
     evaluate_scan,
     evaluation_mask,
@@ -73,25 +74,18 @@ def cell(name: str, model, speed: float, held: int, base: int, third: bool) -> d
     return {k: np.asarray(v) for k, v in out.items()}
 
 
-def verdict(lsd: np.ndarray, corr: np.ndarray, ceiling: np.ndarray
-            ) -> tuple[bool, float, float, bool]:
-    """(met on the means, the mean gap LSD - ceiling, its standard error, decided):
-    :func:`fydpad.texture.evaluate.verdict_on_means`."""
-    v = verdict_on_means(corr, lsd - ceiling)
-    return v.met, v.lsd_over_ceiling_db, float(v.lsd_over_ceiling_se_db), v.decided
-
-
 def _tally(counts: dict, prefix: str, lsd: np.ndarray, corr: np.ndarray,
-           ceiling: np.ndarray) -> tuple[bool, float, float, bool, int]:
-    """verdict() of one cell plus the strokes meeting the target alone, added to
-    ``counts`` under ``prefix`` ("" for the model, "third_")."""
-    ok, gap, se, decided = verdict(lsd, corr, ceiling)
+           ceiling: np.ndarray) -> tuple[MeansVerdict, int]:
+    """The cell's verdict on the means (:func:`fydpad.texture.evaluate.verdict_on_means`)
+    and the strokes meeting the target alone, added to ``counts`` under ``prefix`` (""
+    for the model, "third_")."""
+    v = verdict_on_means(corr, lsd - ceiling)
     single = int(np.sum((lsd - ceiling <= TARGET_LSD_OVER_CEILING_DB)
                         & (corr >= TARGET_PSD_CORRELATION)))
-    counts[prefix[:-1] or "model"] += ok
-    counts[prefix + "undecided"] += not decided
+    counts[prefix[:-1] or "model"] += v.met
+    counts[prefix + "undecided"] += not v.decided
     counts[prefix + "single"] += single
-    return ok, gap, se, decided, single
+    return v, single
 
 
 def main() -> None:
@@ -123,17 +117,16 @@ def main() -> None:
         model, _ = fit_texture(train, speeds_mm_s=TRAIN_SPEEDS)
         for v in speeds:
             r = cell(name, model, v, args.held, base, args.third)
-            ok, gap, se, decided, single = _tally(met[v], "", r["model"], r["model_corr"],
-                                                  r["ceiling"])
+            m, single = _tally(met[v], "", r["model"], r["model_corr"], r["ceiling"])
             line = (f"{name:15s} {v:4g} mm/s  ceiling {np.mean(r['ceiling']):.2f} dB  model "
-                    f"{gap:+.2f} (SE {se:.2f}) / {np.mean(r['model_corr']):.3f}"
-                    f"{'*' if ok else ' '}{' ' if decided else '?'} "
-                    f"({single}/{args.held} strokes)")
+                    f"{m.lsd_over_ceiling_db:+.2f} (SE {m.lsd_over_ceiling_se_db:.2f}) / "
+                    f"{m.psd_correlation:.3f}{'*' if m.met else ' '}"
+                    f"{' ' if m.decided else '?'} ({single}/{args.held} strokes)")
             if args.third:
-                tok, tgap, _, tdec, tsingle = _tally(met[v], "third_", r["third"],
-                                                     r["third_corr"], r["ceiling"])
-                line += (f"  third {tgap:+.2f} / {np.mean(r['third_corr']):.3f}"
-                         f"{'*' if tok else ' '}{' ' if tdec else '?'} "
+                t, tsingle = _tally(met[v], "third_", r["third"], r["third_corr"],
+                                    r["ceiling"])
+                line += (f"  third {t.lsd_over_ceiling_db:+.2f} / {t.psd_correlation:.3f}"
+                         f"{'*' if t.met else ' '}{' ' if t.decided else '?'} "
                          f"({tsingle}/{args.held})")
             print(line, flush=True)
     n = len(names)

@@ -23,7 +23,7 @@ from fydpad.texture.interpolation import DEFAULT_METHOD, METHODS
 from vision.recording import CsvRowWriter, RecordingError
 
 if TYPE_CHECKING:
-    from fydpad.texture.evaluate import Ceiling, Comparison
+    from fydpad.texture.evaluate import Comparison
     from fydpad.texture.scan_io import Scan
 
 #: The interpolation between modelled speeds (fydpad.texture.interpolation, docs/texture.md).
@@ -959,7 +959,7 @@ def _second(path: str, scan: Scan, scan_mask: np.ndarray, highpass_hz: float,
 
 
 def _report_ceiling(sec: _Second, c: Comparison, f_hz: np.ndarray, recorded_psd: np.ndarray,
-                    out: dict) -> Ceiling:
+                    out: dict) -> None:
     """Print the ceiling and the targets' verdict (none when the second recording sets
     no fair ceiling); add them to the JSON ``out``."""
     from fydpad.texture.evaluate import (
@@ -982,7 +982,6 @@ def _report_ceiling(sec: _Second, c: Comparison, f_hz: np.ndarray, recorded_psd:
     if sec.unfair:
         print(f"fydpad texture evaluate: warning: {sec.path} sets no fair ceiling: "
               f"{sec.unfair}", file=sys.stderr)
-    return ceil
 
 
 def _evaluate_family(args: argparse.Namespace, fam, path: str,

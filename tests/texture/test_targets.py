@@ -28,7 +28,12 @@ import numpy as np
 import pytest
 
 from fydpad.texture.dft321 import preprocess
-from fydpad.texture.evaluate import compare, evaluate_scan, evaluation_mask
+from fydpad.texture.evaluate import (
+    compare,
+    evaluate_scan,
+    evaluation_mask,
+    verdict_on_means,
+)
 from fydpad.texture.fit import fit_texture
 from fydpad.texture.identify import identify
 from fydpad.texture.scan_generator import TEXTURES, generate_scan
@@ -316,10 +321,9 @@ def _mean_figures(models, speed: float, strokes: int = 4) -> dict[str, tuple]:
                 c, _ = evaluate_scan(model, held, mask=mask, seed=4100 + j)
                 gap.append(c.lsd_db - ceil.lsd_db)
                 corr.append(c.psd_correlation)
-            root_n = np.sqrt(strokes)
-            out[model.surface] = (float(np.mean(gap)), float(np.std(gap, ddof=1) / root_n),
-                                  float(np.mean(corr)),
-                                  float(np.std(corr, ddof=1) / root_n))
+            v = verdict_on_means(corr, gap)
+            out[model.surface] = (v.lsd_over_ceiling_db, v.lsd_over_ceiling_se_db,
+                                  v.psd_correlation, v.psd_correlation_se)
     return out
 
 
