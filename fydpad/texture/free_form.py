@@ -194,9 +194,8 @@ def fit_calibrated(runs_by_speed: dict[float, list[tuple[Array, Array]]], fs_hz:
         allv = np.concatenate([v for _, v in rv])
         edges = np.arange(allv.min(), allv.max() + 2 * grid_mm_s, grid_mm_s)
         hist, _ = np.histogram(allv, edges)
-        mid = 0.5 * (edges[:-1] + edges[1:])
-        e = sum(h * np.mean([two.psd(float(u + d)) for d in smear], axis=0)
-                for u, h in zip(mid, hist, strict=True) if h) / hist.sum()
+        mid = 0.5 * (edges[:-1] + edges[1:])[hist > 0]
+        e = two.mean_psd((mid[:, None] + smear).ravel(), np.repeat(hist[hist > 0], smear.size))
         rows.append(np.log(np.maximum(p[:, 1:].mean(axis=0), _EPS) / np.maximum(e, _EPS)))
         speeds.append(s)
     if not speeds:

@@ -35,12 +35,15 @@ the renderer's speed table: the 1 kHz path is unchanged.
 
 from __future__ import annotations
 
+import contextlib
+import functools
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
+from threadpoolctl import ThreadpoolController
 
 from fydpad.texture.speed_warp import NFFT, ar_from_log_psd
 
@@ -88,6 +91,17 @@ class TwoPartSpectrum:
             + self.floor * n
         return s if self.fixed is None else s + self.fixed
 
+    def mean_psd(self, speeds_mm_s: Array, weights: Array | None = None) -> Array:
+        """The ``weights``-weighted mean of :meth:`psd` over ``speeds_mm_s``, in one pass."""
+        v = np.clip(np.asarray(speeds_mm_s, float), self.v_mm_s[0], self.v_mm_s[-1])
+        w = np.ones(v.size) if weights is None else np.asarray(weights, float)
+        w = w / w.sum()
+        g = np.exp(np.interp(v, self.v_mm_s, np.log(self.g)))
+        n = np.exp(np.interp(v, self.v_mm_s, np.log(self.n)))
+        u = _resampled(self.surface, self.k_per_mm, self.f_hz, v)
+        s = self.tool * ((w * g) @ u) + self.floor * float(w @ n)
+        return s if self.fixed is None else s + self.fixed
+
     def ar(self, speed_mm_s: float, order: int, fs_hz: float) -> tuple[Array, float]:
         """All-pole (A, sigma^2) of ``order`` with the spectrum S(f, v) averaged over
         v +- ``RENDER_SMEAR_MM_S``, and its power.
@@ -98,8 +112,7 @@ class TwoPartSpectrum:
         part of their power (measured on R2 at 20 mm/s: -3 dB at 20-100 Hz). Lines
         widened by f * smear / v overlap from one entry to the next.
         """
-        vs = speed_mm_s + RENDER_SMEAR_MM_S * np.linspace(-1.0, 1.0, 5)
-        p = np.mean([self.psd(float(v)) for v in vs], axis=0)
+        p = self.mean_psd(speed_mm_s + RENDER_SMEAR_MM_S * np.linspace(-1.0, 1.0, 5))
         f = np.arange(NFFT // 2 + 1) * fs_hz / NFFT
         log_p = np.interp(f, self.f_hz, np.log(np.maximum(p, 1e-300)))
         return ar_two_stage(log_p, order)
@@ -168,18 +181,31 @@ def _resample_matrix(f_hz: Array, v: float, k: Array, sub: int = 8) -> sp.csr_ma
     return sp.csr_matrix((vals, (rows, cols)), shape=(f_hz.size, k.size))
 
 
-def _resampled(u: Array, k: Array, f_hz: Array, v: float, sub: int = 8) -> Array:
+def _resampled(u: Array, k: Array, f_hz: Array, v: float | Array, sub: int = 8) -> Array:
     """``_resample_matrix(f_hz, v, k) @ u`` without building the matrix: U(f / v) averaged
-    over each bin's width (the render's table asks for S at hundreds of speeds)."""
+    over each bin's width (the render's table asks for S at hundreds of speeds); a row per
+    speed if ``v`` is an array."""
     df = f_hz[1] - f_hz[0]
     off = (np.arange(sub) + 0.5) / sub - 0.5
-    return np.interp((f_hz[:, None] + df * off) / v, k, u).mean(axis=1)
+    v = np.asarray(v, float)[..., None, None]
+    return np.interp((f_hz[:, None] + df * off) / v, k, u).mean(axis=-1)
 
 
 def _mm(a: Array, b: Array) -> Array:
-    """a @ b without BLAS: these products are tiny, and a threaded BLAS on a loaded machine
-    spends 10x their cost in thread hand-offs (measured: 14 ms against 2 ms per iteration)."""
-    return np.einsum("ij,j...->i...", a, b)
+    """a @ b; the fits call it inside :func:`one_blas_thread`."""
+    return a @ b
+
+
+@functools.cache
+def _threadpools() -> ThreadpoolController:
+    return ThreadpoolController()  # finding the loaded libraries takes milliseconds
+
+
+def one_blas_thread() -> contextlib.AbstractContextManager:
+    """BLAS held to one thread: the fits' products are small, and a threaded BLAS on a
+    loaded machine spends 10x their cost in thread hand-offs (measured: 14 ms against
+    2 ms per iteration); single-threaded BLAS is 2-4x faster than einsum's loops."""
+    return _threadpools().limit(limits=1, user_api="blas")
 
 
 def _hats(x: Array, nodes: Array, clamp: bool = True) -> Array:
@@ -198,9 +224,9 @@ def _hats(x: Array, nodes: Array, clamp: bool = True) -> Array:
 
 
 def _node_levels(log_levels: Array, log_v: Array, log_knots: Array, phi: Array) -> Array:
-    """Log levels at the speed nodes from the knots': linear in log v between knots
-    (``phi``), beyond the end knots along the end segments with their slopes bounded by
-    ``MAX_EXTRAPOLATION_POWER``."""
+    """Log levels at the speed nodes from the knots' (a column per level function if
+    2-D): linear in log v between knots (``phi``), beyond the end knots along the end
+    segments with their slopes bounded by ``MAX_EXTRAPOLATION_POWER``."""
     out = _mm(phi, log_levels)
     if log_knots.size < 2:
         return out
@@ -208,8 +234,8 @@ def _node_levels(log_levels: Array, log_v: Array, log_knots: Array, phi: Array) 
     for end, nxt, side in ((0, 1, log_v < log_knots[0]), (-1, -2, log_v > log_knots[-1])):
         if side.any():
             slope = (log_levels[nxt] - log_levels[end]) / (log_knots[nxt] - log_knots[end])
-            out[side] = log_levels[end] + np.clip(slope, -lim, lim) * (log_v[side]
-                                                                       - log_knots[end])
+            dv = (log_v[side] - log_knots[end]).reshape(-1, *(1,) * (log_levels.ndim - 1))
+            out[side] = log_levels[end] + np.clip(slope, -lim, lim) * dv
     return out
 
 
@@ -266,39 +292,51 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     fixed = 0.5 * np.percentile(p, 10, axis=0) + 1e-30
     eps = 1e-300
 
-    def knot_step(ratio: Array) -> Array:
-        # The speed nodes' MU ratios pooled onto the knots (weighted geometric mean).
-        wgt = pool * rho[:, None]
-        return _mm(wgt.T, np.log(np.maximum(ratio, eps))) / np.maximum(wgt.sum(0), eps)
-
-    for _ in wrap(range(iterations)):
-        g = np.exp(_node_levels(lg, log_v, log_knots, phi))
-        n = np.exp(_node_levels(ln, log_v, log_knots, phi))
-        x = (bbig @ surface).reshape(nv, nf)
-        m = tool * x * g[:, None] + floor * n[:, None] + fixed
-        s = np.maximum(_mm(w, m), eps)
-        gn, gp = _mm(wt, p / s**2), _mm(wt, 1.0 / s)  # IS-divergence gradient parts per node
-        # Multiplicative updates (exponent 1/2: the IS divergence's majorisation).
-        num = bbig_t @ (gn * tool * g[:, None]).ravel()
-        den = bbig_t @ (gp * tool * g[:, None]).ravel()
-        surface *= np.where(den > 0, num / np.maximum(den, eps), 1.0) ** STEP
-        x = (bbig @ surface).reshape(nv, nf)
-        xg = x * g[:, None]
-        tool *= ((gn * xg).sum(0) / np.maximum((gp * xg).sum(0), eps)) ** STEP
-        floor *= ((gn * n[:, None]).sum(0) / np.maximum((gp * n[:, None]).sum(0), eps)) ** STEP
-        fixed *= (gn.sum(0) / np.maximum(gp.sum(0), eps)) ** STEP
-        lg += STEP * knot_step((gn * x * tool).sum(1) / np.maximum((gp * x * tool).sum(1), eps))
-        ln += STEP * knot_step((gn * floor).sum(1) / np.maximum((gp * floor).sum(1), eps))
-        # Scale ambiguities (T*U*g, N*n): T and N at unit peak, U at unit mean.
-        c = tool.max()
-        tool /= c
-        lg += np.log(c)
-        c = surface.mean()
-        surface /= c
-        lg += np.log(c)
-        c = floor.max()
-        floor /= c
-        ln += np.log(c)
+    # The speed nodes' MU ratios pool onto the knots (weighted geometric mean).
+    pool_w = pool * rho[:, None]
+    pool_w /= np.maximum(pool_w.sum(0), eps)
+    pool_wt = np.ascontiguousarray(pool_w.T)
+    levels = np.stack([lg, ln], axis=1)  # (knots, 2): log g and log n, updated together
+    nc = p.shape[0]
+    grad = np.empty((nc, 2, nf))  # p / s^2 and 1 / s per chunk: the IS gradient's parts
+    with one_blas_thread():
+        for _ in wrap(range(iterations)):
+            gn_levels = np.exp(_node_levels(levels, log_v, log_knots, phi))
+            g, n = gn_levels[:, :1], gn_levels[:, 1:]
+            tg = tool * g
+            x = (bbig @ surface).reshape(nv, nf)
+            s = w @ (x * tg + floor * n + fixed)
+            np.maximum(s, eps, out=s)
+            np.divide(1.0, s, out=grad[:, 1])
+            np.multiply(p, grad[:, 1] ** 2, out=grad[:, 0])
+            # Per speed node, the gradient's positive and negative parts: (nodes, 2, f).
+            gnp = (wt @ grad.reshape(nc, 2 * nf)).reshape(nv, 2, nf)
+            # Multiplicative updates (exponent 1/2: the IS divergence's majorisation).
+            num = bbig_t @ (gnp[:, 0] * tg).ravel()
+            den = bbig_t @ (gnp[:, 1] * tg).ravel()
+            surface *= np.where(den > 0, num / np.maximum(den, eps), 1.0) ** STEP
+            x = (bbig @ surface).reshape(nv, nf)
+            r = np.einsum("vaf,vf->af", gnp, x * g)
+            tool *= (r[0] / np.maximum(r[1], eps)) ** STEP
+            r = np.einsum("vaf,v->af", gnp, n[:, 0])
+            floor *= (r[0] / np.maximum(r[1], eps)) ** STEP
+            r = gnp.sum(0)
+            fixed *= (r[0] / np.maximum(r[1], eps)) ** STEP
+            rg = np.einsum("vaf,vf->va", gnp, x * tool)
+            rn = gnp @ floor
+            ratio = np.stack([rg[:, 0] / np.maximum(rg[:, 1], eps),
+                              rn[:, 0] / np.maximum(rn[:, 1], eps)], axis=1)
+            levels += STEP * (pool_wt @ np.log(np.maximum(ratio, eps)))
+            # Scale ambiguities (T*U*g, N*n): T and N at unit peak, U at unit mean.
+            c = tool.max()
+            tool /= c
+            c2 = surface.mean()
+            surface /= c2
+            levels[:, 0] += np.log(c * c2)
+            c = floor.max()
+            floor /= c
+            levels[:, 1] += np.log(c)
+    lg, ln = levels[:, 0].copy(), levels[:, 1].copy()
     # Spatial frequencies the chunks barely see (beyond f_max / the slowest speed with
     # data) would keep their start value and stand 30 dB over the floor at the speeds
     # that read them (cork at 6 mm/s): they hold the nearest well-seen value instead.
