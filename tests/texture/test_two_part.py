@@ -82,6 +82,32 @@ def test_fixed_part_stays_put(fitted):
     assert abs(fitted.k_per_mm[np.argmax(fitted.surface)] - 4.0) <= 0.2
 
 
+def test_mean_psd_is_the_weighted_mean_of_the_spectra(fitted):
+    """mean_psd (the calibration's and the render's average over speeds, in one pass)
+    against psd speed by speed, speeds beyond the fitted range included (held there)."""
+    v = np.array([3.0, 10.0, 17.3, 25.0, 25.0, 44.9, 60.0])
+    w = np.array([1.0, 2.0, 0.5, 3.0, 1.0, 4.0, 0.25])
+    expected = sum(wi * fitted.psd(float(vi)) for vi, wi in zip(v, w, strict=True)) / w.sum()
+    np.testing.assert_allclose(fitted.mean_psd(v, w), expected, rtol=1e-12)
+    np.testing.assert_allclose(fitted.mean_psd(np.array([17.3])), fitted.psd(17.3),
+                               rtol=1e-12)
+
+
+def test_levels_of_several_functions_are_each_ones_own():
+    """_node_levels on a (knots, 2) array (the fit updates log g and log n together)
+    gives each column what it gives alone, beyond the end knots too (bounded slopes)."""
+    from fydpad.texture.two_part import _hats, _node_levels
+
+    log_v = np.log(np.arange(4.0, 46.0))
+    log_knots = np.log(np.array([10.0, 20.0, 30.0]))
+    phi = _hats(log_v, log_knots, clamp=False)
+    levels = np.array([[0.0, 1.0], [3.0, -2.0], [2.5, 40.0]])  # 40: a slope to bound
+    both = _node_levels(levels, log_v, log_knots, phi)
+    for j in range(2):
+        np.testing.assert_allclose(both[:, j], _node_levels(levels[:, j], log_v, log_knots,
+                                                            phi), rtol=1e-14)
+
+
 def test_all_pole_fit_of_the_spectrum_is_stable_and_close(fitted):
     a, s2 = fitted.ar(25.0, 60, FS)
     assert is_stable(a)
