@@ -7,15 +7,20 @@ TRAIN_SEED, TRAIN_SEED + 1), the default fit; at each speed, HELD held-out 12 s 
 the bias is 10 log10(mean synthesized / mean recorded Welch PSD) over 20-500 Hz (4 Hz
 bins), as an RMS in dB, and with ``--bands`` per band. Also the correlation of the
 calibrated form's corrections log C_i at neighbouring fitted speeds (does a correction
-carry across a gap?). Minutes; prints, asserts nothing.
+carry across a gap?). ``--form two-part`` fits the two-part model alone (the calibrated
+form's base, at its own 600 iterations); ``--set FIELD=VALUE`` changes a field of the
+generator's textures for training and held-out strokes alike (``--set slip_mm=0``:
+without stick-slip), to take a texture's processes apart. Minutes; prints, asserts
+nothing.
 
     python benchmarks/texture_speed_bias.py [--textures all] [--speeds 10,15,...,40]
-        [--train-seed 1] [--held 8] [--bands]
+        [--train-seed 1] [--held 8] [--bands] [--form default|two-part] [--set F=V ...]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
 import warnings
 
@@ -40,8 +45,8 @@ def correction_correlations(spec: CalibratedSpectrum) -> list[float]:
             for a, b in itertools.pairwise(c)]
 
 
-def bias_db(name: str, model, speed_mm_s: float, held: int) -> tuple[float, np.ndarray,
-                                                                       np.ndarray]:
+def bias_db(name, model, speed_mm_s: float, held: int) -> tuple[float, np.ndarray,
+                                                                 np.ndarray]:
     """(RMS bias over 20-500 Hz, f_hz, bias per bin) at one speed."""
     rec, syn = [], []
     for seed in range(100, 100 + held):
@@ -63,22 +68,34 @@ def main() -> None:
     ap.add_argument("--train-seed", type=int, default=1)
     ap.add_argument("--held", type=int, default=8, help="held-out strokes per speed")
     ap.add_argument("--bands", action="store_true", help="also the bias per band")
+    ap.add_argument("--form", choices=("default", "two-part"), default="default",
+                    help="the default fit, or the two-part model alone")
+    ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
+                    help="a generator texture field for every stroke (repeatable)")
     args = ap.parse_args()
     names = list(TEXTURES) if args.textures == "all" else args.textures.split(",")
+    changes = {}
+    for item in args.set:
+        field, _, value = item.partition("=")
+        if field not in {f.name for f in dataclasses.fields(TEXTURES[names[0]])}:
+            ap.error(f"--set {item}: the generator's textures have no field {field!r}")
+        changes[field] = float(value)
+    fit_options = {"two_part": True, "lines": "off"} if args.form == "two-part" else {}
     speeds = [float(v) for v in args.speeds.split(",")]
     warnings.simplefilter("ignore")
     per_speed: dict[float, list[float]] = {v: [] for v in speeds}
     for name in names:
-        train = [generate_scan(name, v, 10.0, seed=args.train_seed + j)
+        texture = dataclasses.replace(TEXTURES[name], **changes)
+        train = [generate_scan(texture, v, 10.0, seed=args.train_seed + j)
                  for v in TRAIN_SPEEDS for j in range(2)]
-        model, _ = fit_texture(train)
+        model, _ = fit_texture(train, **fit_options)
         if model.free_form is not None:
             spec = spectrum_of(model)
             if isinstance(spec, CalibratedSpectrum):
                 cc = ", ".join(f"{c:+.2f}" for c in correction_correlations(spec))
                 print(f"{name:15s} correlation of neighbouring corrections: {cc}")
         for v in speeds:
-            rms, f, d = bias_db(name, model, v, args.held)
+            rms, f, d = bias_db(texture, model, v, args.held)
             per_speed[v].append(rms)
             print(f"{name:15s} {v:4g} mm/s  bias {rms:.2f} dB RMS", flush=True)
             if args.bands:
@@ -86,7 +103,8 @@ def main() -> None:
                                   for lo, hi in itertools.pairwise(BAND_EDGES_HZ))
                 print(f"{'':15s} per band (Hz dB): {bands}")
     print(f"\n{len(names)} textures, train seed {args.train_seed}, {args.held} held-out "
-          "strokes per speed:")
+          f"strokes per speed, {args.form} fit"
+          + "".join(f", {k}={v:g}" for k, v in changes.items()) + ":")
     for v, r in per_speed.items():
         print(f"  {v:4g} mm/s: median {np.median(r):.2f} dB, mean {np.mean(r):.2f}, "
               f"within {WITHIN_DB} dB: {sum(x <= WITHIN_DB for x in r)}/{len(r)}")

@@ -150,13 +150,15 @@ def surface_profile(texture: Texture) -> Array:
     return h
 
 
-_PROFILE_CACHE: dict[str, Array] = {}
+# Keyed by the whole (frozen) texture: a variant that keeps a name but changes a field
+# (dataclasses.replace(TEXTURES["glass"], slip_mm=0)) has a profile of its own.
+_PROFILE_CACHE: dict[Texture, Array] = {}
 
 
 def _profile(texture: Texture) -> Array:
-    if texture.name not in _PROFILE_CACHE:
-        _PROFILE_CACHE[texture.name] = surface_profile(texture)
-    return _PROFILE_CACHE[texture.name]
+    if texture not in _PROFILE_CACHE:
+        _PROFILE_CACHE[texture] = surface_profile(texture)
+    return _PROFILE_CACHE[texture]
 
 
 def hand_speed(speed_mm_s: float, seconds: float, fs: float, rng: np.random.Generator,

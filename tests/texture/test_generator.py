@@ -23,6 +23,21 @@ def test_deterministic_per_seed():
     assert not np.allclose(a.acc, c.acc)
 
 
+def test_a_variant_of_a_texture_gets_its_own_surface():
+    """A texture changed in one field but keeping its name (how a study takes a texture's
+    processes apart) is scanned over its own profile, whichever was generated first."""
+    import dataclasses
+
+    smooth = dataclasses.replace(TEXTURES["brick"], rough_mm=0.0, pits_per_mm=0.0)
+    for first in (smooth, TEXTURES["brick"]):
+        a = generate_scan(first, 20.0, 2.0, seed=3)
+        other = smooth if first is TEXTURES["brick"] else TEXTURES["brick"]
+        b = generate_scan(other, 20.0, 2.0, seed=3)
+        # The same hand and noise draws; a flat surface gives a far weaker vertical signal.
+        ratio = np.std(np.diff(b.acc[:, 2])) / np.std(np.diff(a.acc[:, 2]))
+        assert (ratio < 0.5) if other is smooth else (ratio > 2.0), ratio
+
+
 def test_speed_varies_like_a_hand_and_gravity_is_there():
     s = generate_scan("felt", 20.0, 6.0, seed=1)
     mid = s.speed_mm_s[1000:-1000]
