@@ -30,7 +30,7 @@ from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import evaluation_mask, synthesize, welch_psd
 from fydpad.texture.fit import fit_texture
 from fydpad.texture.free_form import CalibratedSpectrum, spectrum_of
-from fydpad.texture.scan_generator import TEXTURES, generate_scan
+from fydpad.texture.scan_generator import TEXTURES, Texture, generate_scan
 
 TRAIN_SPEEDS = (10.0, 20.0, 30.0, 40.0)
 BAND_EDGES_HZ = (20, 30, 45, 60, 80, 100, 130, 160, 200, 250, 300, 400, 500)
@@ -45,12 +45,12 @@ def correction_correlations(spec: CalibratedSpectrum) -> list[float]:
             for a, b in itertools.pairwise(c)]
 
 
-def bias_db(name, model, speed_mm_s: float, held: int) -> tuple[float, np.ndarray,
-                                                                 np.ndarray]:
+def bias_db(texture: Texture, model, speed_mm_s: float, held: int
+            ) -> tuple[float, np.ndarray, np.ndarray]:
     """(RMS bias over 20-500 Hz, f_hz, bias per bin) at one speed."""
     rec, syn = [], []
     for seed in range(100, 100 + held):
-        scan = generate_scan(name, speed_mm_s, 12.0, seed=seed)
+        scan = generate_scan(texture, speed_mm_s, 12.0, seed=seed)
         mask = evaluation_mask(scan, model)
         f, p = welch_psd(preprocess(scan.acc, scan.fs_hz), scan.fs_hz, mask)
         rec.append(p)
@@ -74,12 +74,22 @@ def main() -> None:
                     help="a generator texture field for every stroke (repeatable)")
     args = ap.parse_args()
     names = list(TEXTURES) if args.textures == "all" else args.textures.split(",")
+    unknown = [n for n in names if n not in TEXTURES]
+    if unknown:
+        ap.error(f"--textures: no generator texture {', '.join(unknown)} "
+                 f"(known: {', '.join(TEXTURES)})")
     changes = {}
+    numeric = {f.name for f in dataclasses.fields(TEXTURES[names[0]])
+               if f.type in ("float", float)}
     for item in args.set:
-        field, _, value = item.partition("=")
-        if field not in {f.name for f in dataclasses.fields(TEXTURES[names[0]])}:
-            ap.error(f"--set {item}: the generator's textures have no field {field!r}")
-        changes[field] = float(value)
+        field, eq, value = item.partition("=")
+        if not eq or field not in numeric:
+            ap.error(f"--set {item}: give FIELD=VALUE with FIELD one of the generator's "
+                     f"numeric texture fields: {', '.join(sorted(numeric))}")
+        try:
+            changes[field] = float(value)
+        except ValueError:
+            ap.error(f"--set {item}: {value!r} is not a number")
     fit_options = {"two_part": True, "lines": "off"} if args.form == "two-part" else {}
     speeds = [float(v) for v in args.speeds.split(",")]
     warnings.simplefilter("ignore")

@@ -17,9 +17,9 @@ from fydpad.texture.coverage import gaps_within, scanned_spans
 from fydpad.texture.dft321 import preprocess
 from fydpad.texture.free_form import (
     AUTO,
-    BASE_ITERATIONS,
     DEFAULT_FORM,
     FORMS,
+    ONE_SPEED_BASE_ITERATIONS,
     fit_calibrated,
     fit_free_form,
     fit_surface_resolved,
@@ -331,7 +331,8 @@ def _fit_spectrum(
     runs, traces = [w[0] for w in whole], [w[1] for w in whole]
     s_of = spectrum = free = its = None
     if two_part or free_form != "free":
-        its = BASE_ITERATIONS if free_form == "calibrated" else ITERATIONS
+        its = ONE_SPEED_BASE_ITERATIONS if (free_form == "calibrated"
+                                            and len(got_speeds) < 2) else ITERATIONS
         try:
             s_of = fit_two_part(runs, traces, fs, (lo, hi), its, wrap=wrap_iterations)
         except ValueError as exc:

@@ -14,7 +14,8 @@ S averaged over v +- 1 mm/s; the 1 kHz path unchanged):
   within the stroke (what the pooled fit gets wrong: spectra that jump with speed).
   log C is weighted by a tent of half-width ``taper_mm_s`` around each v_i (7.5 mm/s,
   chosen on seed set C; at most 0.75 x the distance to the next v_i), so between the
-  speeds S leans back towards S_two.
+  speeds S leans back towards S_two. S_two is fitted by the two-part model's own 600
+  iterations (150 with a single fitted speed: ``ONE_SPEED_BASE_ITERATIONS``).
 - ``"free"``: S free in f, piecewise linear in v between knots every 2.5 mm/s; chunk c
   predicted as sum_k m_ck S_k(f) (m_ck: its samples' hat weights on the knots, weighted
   by the window's energy), fitted bin by bin by Itakura-Saito multiplicative updates
@@ -60,13 +61,15 @@ TAPER_MM_S = 7.5  # chosen on seed set C (docs/texture.md); 5 and log-linear als
 #: 7.5 mm/s tents summed three corrections at every speed (15 mm/s met 6 of 14 on two
 #: seed sets, against 11 and 10 scaled; docs/texture.md, "Left to do").
 TAPER_PER_SPACING = 0.75
-#: IS-NMF iterations of the calibrated form's two-part base (the two-part model alone
-#: takes two_part.ITERATIONS = 600). C_i makes the spectrum at each fitted speed the
-#: recorded one whatever the base, so the base only shapes what lies between: 14
-#: textures meeting the targets at 30 / 25 mm/s, 150 against 600 iterations, were A 10 / 9
-#: against 10 / 8, B 8 / 9 against 8 / 9, C 12 / 9 against 12 / 10; the fit of one speed
-#: from 10 s takes 86 ms instead of 369 (docs/texture.md).
-BASE_ITERATIONS = 150
+#: IS-NMF iterations of the calibrated form's two-part base with a single fitted speed.
+#: With two or more the base takes the two-part model's own 600 (two_part.ITERATIONS):
+#: C_i makes S at each fitted speed the recorded one whatever the base, so the base
+#: decides what lies between the speeds, and there 600 iterations met more cells than
+#: the 150 of sessions 6-11 (means of 8 strokes: 93 / 94 / 93 of 98 against 90 / 93 / 93
+#: on three seed sets; docs/texture.md, "The calibrated form's base: 600 iterations").
+#: With one speed nothing lies between, and 150 keep that fit at 33 ms (600: 94 ms, at
+#: the 100 ms target for a fit of one speed).
+ONE_SPEED_BASE_ITERATIONS = 150
 STEP = 0.5  # MU exponent: the IS divergence's majorisation (monotone)
 _EPS = 1e-300
 

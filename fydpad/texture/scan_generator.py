@@ -22,7 +22,8 @@ local slope of the same profile h(x) with a material coefficient that varies alo
 and stick-slip of the contact through the tool's tangential stiffness.
 
 Simulated at 10 kHz, decimated (anti-aliased) to the output rate. Deterministic per
-seed: the surface itself depends only on the texture's name, the stroke on ``seed``.
+seed: the surface depends on the texture (its random draws seeded by its name), the
+stroke on ``seed``.
 The paper's specimens R1 and R2 are rectangular gratings of period 3.90 mm and
 2.15 mm with a ridge 90 % of the period: every tenth harmonic of speed/period
 vanishes.
@@ -30,6 +31,7 @@ vanishes.
 
 from __future__ import annotations
 
+import functools
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -151,14 +153,11 @@ def surface_profile(texture: Texture) -> Array:
 
 
 # Keyed by the whole (frozen) texture: a variant that keeps a name but changes a field
-# (dataclasses.replace(TEXTURES["glass"], slip_mm=0)) has a profile of its own.
-_PROFILE_CACHE: dict[Texture, Array] = {}
-
-
+# (dataclasses.replace(TEXTURES["glass"], slip_mm=0)) has a profile of its own. Bounded:
+# a profile is 4.8 MB, and a study may sweep many variants.
+@functools.lru_cache(maxsize=32)
 def _profile(texture: Texture) -> Array:
-    if texture not in _PROFILE_CACHE:
-        _PROFILE_CACHE[texture] = surface_profile(texture)
-    return _PROFILE_CACHE[texture]
+    return surface_profile(texture)
 
 
 def hand_speed(speed_mm_s: float, seconds: float, fs: float, rng: np.random.Generator,

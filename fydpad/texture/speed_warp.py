@@ -13,7 +13,7 @@ and a level exponent gamma are fitted from the model's own neighbouring speeds,
 beta on every adjacent pair of fitted speeds in both directions (whether a surface
 sounds spatially is a property of the surface), then gamma for each pair with that
 beta (sandpaper_p80's power grows 20 dB from 20 to 30 mm/s and 8 dB from 30 to 40, as
-contact loss sets in).
+its roughness band's edge crosses the tool's mode).
 
 Each fitted model is the pooled spectrum of the runs within the fit tolerance of its
 speed, so it already holds the speed variation of a stroke near that speed: within

@@ -37,12 +37,13 @@ from __future__ import annotations
 
 import contextlib
 import functools
-from collections.abc import Callable, Iterable, Sequence
+import threading
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from threadpoolctl import ThreadpoolController
 
 from fydpad.texture.speed_warp import NFFT, ar_from_log_psd
@@ -91,10 +92,14 @@ class TwoPartSpectrum:
             + self.floor * n
         return s if self.fixed is None else s + self.fixed
 
-    def mean_psd(self, speeds_mm_s: Array, weights: Array | None = None) -> Array:
+    def mean_psd(self, speeds_mm_s: ArrayLike, weights: ArrayLike | None = None) -> Array:
         """The ``weights``-weighted mean of :meth:`psd` over ``speeds_mm_s``, in one pass."""
-        v = np.clip(np.asarray(speeds_mm_s, float), self.v_mm_s[0], self.v_mm_s[-1])
-        w = np.ones(v.size) if weights is None else np.asarray(weights, float)
+        v = np.clip(np.atleast_1d(np.asarray(speeds_mm_s, float)).ravel(), self.v_mm_s[0],
+                    self.v_mm_s[-1])
+        w = np.ones(v.size) if weights is None else np.atleast_1d(
+            np.asarray(weights, float)).ravel()
+        if w.shape != v.shape or not w.sum() > 0.0:
+            raise ValueError(f"mean_psd: {w.size} weights for {v.size} speeds, or none > 0")
         w = w / w.sum()
         g = np.exp(np.interp(v, self.v_mm_s, np.log(self.g)))
         n = np.exp(np.interp(v, self.v_mm_s, np.log(self.n)))
@@ -201,11 +206,19 @@ def _threadpools() -> ThreadpoolController:
     return ThreadpoolController()  # finding the loaded libraries takes milliseconds
 
 
-def one_blas_thread() -> contextlib.AbstractContextManager:
-    """BLAS held to one thread: the fits' products are small, and a threaded BLAS on a
-    loaded machine spends 10x their cost in thread hand-offs (measured: 14 ms against
-    2 ms per iteration); single-threaded BLAS is 2-4x faster than einsum's loops."""
-    return _threadpools().limit(limits=1, user_api="blas")
+@contextlib.contextmanager
+def one_blas_thread() -> Iterator[None]:
+    """BLAS held to one thread while the block runs in the main thread: the fits'
+    products are small, and a threaded BLAS on a loaded machine spends 10x their cost in
+    thread hand-offs (measured: 14 ms against 2 ms per iteration); single-threaded BLAS
+    is 2.7-3.8x faster than einsum's loops on them. The limit is the process's (with
+    some BLAS builds the calling thread's), so only the main thread sets and restores
+    it: a fit in another thread runs with BLAS as it is, and cannot leave it changed."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    with _threadpools().limit(limits=1, user_api="blas"):
+        yield
 
 
 def _hats(x: Array, nodes: Array, clamp: bool = True) -> Array:

@@ -89,8 +89,48 @@ def test_mean_psd_is_the_weighted_mean_of_the_spectra(fitted):
     w = np.array([1.0, 2.0, 0.5, 3.0, 1.0, 4.0, 0.25])
     expected = sum(wi * fitted.psd(float(vi)) for vi, wi in zip(v, w, strict=True)) / w.sum()
     np.testing.assert_allclose(fitted.mean_psd(v, w), expected, rtol=1e-12)
-    np.testing.assert_allclose(fitted.mean_psd(np.array([17.3])), fitted.psd(17.3),
-                               rtol=1e-12)
+    np.testing.assert_allclose(fitted.mean_psd(17.3), fitted.psd(17.3), rtol=1e-12)
+    with pytest.raises(ValueError, match="weights"):
+        fitted.mean_psd(v, w[:3])
+    with pytest.raises(ValueError, match="weights"):
+        fitted.mean_psd(v, np.zeros(v.size))
+
+
+def test_blas_limit_holds_in_the_main_thread_and_no_thread_leaves_it_changed():
+    """one_blas_thread holds BLAS to one thread in the main thread and restores it, nested
+    too; fits in other threads, overlapping in time, leave it alone (a save-and-restore
+    per block from several threads left it at one thread for good)."""
+    import threading
+    import time
+
+    from threadpoolctl import threadpool_info
+
+    from fydpad.texture.two_part import one_blas_thread
+
+    def blas_threads():
+        return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+
+    before = blas_threads()
+    with one_blas_thread():
+        inside = blas_threads()
+        with one_blas_thread():
+            pass
+        assert blas_threads() == inside
+    assert inside == [1] * len(before)
+    assert blas_threads() == before
+
+    def fit(hold_s):
+        with one_blas_thread():
+            time.sleep(hold_s)
+
+    first = threading.Thread(target=fit, args=(0.15,))
+    second = threading.Thread(target=fit, args=(0.3,))
+    first.start()
+    time.sleep(0.05)
+    second.start()  # enters while the first is inside, leaves after it
+    first.join(5.0)
+    second.join(5.0)
+    assert blas_threads() == before
 
 
 def test_levels_of_several_functions_are_each_ones_own():
@@ -190,7 +230,7 @@ def test_cli_fit_two_part_and_speed_normalise_flags(tmp_path, capsys):
             warnings.simplefilter("ignore")
             assert args.func(args) == 0
         said = {"two_part": "two-part spectrum", "speed_normalised": "speed-normalised",
-                "calibrated": "calibrated spectrum on its two-part base (150 iterations)",
+                "calibrated": "calibrated spectrum on its two-part base (600 iterations)",
                 "pooled": "per-speed LPC pooled over each speed's runs"}[key]
         file_line = [ln for ln in capsys.readouterr().out.splitlines()
                      if ln.startswith(str(out))]
@@ -200,6 +240,25 @@ def test_cli_fit_two_part_and_speed_normalise_flags(tmp_path, capsys):
         assert ("free_form" in m) == (key == "calibrated"), key
         assert key != "calibrated" or m["free_form"]["form"] == "calibrated"
         assert ("speed_normalised" in m["provenance"]) == (key == "speed_normalised")
+
+
+def test_calibrated_base_iterations_with_one_and_with_two_speeds():
+    """The calibrated form's base takes the two-part model's 600 iterations when there are
+    speeds between which it decides S, and 150 with a single fitted speed (the fit of one
+    speed stays well inside its 100 ms target); the file says which."""
+    from fydpad.texture.free_form import ONE_SPEED_BASE_ITERATIONS
+    from fydpad.texture.two_part import ITERATIONS
+
+    scans = {v: generate_scan("felt", v, 6.0, seed=2) for v in (10.0, 30.0)}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        one, _ = fit_texture([scans[30.0]], speeds_mm_s=(30.0,), free_form="calibrated",
+                             order=60, lines="off")
+        two, _ = fit_texture(list(scans.values()), speeds_mm_s=(10.0, 30.0), order=60,
+                             lines="off")
+    assert one.provenance["two_part_iterations"] == ONE_SPEED_BASE_ITERATIONS == 150
+    assert two.free_form["form"] == "calibrated"
+    assert two.provenance["two_part_iterations"] == ITERATIONS == 600
 
 
 def gap_psd(f_hz, v_mm_s):
