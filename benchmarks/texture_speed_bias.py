@@ -89,7 +89,9 @@ def main() -> None:
         try:
             changes[field] = float(value)
         except ValueError:
-            ap.error(f"--set {item}: {value!r} is not a number")
+            changes[field] = float("nan")
+        if not np.isfinite(changes[field]):
+            ap.error(f"--set {item}: {value!r} is not a finite number")
     fit_options = {"two_part": True, "lines": "off"} if args.form == "two-part" else {}
     speeds = [float(v) for v in args.speeds.split(",")]
     warnings.simplefilter("ignore")

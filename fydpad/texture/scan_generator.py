@@ -8,7 +8,9 @@ A hand drags a tool (tip + accelerometer) over a surface. Per stroke:
   smoothed by the tip's contact patch; its vertical acceleration is d^2 h(x(t))/dt^2;
 - the tip loses contact where the profile falls faster than the preload can pull it
   down (a clipped acceleration) and lands with an impact (the lost momentum returned
-  at once): a non-linearity no linear model holds exactly;
+  at once): a non-linearity no linear model holds exactly (the textures' profiles ask
+  for it only on brick above about 32 mm/s and sandpaper_p320 at 40: docs/texture.md,
+  "The scan generator");
 - friction stick-slip: the tip sticks, the tangential force builds and releases at
   random slip distances, each release an impulse along the stroke;
 - the tool resonates (a second-order mode whose frequency depends on the contact
@@ -314,9 +316,6 @@ def friction_params(texture: Texture) -> FrictionParams:
     return FRICTION.get(texture.name, FrictionParams())
 
 
-_MU_CACHE: dict[str, tuple[Array, Array]] = {}
-
-
 def friction_truth(texture: str | Texture) -> tuple[Array, Array]:
     """Kinetic and static mu(x) of the tip on the DX_MM grid (the ground truth).
 
@@ -324,21 +323,23 @@ def friction_truth(texture: str | Texture) -> tuple[Array, Array]:
     tangential force F_n (mu + s) / (1 - mu s) for a vertical load F_n; the material's
     mu varies along x (band-limited, own random stream seeded by the name).
     """
-    tex = TEXTURES[texture] if isinstance(texture, str) else texture
-    if tex.name not in _MU_CACHE:
-        fp = friction_params(tex)
-        rng = np.random.default_rng(zlib.crc32(f"{tex.name}/friction".encode()))
-        n = int(SURFACE_MM / DX_MM)
-        spec = np.fft.rfft(rng.standard_normal(n))
-        k = np.fft.rfftfreq(n, DX_MM)
-        lo, hi = 1.0 / fp.variation_band_mm[1], 1.0 / fp.variation_band_mm[0]
-        r = np.fft.irfft(spec * ((k >= lo) & (k <= hi)), n)
-        mat = fp.mu_kinetic * (1.0 + fp.material_variation * r / (np.std(r) + 1e-30))
-        slope = np.gradient(_profile(tex), DX_MM)
-        mu_k = (mat + slope) / (1.0 - mat * slope)
-        mu_s = (fp.static_ratio * mat + slope) / (1.0 - fp.static_ratio * mat * slope)
-        _MU_CACHE[tex.name] = (mu_k, mu_s)
-    return _MU_CACHE[tex.name]
+    return _friction_truth(TEXTURES[texture] if isinstance(texture, str) else texture)
+
+
+@functools.lru_cache(maxsize=32)  # keyed by the whole texture, as _profile
+def _friction_truth(tex: Texture) -> tuple[Array, Array]:
+    fp = friction_params(tex)
+    rng = np.random.default_rng(zlib.crc32(f"{tex.name}/friction".encode()))
+    n = int(SURFACE_MM / DX_MM)
+    spec = np.fft.rfft(rng.standard_normal(n))
+    k = np.fft.rfftfreq(n, DX_MM)
+    lo, hi = 1.0 / fp.variation_band_mm[1], 1.0 / fp.variation_band_mm[0]
+    r = np.fft.irfft(spec * ((k >= lo) & (k <= hi)), n)
+    mat = fp.mu_kinetic * (1.0 + fp.material_variation * r / (np.std(r) + 1e-30))
+    slope = np.gradient(_profile(tex), DX_MM)
+    mu_k = (mat + slope) / (1.0 - mat * slope)
+    mu_s = (fp.static_ratio * mat + slope) / (1.0 - fp.static_ratio * mat * slope)
+    return mu_k, mu_s
 
 
 def friction_mu_true(texture: str | Texture) -> Array:

@@ -98,8 +98,10 @@ class TwoPartSpectrum:
                     self.v_mm_s[-1])
         w = np.ones(v.size) if weights is None else np.atleast_1d(
             np.asarray(weights, float)).ravel()
-        if w.shape != v.shape or not w.sum() > 0.0:
-            raise ValueError(f"mean_psd: {w.size} weights for {v.size} speeds, or none > 0")
+        if w.shape != v.shape or not (np.all(np.isfinite(w)) and np.all(w >= 0.0)
+                                      and w.sum() > 0.0):
+            raise ValueError(f"mean_psd: {w.size} weights for {v.size} speeds; they must be "
+                             "finite, >= 0 and not all 0")
         w = w / w.sum()
         g = np.exp(np.interp(v, self.v_mm_s, np.log(self.g)))
         n = np.exp(np.interp(v, self.v_mm_s, np.log(self.n)))

@@ -36,6 +36,10 @@ def test_a_variant_of_a_texture_gets_its_own_surface():
         # The same hand and noise draws; a flat surface gives a far weaker vertical signal.
         ratio = np.std(np.diff(b.acc[:, 2])) / np.std(np.diff(a.acc[:, 2]))
         assert (ratio < 0.5) if other is smooth else (ratio > 2.0), ratio
+    # Its friction's ground truth follows its own profile's slopes too.
+    from fydpad.texture.scan_generator import friction_truth
+
+    assert not np.allclose(friction_truth(smooth)[0], friction_truth("brick")[0])
 
 
 def test_speed_varies_like_a_hand_and_gravity_is_there():

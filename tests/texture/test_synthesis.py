@@ -143,8 +143,8 @@ def sandpaper() -> TextureModel:
     """A fitted texture whose power spans ~45 dB over 10-40 mm/s (a band edge crossing the
     tool mode): the pooled fit, whose table the FIR tests below were measured on (with
     the calibrated spectrum, whose table changes faster with speed, the hand's-stroke
-    leak into the weak 320-420 Hz band is +2.9-3.1 dB against +0.4-0.8: LSD 2.0-2.2 dB,
-    docs/texture.md)."""
+    leak into the weak 320-420 Hz band is +3.7 dB against +0.4-0.8: LSD 2.49-2.57 dB;
+    +3.4 and 2.30-2.35 with its base at 150 iterations, docs/texture.md)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         model, _ = fit_texture([generate_scan("sandpaper_p80", s, 3.0, seed=1)

@@ -111,6 +111,10 @@ def test_blas_limit_holds_in_the_main_thread_and_no_thread_leaves_it_changed():
         return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
 
     before = blas_threads()
+    if not before or min(before) < 2:
+        # A limit left behind would not show (one core, or OPENBLAS_NUM_THREADS=1); setting
+        # two threads first does not help: the main thread's own setting then hides it.
+        pytest.skip(f"BLAS runs on one thread here already: {before}")
     with one_blas_thread():
         inside = blas_threads()
         with one_blas_thread():
