@@ -9,19 +9,23 @@ place, misses it in about one cell in five (``texture_causes.py forms ... third`
 each cell (texture x speed) takes HELD held-out strokes, each with its own second
 recording, and compares the means: the model's mean LSD over the mean ceiling, and its
 mean correlation. ``--third`` scores a third recording per stroke the same way (what a
-replica of the surface that is itself a recording meets). Each cell prints the mean gap
+replica of the surface that is itself a recording meets); ``--paper`` scores the paper's
+plain method the same way: the per-speed LPC fit pooled over each speed's runs, its
+coefficients interpolated linearly between the fitted speeds (the issue asks for it
+beside the default fit, on the same strokes). Each cell prints the mean gap
 and its standard error (SE); ``?`` marks a cell whose verdict the draw decides (a mean
 within two standard errors of its limit: sandpaper_p80's strokes scatter by 3.5 dB).
 
 Training as in the 14-texture protocol: two 10 s strokes at each of 10, 20, 30, 40 mm/s
 (seeds TRAIN_SEED, TRAIN_SEED + 1; ``--train-speeds`` for others), the default fit at
-those four speeds; held-out strokes of 12 s, seeds
-1000 + j (second recordings 2000 + j, third 3000 + j, the model's synthesis 4000 + j: an
-own draw per stroke), offset by 100 x TRAIN_SEED so that seed sets do not share strokes
-(hence TRAIN_SEED below 10 and HELD up to 100). Minutes to tens of minutes; prints, asserts nothing.
+those four speeds; held-out strokes of 12 s, seeds 1000 + j (second recordings 2000 + j,
+third 3000 + j, the model's synthesis 4000 + j: an own draw per stroke; the paper's
+method's 5000 + j), offset by 100 x TRAIN_SEED so that seed sets do not share strokes
+(hence TRAIN_SEED below 10 and HELD up to 100). Minutes to tens of minutes; prints,
+asserts nothing.
 
     python benchmarks/texture_targets.py [--textures all] [--speeds 10,15,...,40]
-        [--train-seed 1] [--held 4] [--third] [--train-speeds 10,20,30,40]
+        [--train-seed 1] [--held 4] [--third] [--paper] [--train-speeds 10,20,30,40]
 """
 
 from __future__ import annotations
@@ -54,10 +58,13 @@ def _score(held, other, mask, model) -> tuple[float, float]:
     return c.lsd_db, c.psd_correlation
 
 
-def cell(name: str, model, speed: float, held: int, base: int, third: bool) -> dict:
-    """Per held-out stroke: the ceiling, the model's and (``third``) a replica's LSD and
+def cell(name: str, model, speed: float, held: int, base: int, third: bool,
+         paper=None) -> dict:
+    """Per held-out stroke: the ceiling, the model's, (``third``) a replica's and (``paper``,
+    a pooled model rendered the paper's linear way) the paper method's LSD and
     correlation."""
-    out = {"ceiling": [], "model": [], "model_corr": [], "third": [], "third_corr": []}
+    out = {"ceiling": [], "model": [], "model_corr": [], "third": [], "third_corr": [],
+           "paper": [], "paper_corr": []}
     for j in range(held):
         stroke = generate_scan(name, speed, HELD_S, seed=base + 1000 + j)
         second = generate_scan(name, speed, HELD_S, seed=base + 2000 + j)
@@ -71,6 +78,11 @@ def cell(name: str, model, speed: float, held: int, base: int, third: bool) -> d
                                                      seed=base + 3000 + j), mask, model)
             out["third"].append(lsd)
             out["third_corr"].append(corr)
+        if paper is not None:
+            c, _ = evaluate_scan(paper, stroke, method="linear", mask=mask,
+                                 seed=base + 5000 + j)
+            out["paper"].append(c.lsd_db)
+            out["paper_corr"].append(c.psd_correlation)
     return {k: np.asarray(v) for k, v in out.items()}
 
 
@@ -78,7 +90,7 @@ def _tally(counts: dict, prefix: str, lsd: np.ndarray, corr: np.ndarray,
            ceiling: np.ndarray) -> tuple[MeansVerdict, int]:
     """The cell's verdict on the means (:func:`fydpad.texture.evaluate.verdict_on_means`)
     and the strokes meeting the target alone, added to ``counts`` under ``prefix`` (""
-    for the model, "third_")."""
+    for the model, "third_", "paper_")."""
     v = verdict_on_means(corr, lsd - ceiling)
     single = int(np.sum((lsd - ceiling <= TARGET_LSD_OVER_CEILING_DB)
                         & (corr >= TARGET_PSD_CORRELATION)))
@@ -95,6 +107,8 @@ def main() -> None:
     ap.add_argument("--train-seed", type=int, default=1)
     ap.add_argument("--held", type=int, default=4, help="held-out strokes per cell")
     ap.add_argument("--third", action="store_true", help="also score a third recording")
+    ap.add_argument("--paper", action="store_true",
+                    help="also score the paper's plain method (pooled LPC, linear)")
     ap.add_argument("--train-speeds", default="10,20,30,40",
                     help="mm/s of the training strokes (two each); the fit's speeds stay "
                     "10-40 in 10s (e.g. 10,15,...,40: the strokes `fit` suggests added)")
@@ -109,14 +123,17 @@ def main() -> None:
     if args.train_seed >= 10 or args.held > 100:
         ap.error("--train-seed below 10 and --held up to 100: the seed blocks (module "
                  "docstring) would overlap")
-    met = {v: {"model": 0, "single": 0, "third": 0, "third_single": 0, "undecided": 0,
-               "third_undecided": 0} for v in speeds}
+    met = {v: {"model": 0, "single": 0, "undecided": 0, "third": 0, "third_single": 0,
+               "third_undecided": 0, "paper": 0, "paper_single": 0, "paper_undecided": 0}
+           for v in speeds}
     for name in names:
         train = [generate_scan(name, v, 10.0, seed=args.train_seed + j)
                  for v in train_speeds for j in range(2)]
         model, _ = fit_texture(train, speeds_mm_s=TRAIN_SPEEDS)
+        paper = (fit_texture(train, speeds_mm_s=TRAIN_SPEEDS, free_form=None, lines="off")[0]
+                 if args.paper else None)
         for v in speeds:
-            r = cell(name, model, v, args.held, base, args.third)
+            r = cell(name, model, v, args.held, base, args.third, paper)
             m, single = _tally(met[v], "", r["model"], r["model_corr"], r["ceiling"])
             line = (f"{name:15s} {v:4g} mm/s  ceiling {np.mean(r['ceiling']):.2f} dB  model "
                     f"{m.lsd_over_ceiling_db:+.2f} (SE {m.lsd_over_ceiling_se_db:.2f}) / "
@@ -128,6 +145,12 @@ def main() -> None:
                 line += (f"  third {t.lsd_over_ceiling_db:+.2f} / {t.psd_correlation:.3f}"
                          f"{'*' if t.met else ' '}{' ' if t.decided else '?'} "
                          f"({tsingle}/{args.held})")
+            if paper is not None:
+                p, psingle = _tally(met[v], "paper_", r["paper"], r["paper_corr"],
+                                    r["ceiling"])
+                line += (f"  paper {p.lsd_over_ceiling_db:+.2f} / {p.psd_correlation:.3f}"
+                         f"{'*' if p.met else ' '}{' ' if p.decided else '?'} "
+                         f"({psingle}/{args.held})")
             print(line, flush=True)
     n = len(names)
     print(f"\n{n} textures, train seed {args.train_seed}, {args.held} held-out strokes per "
@@ -138,9 +161,10 @@ def main() -> None:
             ("all", tot, n * len(speeds))]:
         line = (f"  {label}: model {m['model']}/{cells} [{m['undecided']}] "
                 f"({m['single']}/{cells * args.held} strokes)")
-        if args.third:
-            line += (f", third {m['third']}/{cells} [{m['third_undecided']}] "
-                     f"({m['third_single']}/{cells * args.held})")
+        for who in ("third", "paper") if args.third or args.paper else ():
+            if getattr(args, who):
+                line += (f", {who} {m[who]}/{cells} [{m[who + '_undecided']}] "
+                         f"({m[who + '_single']}/{cells * args.held})")
         print(line)
 
 
