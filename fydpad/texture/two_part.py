@@ -198,11 +198,6 @@ def _resampled(u: Array, k: Array, f_hz: Array, v: float | Array, sub: int = 8) 
     return np.interp((f_hz[:, None] + df * off) / v, k, u).mean(axis=-1)
 
 
-def _mm(a: Array, b: Array) -> Array:
-    """a @ b; the fits call it inside :func:`one_blas_thread`."""
-    return a @ b
-
-
 @functools.cache
 def _threadpools() -> ThreadpoolController:
     return ThreadpoolController()  # finding the loaded libraries takes milliseconds
@@ -242,7 +237,7 @@ def _node_levels(log_levels: Array, log_v: Array, log_knots: Array, phi: Array) 
     """Log levels at the speed nodes from the knots' (a column per level function if
     2-D): linear in log v between knots (``phi``), beyond the end knots along the end
     segments with their slopes bounded by ``MAX_EXTRAPOLATION_POWER``."""
-    out = _mm(phi, log_levels)
+    out = phi @ log_levels
     if log_knots.size < 2:
         return out
     lim = MAX_EXTRAPOLATION_POWER
@@ -287,7 +282,7 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     log_v, log_knots = np.log(np.maximum(vgrid, 0.25)), np.log(np.maximum(knots, 0.25))
     phi = _hats(log_v, log_knots, clamp=False)  # speed node <- knots
     pool = _hats(log_v, log_knots)
-    kw = _mm(pool.T, rho)
+    kw = pool.T @ rho
     kw_ok = kw > 1e-2 * kw.max()
     dk = (f[1] - f[0]) / vgrid[-1]  # the finest k spacing the data resolve
     k = np.arange(0.0, f[-1] / vgrid[0] + 2 * dk, dk)
