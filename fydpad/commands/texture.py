@@ -762,7 +762,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
         raise UserError(f"--second: {len(seconds)} recording(s) for {len(args.scan)} "
                         "scan(s): give --second once per scan, in the same order")
     lpc = spec_kind(args.model) == "lpc"
-    model = _load_model(args.model) if lpc else None
+    model = _load_model(args.model) if lpc else load_family(args.model)
     results = []
     for i, path in enumerate(args.scan):
         if len(args.scan) > 1:
@@ -771,7 +771,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
         # Each scan its own draw of the synthesis (--seed, --seed + 1, ...): one draw
         # for all would make the model's scores share their noise.
         results.append(_evaluate_lpc(args, model, path, second, args.seed + i) if lpc else
-                       _evaluate_family(args, load_family(args.model), path, second))
+                       _evaluate_family(args, model, path, second))
     for path, r in zip(args.scan[1:], results[1:], strict=True):
         if r.f_hz.shape != results[0].f_hz.shape:  # their means need one frequency grid
             raise UserError(f"{path}: column 't_s': its sample rate differs from "
