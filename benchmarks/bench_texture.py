@@ -182,7 +182,7 @@ def lines_benchmark(best) -> None:
 
 def quality(textures: list[str] | None = None) -> None:
     """Held-out figures of the issue's targets for every texture (minutes; --quality)."""
-    from fydpad.texture.evaluate import compare, evaluate_scan, evaluation_mask
+    from fydpad.texture.evaluate import compare_recordings, evaluate_scan, evaluation_mask
     from fydpad.texture.fit import fit_texture
     from fydpad.texture.identify import identify
     from fydpad.texture.scan_generator import TEXTURES
@@ -205,8 +205,7 @@ def quality(textures: list[str] | None = None) -> None:
             held = generate_scan(name, v, 10.0, seed=100)
             second = generate_scan(name, v, 10.0, seed=200)
             mask = evaluation_mask(held, model)
-            ceil, *_ = compare(preprocess(held.acc, 1000.0), preprocess(second.acc, 1000.0),
-                               1000.0, mask & evaluation_mask(second, model))
+            ceil = compare_recordings(held, second, model, mask)
             res = [ceil.psd_correlation, ceil.lsd_db]
             for m in methods:
                 c, _ = evaluate_scan(model, held, method=m, mask=mask)

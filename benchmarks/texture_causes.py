@@ -56,7 +56,13 @@ import warnings
 import numpy as np
 
 from fydpad.texture.dft321 import preprocess
-from fydpad.texture.evaluate import compare, evaluate_scan, evaluation_mask, welch_psd
+from fydpad.texture.evaluate import (
+    compare,
+    compare_recordings,
+    evaluate_scan,
+    evaluation_mask,
+    welch_psd,
+)
 from fydpad.texture.fit import fit_texture as _fit_texture
 from fydpad.texture.identify import identify
 from fydpad.texture.lpc import energy_length
@@ -82,8 +88,7 @@ def modelled(speed: float, names: list[str]) -> None:
         second = generate_scan(n, speed, 4.0, seed=51)
         base = fit_texture(t1, free_form=None)[0]
         mask = evaluation_mask(held, base)
-        ceil, *_ = compare(preprocess(held.acc, 1000.0), preprocess(second.acc, 1000.0),
-                           1000.0, mask & evaluation_mask(second, base))
+        ceil = compare_recordings(held, second, base, mask)
         row = []
         for label, model in (("pooled", base), ("3x data", fit_texture(t3, free_form=None)[0]),
                              ("two-part", fit_texture(t1, two_part=True)[0]),
@@ -174,7 +179,7 @@ def lengths(speed: float, seconds: list[float], held_seed: int = 50,
             h = generate_scan(n, speed, length, seed=held_seed)
             s = generate_scan(n, speed, length, seed=second_seed)
             mask = evaluation_mask(h, ref) & evaluation_mask(s, ref)
-            c, *_ = compare(preprocess(h.acc, 1000.0), preprocess(s.acc, 1000.0), 1000.0, mask)
+            c = compare_recordings(h, s, ref, mask)
             row.append(f"{length:g} s {c.psd_correlation:.3f}/{c.lsd_db:.2f}")
         print(f"{n:15s} " + "  ".join(row), flush=True)
 
@@ -226,8 +231,7 @@ def protocol(speed: float, held_s: float, train: str, held_seed: int, second_see
         held = generate_scan(n, speed, held_s, seed=held_seed)
         second = generate_scan(n, speed, held_s, seed=second_seed)
         mask = evaluation_mask(held, models["pooled"])
-        ceil, *_ = compare(preprocess(held.acc, 1000.0), preprocess(second.acc, 1000.0),
-                           1000.0, mask & evaluation_mask(second, models["pooled"]))
+        ceil = compare_recordings(held, second, models["pooled"], mask)
         row = []
         for label, model in [*models.items(), ("paper linear", models["pooled"])]:
             how = "linear" if label == "paper linear" else "stretch"
@@ -267,8 +271,7 @@ def methods(train_seed: int, held_seed: int, second_seed: int) -> None:
             h = generate_scan(n, v, 12.0, seed=held_seed)
             s = generate_scan(n, v, 12.0, seed=second_seed)
             mask = evaluation_mask(h, model)
-            ce = compare(preprocess(h.acc, 1000.0), preprocess(s.acc, 1000.0), 1000.0,
-                         mask & evaluation_mask(s, model))[0]
+            ce = compare_recordings(h, s, model, mask)
             for how in ("stretch", "linear"):
                 c = evaluate_scan(model, h, method=how, mask=mask)[0]
                 ok = c.psd_correlation >= 0.95 and c.lsd_db <= ce.lsd_db + 0.25
@@ -326,20 +329,17 @@ def forms(speeds: list[float], held_seed: int, second_seed: int, train_seed: int
             t0 = time.process_time()
             models[f] = models[same] if same else fit_texture(t, **FORM_FIT[f])[0]
             cost[f] = time.process_time() - t0
-        ref = next(m for m in models.values())
+        ref = next(iter(models.values()))
         for v in speeds:
             held = generate_scan(n, v, held_s, seed=held_seed)
             second = generate_scan(n, v, held_s, seed=second_seed)
             mask = evaluation_mask(held, ref)
-            ceil, *_ = compare(preprocess(held.acc, 1000.0), preprocess(second.acc, 1000.0),
-                               1000.0, mask & evaluation_mask(second, ref))
+            ceil = compare_recordings(held, second, ref, mask)
             row = []
             for f in which:
                 if f == "third":  # a third recording in the model's place
                     third = generate_scan(n, v, held_s, seed=second_seed + 1)
-                    c, *_ = compare(preprocess(held.acc, 1000.0),
-                                    preprocess(third.acc, 1000.0), 1000.0,
-                                    mask & evaluation_mask(third, ref))
+                    c = compare_recordings(held, third, ref, mask)
                 else:
                     c = _evaluate(models[f], held, mask, f)
                 ok = c.psd_correlation >= 0.95 and c.lsd_db <= ceil.lsd_db + 0.25

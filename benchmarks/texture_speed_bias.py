@@ -25,6 +25,7 @@ import itertools
 import warnings
 
 import numpy as np
+from stroke_options import add_stroke_options, textures_and_speeds
 
 from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import evaluation_mask, synthesize, welch_psd
@@ -63,21 +64,14 @@ def bias_db(texture: Texture, model, speed_mm_s: float, held: int
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--textures", default="all", help="comma-separated, or all")
-    ap.add_argument("--speeds", default="10,15,20,25,30,35,40", help="mm/s, comma-separated")
-    ap.add_argument("--train-seed", type=int, default=1)
-    ap.add_argument("--held", type=int, default=8, help="held-out strokes per speed")
+    add_stroke_options(ap, 8, "held-out strokes per speed")
     ap.add_argument("--bands", action="store_true", help="also the bias per band")
     ap.add_argument("--form", choices=("default", "two-part"), default="default",
                     help="the default fit, or the two-part model alone")
     ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
                     help="a generator texture field for every stroke (repeatable)")
     args = ap.parse_args()
-    names = list(TEXTURES) if args.textures == "all" else args.textures.split(",")
-    unknown = [n for n in names if n not in TEXTURES]
-    if unknown:
-        ap.error(f"--textures: no generator texture {', '.join(unknown)} "
-                 f"(known: {', '.join(TEXTURES)})")
+    names, speeds = textures_and_speeds(ap, args)
     changes = {}
     numeric = {f.name for f in dataclasses.fields(TEXTURES[names[0]])
                if f.type in ("float", float)}
@@ -89,11 +83,10 @@ def main() -> None:
         try:
             changes[field] = float(value)
         except ValueError:
-            changes[field] = float("nan")
+            ap.error(f"--set {item}: {value!r} is not a finite number")
         if not np.isfinite(changes[field]):
             ap.error(f"--set {item}: {value!r} is not a finite number")
     fit_options = {"two_part": True, "lines": "off"} if args.form == "two-part" else {}
-    speeds = [float(v) for v in args.speeds.split(",")]
     warnings.simplefilter("ignore")
     per_speed: dict[float, list[float]] = {v: [] for v in speeds}
     for name in names:

@@ -34,28 +34,22 @@ import argparse
 import warnings
 
 import numpy as np
+from stroke_options import add_stroke_options, textures_and_speeds
 
-from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import (
     TARGET_LSD_OVER_CEILING_DB,
     TARGET_PSD_CORRELATION,
     MeansVerdict,
-    compare,
+    compare_recordings,
     evaluate_scan,
     evaluation_mask,
     verdict_on_means,
 )
 from fydpad.texture.fit import fit_texture
-from fydpad.texture.scan_generator import TEXTURES, generate_scan
+from fydpad.texture.scan_generator import generate_scan
 
 TRAIN_SPEEDS = (10.0, 20.0, 30.0, 40.0)
 HELD_S = 12.0
-
-
-def _score(held, other, mask, model) -> tuple[float, float]:
-    c, *_ = compare(preprocess(held.acc, held.fs_hz), preprocess(other.acc, other.fs_hz),
-                    held.fs_hz, mask & evaluation_mask(other, model))
-    return c.lsd_db, c.psd_correlation
 
 
 def cell(name: str, model, speed: float, held: int, base: int, third: bool,
@@ -69,15 +63,15 @@ def cell(name: str, model, speed: float, held: int, base: int, third: bool,
         stroke = generate_scan(name, speed, HELD_S, seed=base + 1000 + j)
         second = generate_scan(name, speed, HELD_S, seed=base + 2000 + j)
         mask = evaluation_mask(stroke, model)
-        out["ceiling"].append(_score(stroke, second, mask, model)[0])
+        out["ceiling"].append(compare_recordings(stroke, second, model, mask).lsd_db)
         c, _ = evaluate_scan(model, stroke, mask=mask, seed=base + 4000 + j)  # own draw
         out["model"].append(c.lsd_db)
         out["model_corr"].append(c.psd_correlation)
         if third:
-            lsd, corr = _score(stroke, generate_scan(name, speed, HELD_S,
-                                                     seed=base + 3000 + j), mask, model)
-            out["third"].append(lsd)
-            out["third_corr"].append(corr)
+            c = compare_recordings(stroke, generate_scan(name, speed, HELD_S,
+                                                         seed=base + 3000 + j), model, mask)
+            out["third"].append(c.lsd_db)
+            out["third_corr"].append(c.psd_correlation)
         if paper is not None:
             c, _ = evaluate_scan(paper, stroke, method="linear", mask=mask,
                                  seed=base + 5000 + j)
@@ -102,10 +96,7 @@ def _tally(counts: dict, prefix: str, lsd: np.ndarray, corr: np.ndarray,
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--textures", default="all", help="comma-separated, or all")
-    ap.add_argument("--speeds", default="10,15,20,25,30,35,40", help="mm/s, comma-separated")
-    ap.add_argument("--train-seed", type=int, default=1)
-    ap.add_argument("--held", type=int, default=4, help="held-out strokes per cell")
+    add_stroke_options(ap, 4, "held-out strokes per cell")
     ap.add_argument("--third", action="store_true", help="also score a third recording")
     ap.add_argument("--paper", action="store_true",
                     help="also score the paper's plain method (pooled LPC, linear)")
@@ -113,8 +104,7 @@ def main() -> None:
                     help="mm/s of the training strokes (two each); the fit's speeds stay "
                     "10-40 in 10s (e.g. 10,15,...,40: the strokes `fit` suggests added)")
     args = ap.parse_args()
-    names = list(TEXTURES) if args.textures == "all" else args.textures.split(",")
-    speeds = [float(v) for v in args.speeds.split(",")]
+    names, speeds = textures_and_speeds(ap, args)
     train_speeds = [float(v) for v in args.train_speeds.split(",")]
     base = 100 * args.train_seed
     warnings.simplefilter("ignore")

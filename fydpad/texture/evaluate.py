@@ -206,3 +206,18 @@ def evaluate_scan(model: TextureModel, scan: Scan, *, method: str = DEFAULT_METH
         mask = evaluation_mask(scan, model)
     c, f, pr, ps = compare(rec, syn, scan.fs_hz, mask)
     return c, {"f_hz": f, "recorded": pr, "synthesized": ps, "signal": syn}
+
+
+def compare_recordings(scan: Scan, other: Scan, model: TextureModel,
+                       mask: ArrayLike | None = None) -> Comparison:
+    """Another recording of the surface scored against ``scan`` as the model is by
+    :func:`evaluate_scan` (a second recording: the target's ceiling; a third in the
+    model's place: what a replica meets): both DFT321 signals high-passed as the model's,
+    over ``mask`` (default the scan's samples within the model's speeds) and the other's
+    samples within them."""
+    if mask is None:
+        mask = evaluation_mask(scan, model)
+    c, *_ = compare(preprocess(scan.acc, scan.fs_hz, model.highpass_hz),
+                    preprocess(other.acc, other.fs_hz, model.highpass_hz), scan.fs_hz,
+                    np.asarray(mask, bool) & evaluation_mask(other, model))
+    return c

@@ -29,8 +29,7 @@ import scipy.signal as ss
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.dft321 import preprocess
-from fydpad.texture.evaluate import compare, evaluate_scan, evaluation_mask
+from fydpad.texture.evaluate import compare, compare_recordings, evaluate_scan, evaluation_mask
 from fydpad.texture.fit import fit_texture
 from fydpad.texture.mlp_family import MlpTexture
 from fydpad.texture.mlp_lsf import SpectrumTrainConfig, fit_spectrum_net
@@ -177,8 +176,7 @@ def spectrum_vs_lpc(texture: str, seconds: float = 8.0, speeds: Sequence[float] 
             held = generate_scan(texture, v, seconds, seed=100)
             second = generate_scan(texture, v, seconds, seed=200)
             mask = evaluation_mask(held, lpc)
-            ceil, *_ = compare(preprocess(held.acc, held.fs_hz), preprocess(second.acc,
-                               held.fs_hz), held.fs_hz, mask & evaluation_mask(second, lpc))
+            ceil = compare_recordings(held, second, lpc, mask)
             c_lpc, _ = evaluate_scan(lpc, held, mask=mask, method="lsf")
             c_str, _ = evaluate_scan(lpc, held, mask=mask, method="stretch")
             c_net, _ = evaluate_scan(net, held, mask=mask, method="lsf")

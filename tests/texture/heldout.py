@@ -3,8 +3,7 @@ that score a model form on it: held-out 8 s stroke seed 100, second recording se
 
 from __future__ import annotations
 
-from fydpad.texture.dft321 import preprocess
-from fydpad.texture.evaluate import compare, evaluation_mask
+from fydpad.texture.evaluate import compare_recordings, evaluation_mask
 from fydpad.texture.scan_generator import generate_scan
 
 
@@ -15,6 +14,5 @@ def held_out(name: str, speed_mm_s: float, model, seconds: float = 8.0, seed: in
     held = generate_scan(name, speed_mm_s, seconds, seed=seed)
     second = generate_scan(name, speed_mm_s, seconds, seed=second_seed)
     mask = evaluation_mask(held, model)
-    ceil, *_ = compare(preprocess(held.acc, 1000.0), preprocess(second.acc, 1000.0), 1000.0,
-                       mask & evaluation_mask(second, model))
+    ceil = compare_recordings(held, second, model, mask)
     return held, mask, ceil

@@ -30,6 +30,7 @@ import pytest
 from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import (
     compare,
+    compare_recordings,
     evaluate_scan,
     evaluation_mask,
     verdict_on_means,
@@ -277,8 +278,7 @@ def _misses(models, scans, speed: float) -> list[str]:
         for model, held in zip(models, scans, strict=True):
             second = generate_scan(model.surface, speed, held.t_s.size / held.fs_hz, seed=51)
             mask = evaluation_mask(held, model)
-            ceil, *_ = compare(preprocess(held.acc, 1000.0), preprocess(second.acc, 1000.0),
-                               1000.0, mask & evaluation_mask(second, model))
+            ceil = compare_recordings(held, second, model, mask)
             c, _ = evaluate_scan(model, held, method="stretch", mask=mask)
             if c.psd_correlation < 0.95 or c.lsd_db > ceil.lsd_db + 0.25:
                 out.append(f"{model.surface} corr {c.psd_correlation:.3f} LSD {c.lsd_db:.2f} "
@@ -319,9 +319,7 @@ def _mean_figures(models, speed: float, strokes: int = 4) -> dict[str, tuple]:
                 held = generate_scan(model.surface, speed, HELD_S, seed=1100 + j)
                 second = generate_scan(model.surface, speed, HELD_S, seed=2100 + j)
                 mask = evaluation_mask(held, model)
-                ceil, *_ = compare(preprocess(held.acc, 1000.0),
-                                   preprocess(second.acc, 1000.0), 1000.0,
-                                   mask & evaluation_mask(second, model))
+                ceil = compare_recordings(held, second, model, mask)
                 c, _ = evaluate_scan(model, held, mask=mask, seed=4100 + j)
                 gap.append(c.lsd_db - ceil.lsd_db)
                 corr.append(c.psd_correlation)
