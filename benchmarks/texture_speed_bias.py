@@ -46,12 +46,12 @@ def correction_correlations(spec: CalibratedSpectrum) -> list[float]:
             for a, b in itertools.pairwise(c)]
 
 
-def bias_db(texture: Texture, model, speed_mm_s: float, held: int
+def bias_db(texture: Texture, model, speed_mm_s: float, held: int, load_scale: float = 1.0
             ) -> tuple[float, np.ndarray, np.ndarray]:
     """(RMS bias over 20-500 Hz, f_hz, bias per bin) at one speed."""
     rec, syn = [], []
     for seed in range(100, 100 + held):
-        scan = generate_scan(texture, speed_mm_s, 12.0, seed=seed)
+        scan = generate_scan(texture, speed_mm_s, 12.0, seed=seed, load_scale=load_scale)
         mask = evaluation_mask(scan, model)
         f, p = welch_psd(preprocess(scan.acc, scan.fs_hz), scan.fs_hz, mask)
         rec.append(p)
@@ -91,7 +91,8 @@ def main() -> None:
     per_speed: dict[float, list[float]] = {v: [] for v in speeds}
     for name in names:
         texture = dataclasses.replace(TEXTURES[name], **changes)
-        train = [generate_scan(texture, v, 10.0, seed=args.train_seed + j)
+        train = [generate_scan(texture, v, 10.0, seed=args.train_seed + j,
+                               load_scale=args.load_scale)
                  for v in TRAIN_SPEEDS for j in range(2)]
         model, _ = fit_texture(train, **fit_options)
         if model.free_form is not None:
@@ -100,7 +101,7 @@ def main() -> None:
                 cc = ", ".join(f"{c:+.2f}" for c in correction_correlations(spec))
                 print(f"{name:15s} correlation of neighbouring corrections: {cc}")
         for v in speeds:
-            rms, f, d = bias_db(texture, model, v, args.held)
+            rms, f, d = bias_db(texture, model, v, args.held, args.load_scale)
             per_speed[v].append(rms)
             print(f"{name:15s} {v:4g} mm/s  bias {rms:.2f} dB RMS", flush=True)
             if args.bands:
@@ -108,7 +109,7 @@ def main() -> None:
                                   for lo, hi in itertools.pairwise(BAND_EDGES_HZ))
                 print(f"{'':15s} per band (Hz dB): {bands}")
     print(f"\n{len(names)} textures, train seed {args.train_seed}, {args.held} held-out "
-          f"strokes per speed, {args.form} fit"
+          f"strokes per speed, {args.form} fit, load scale {args.load_scale:g}"
           + "".join(f", {k}={v:g}" for k, v in changes.items()) + ":")
     for v, r in per_speed.items():
         print(f"  {v:4g} mm/s: median {np.median(r):.2f} dB, mean {np.mean(r):.2f}, "

@@ -26,6 +26,10 @@ asserts nothing.
 
     python benchmarks/texture_targets.py [--textures all] [--speeds 10,15,...,40]
         [--train-seed 1] [--held 4] [--third] [--paper] [--train-speeds 10,20,30,40]
+        [--load-scale 1]
+
+``--load-scale 0.3`` scans every stroke with a light hand, where the tip loses contact
+on brick and the sandpapers (``generate_scan``'s ``load_scale``).
 """
 
 from __future__ import annotations
@@ -53,23 +57,25 @@ HELD_S = 12.0
 
 
 def cell(name: str, model, speed: float, held: int, base: int, third: bool,
-         paper=None) -> dict:
+         paper=None, load_scale: float = 1.0) -> dict:
     """Per held-out stroke: the ceiling, the model's, (``third``) a replica's and (``paper``,
     a pooled model rendered the paper's linear way) the paper method's LSD and
     correlation."""
     out = {"ceiling": [], "model": [], "model_corr": [], "third": [], "third_corr": [],
            "paper": [], "paper_corr": []}
     for j in range(held):
-        stroke = generate_scan(name, speed, HELD_S, seed=base + 1000 + j)
-        second = generate_scan(name, speed, HELD_S, seed=base + 2000 + j)
+        stroke = generate_scan(name, speed, HELD_S, seed=base + 1000 + j,
+                               load_scale=load_scale)
+        second = generate_scan(name, speed, HELD_S, seed=base + 2000 + j,
+                               load_scale=load_scale)
         mask = evaluation_mask(stroke, model)
         out["ceiling"].append(compare_recordings(stroke, second, model, mask).lsd_db)
         c, _ = evaluate_scan(model, stroke, mask=mask, seed=base + 4000 + j)  # own draw
         out["model"].append(c.lsd_db)
         out["model_corr"].append(c.psd_correlation)
         if third:
-            c = compare_recordings(stroke, generate_scan(name, speed, HELD_S,
-                                                         seed=base + 3000 + j), model, mask)
+            c = compare_recordings(stroke, generate_scan(
+                name, speed, HELD_S, seed=base + 3000 + j, load_scale=load_scale), model, mask)
             out["third"].append(c.lsd_db)
             out["third_corr"].append(c.psd_correlation)
         if paper is not None:
@@ -117,13 +123,14 @@ def main() -> None:
                "third_undecided": 0, "paper": 0, "paper_single": 0, "paper_undecided": 0}
            for v in speeds}
     for name in names:
-        train = [generate_scan(name, v, 10.0, seed=args.train_seed + j)
+        train = [generate_scan(name, v, 10.0, seed=args.train_seed + j,
+                               load_scale=args.load_scale)
                  for v in train_speeds for j in range(2)]
         model, _ = fit_texture(train, speeds_mm_s=TRAIN_SPEEDS)
         paper = (fit_texture(train, speeds_mm_s=TRAIN_SPEEDS, free_form=None, lines="off")[0]
                  if args.paper else None)
         for v in speeds:
-            r = cell(name, model, v, args.held, base, args.third, paper)
+            r = cell(name, model, v, args.held, base, args.third, paper, args.load_scale)
             m, single = _tally(met[v], "", r["model"], r["model_corr"], r["ceiling"])
             line = (f"{name:15s} {v:4g} mm/s  ceiling {np.mean(r['ceiling']):.2f} dB  model "
                     f"{m.lsd_over_ceiling_db:+.2f} (SE {m.lsd_over_ceiling_se_db:.2f}) / "
@@ -143,8 +150,9 @@ def main() -> None:
                          f"({psingle}/{args.held})")
             print(line, flush=True)
     n = len(names)
-    print(f"\n{n} textures, train seed {args.train_seed}, {args.held} held-out strokes per "
-          "cell; met on the means [of them undecided: a mean within 2 SE of its limit] "
+    print(f"\n{n} textures, train seed {args.train_seed}, load scale {args.load_scale:g}, "
+          f"{args.held} held-out strokes per cell; met on the means [of them undecided: "
+          "a mean within 2 SE of its limit] "
           "(single strokes meeting it):")
     tot = {k: sum(m[k] for m in met.values()) for k in met[speeds[0]]}
     for label, m, cells in [(f"{v:4g} mm/s", met[v], n) for v in speeds] + [

@@ -6,11 +6,13 @@ A hand drags a tool (tip + accelerometer) over a surface. Per stroke:
   slow sway and a random drift), so the stroke is only partly within 5 mm/s;
 - the tip follows the surface profile h(x) (gratings, ribs, random roughness, pits),
   smoothed by the tip's contact patch; its vertical acceleration is d^2 h(x(t))/dt^2;
-- the tip loses contact where the profile falls faster than the preload can pull it
-  down (a clipped acceleration) and lands with an impact (the lost momentum returned
-  at once): a non-linearity no linear model holds exactly (the textures' profiles ask
-  for it only on brick above about 32 mm/s and sandpaper_p320 at 40: docs/texture.md,
-  "The scan generator");
+- the tip is held on the surface by a preload that follows the hand's normal load;
+  where the profile falls faster than the preload can pull it down, the tip leaves,
+  flies over what it passes (a ballistic path) and lands with an impact
+  (:func:`tip_path`): a non-linearity no linear model holds. At the textures' own
+  loads only brick (from about 30 mm/s) and sandpaper_p320 (at 40) meet it; a light
+  hand (``load_scale=0.3``) meets it on brick and the sandpapers from 20-30 mm/s, more
+  the faster (docs/texture.md, "The scan generator");
 - friction stick-slip: the tip sticks, the tangential force builds and releases at
   random slip distances, each release an impulse along the stroke;
 - the tool resonates (a second-order mode whose frequency depends on the contact
@@ -18,10 +20,11 @@ A hand drags a tool (tip + accelerometer) over a surface. Per stroke:
 - the hand's slow motion and gravity (with a slowly tilting hand) appear on all axes.
 
 With ``friction=True`` (issue 9) the scan also carries ``force_n`` and ``friction_n``
-from a separate physical model (:func:`friction_forces`, its own random stream, so the
-acceleration columns stay bit-identical): a varying normal load, Coulomb friction on the
-local slope of the same profile h(x) with a material coefficient that varies along x,
-and stick-slip of the contact through the tool's tangential stiffness.
+from a separate physical model (:func:`friction_forces`; the acceleration columns are the
+same with or without it): the hand's varying normal load (the one the preload follows),
+Coulomb friction on the local slope of the same profile h(x) with a material coefficient
+that varies along x, and stick-slip of the contact through the tool's tangential
+stiffness.
 
 Simulated at 10 kHz, decimated (anti-aliased) to the output rate. Deterministic per
 seed: the surface depends on the texture (its random draws seeded by its name), the
@@ -67,7 +70,9 @@ class Texture:
     tip_mm: float = 0.03  # contact patch (Gaussian sigma) smoothing the profile
     resonance_hz: float = 200.0
     damping: float = 0.08
-    preload_m_s2: float = 40.0  # largest downward acceleration the contact can follow
+    # The largest downward acceleration the contact can follow at the hand's mean load
+    # (the load over the tool's mass, gravity included).
+    preload_m_s2: float = 40.0
     slip_mm: float = 0.0  # mean stick-slip distance (0: none)
     slip_m_s2: float = 0.0  # impulse strength per slip
 
@@ -178,6 +183,55 @@ def hand_speed(speed_mm_s: float, seconds: float, fs: float, rng: np.random.Gene
     return np.maximum(v, 0.0)
 
 
+def hand_load(n: int, fs: float, rng: np.random.Generator) -> Array:
+    """The hand's normal load over its mean: a 0.5-1.5 Hz sway of 15 % and a drift
+    below 1.5 Hz of 10 % RMS (``n`` samples at ``fs``)."""
+    t = np.arange(n) / fs
+    # Filtered with 0.5 s of noise either side, cut off: the filter's edge transients
+    # (up to 25 times the drift's RMS at 10 kHz) stay outside the stroke.
+    pad = round(0.5 * fs)
+    drift = ss.sosfiltfilt(ss.butter(2, 1.5, fs=fs, output="sos"),
+                           rng.standard_normal(n + 2 * pad))[pad:pad + n]
+    return (1.0 + 0.15 * np.sin(2 * np.pi * rng.uniform(0.5, 1.5) * t
+                                + rng.uniform(0, 2 * np.pi))
+            + 0.1 * drift / (np.std(drift) + 1e-12))
+
+
+def tip_path(surface_m: Array, preload_m_s2: Array, fs: float) -> Array:
+    """The tip's height (m) over a surface it is pressed onto with ``preload_m_s2``.
+
+    In contact the tip follows the surface. Where the surface falls away faster than
+    the preload can accelerate the tip down (d^2 h/dt^2 < -preload), the tip leaves
+    it with the surface's velocity and flies, z = z0 + v0 tau - preload tau^2 / 2,
+    over whatever it passes, until it meets the surface again: an inelastic landing,
+    the jump in velocity an impact.
+    """
+    dt = 1.0 / fs
+    vel = np.gradient(surface_m, dt)
+    acc = np.gradient(vel, dt)
+    takeoffs = np.flatnonzero(acc < -preload_m_s2)
+    if takeoffs.size == 0:
+        return surface_m
+    tip = surface_m.copy()
+    n = surface_m.size
+    k = 0
+    while k < takeoffs.size:
+        i0 = int(takeoffs[k])
+        span = 64
+        while True:  # the flight, in windows that double until it lands
+            end = min(n, i0 + 1 + span)
+            tau = np.arange(1, end - i0) * dt
+            flight = surface_m[i0] + vel[i0] * tau - 0.5 * preload_m_s2[i0] * tau * tau
+            below = np.flatnonzero(flight <= surface_m[i0 + 1:end])
+            if below.size or end == n:
+                land = i0 + 1 + (int(below[0]) if below.size else end - i0 - 1)
+                break
+            span *= 2
+        tip[i0 + 1:land] = flight[:land - i0 - 1]
+        k = int(np.searchsorted(takeoffs, land))  # the next takeoff after landing
+    return tip
+
+
 def _resonance_sos(f_hz: float, zeta: float, fs: float) -> Array:
     """Base-excited mode: tip acceleration in, tool acceleration out (unit DC gain)."""
     w = 2 * np.pi * f_hz
@@ -189,8 +243,16 @@ def generate_scan(
     texture: str | Texture, speed_mm_s: float, seconds: float = 8.0, seed: int = 0,
     fs_hz: float = 1000.0, hand_variation: float = 1.0, noise_m_s2: float = 0.01,
     hand_motion: bool = True, friction: bool = False, force_noise_n: float = 0.003,
+    load_scale: float = 1.0,
 ) -> Scan:
     """One stroke over ``texture`` at about ``speed_mm_s``: a Scan (not written).
+
+    ``load_scale``: the hand's mean normal load over the texture's own (its preload
+    scales with it). At 1 the textures hardly lose contact at the paper's speeds (brick
+    from about 30 mm/s, sandpaper_p320 at 40); at 0.3, a light touch, brick does from 20
+    mm/s, sandpaper_p320 from 25, sandpaper_p80 from 30 (docs/texture.md, "The scan
+    generator").
+    ``scan.in_flight_share`` is the share of the stroke the tip spent off the surface.
 
     ``friction``: also ``force_n`` and ``friction_n`` (:func:`friction_forces`), from a
     random stream of their own so that the other columns do not change.
@@ -204,17 +266,17 @@ def generate_scan(
     x = x0 + np.cumsum(v) / fs
     prof = _profile(tex)
     z_mm = np.interp(x / DX_MM, np.arange(prof.size), prof)
-    # Vertical tip acceleration: second time derivative of the followed profile.
-    az = np.gradient(np.gradient(z_mm * 1e-3, 1 / fs), 1 / fs)
-    # Contact loss: the tip cannot fall faster than the preload; the deficit comes back
-    # as an impact where contact resumes.
-    clipped = np.maximum(az, -tex.preload_m_s2)
-    lost = clipped - az
-    if np.any(lost > 0):
-        runs = np.flatnonzero(np.diff(np.concatenate([[0], (lost > 0).astype(int), [0]])))
-        for a, b in zip(runs[0::2], runs[1::2], strict=True):
-            clipped[min(b, n - 1)] -= lost[a:b].sum()
-    az = clipped
+    # The hand's normal load (relative to its mean) scales the preload; drawn from the
+    # friction model's stream, which reads the same load for force_n.
+    frng = np.random.default_rng([seed, zlib.crc32(tex.name.encode()),
+                                  int(speed_mm_s * 100), 1])
+    load = hand_load(n, fs, frng)
+    if not load_scale > 0:
+        raise ValueError(f"load_scale must be positive, not {load_scale!r}")
+    z_m = tip_path(z_mm * 1e-3, tex.preload_m_s2 * load_scale * load, fs)
+    in_flight_share = float(np.mean(z_m > z_mm * 1e-3))
+    # Vertical tip acceleration: second time derivative of the tip's path.
+    az = np.gradient(np.gradient(z_m, 1 / fs), 1 / fs)
     # Stick-slip: releases at random slip distances along the path.
     ax = np.zeros(n)
     if tex.slip_mm > 0:
@@ -250,10 +312,9 @@ def generate_scan(
         acc = acc + slow + grav
     acc = acc + noise_m_s2 * rng.standard_normal(acc.shape)
     scan = _with_position(tex, speed_mm_s, seed, t, acc, v_out, x_out)
+    scan.in_flight_share = in_flight_share  # type: ignore[attr-defined]
     if friction:
-        frng = np.random.default_rng([seed, zlib.crc32(tex.name.encode()),
-                                      int(speed_mm_s * 100), 1])
-        forces = np.column_stack(friction_forces(tex, x, fs, frng))
+        forces = np.column_stack(friction_forces(tex, x, fs, frng, relative_load=load))
         forces = ss.decimate(forces, q, ftype="fir", axis=0, zero_phase=True)[:m]
         forces += force_noise_n * frng.standard_normal(forces.shape)
         scan.force_n = forces[:, 0]
@@ -349,8 +410,8 @@ def friction_mu_true(texture: str | Texture) -> Array:
     return 0.5 * (mu_k + mu_s)
 
 
-def friction_forces(tex: Texture, x_mm: Array, fs_hz: float, rng: np.random.Generator
-                    ) -> tuple[Array, Array]:
+def friction_forces(tex: Texture, x_mm: Array, fs_hz: float, rng: np.random.Generator,
+                    relative_load: Array | None = None) -> tuple[Array, Array]:
     """(normal force, friction force) in N at each sample of the hand's path ``x_mm``.
 
     The hand pulls the contact through a spring of stiffness k; the contact sticks
@@ -361,11 +422,9 @@ def friction_forces(tex: Texture, x_mm: Array, fs_hz: float, rng: np.random.Gene
     fp = friction_params(tex)
     mu_k, mu_s = friction_truth(tex)
     n = x_mm.size
-    t = np.arange(n) / fs_hz
-    drift = ss.sosfiltfilt(ss.butter(2, 1.5, fs=fs_hz, output="sos"), rng.standard_normal(n))
-    load = fp.load_n * (1.0 + 0.15 * np.sin(2 * np.pi * rng.uniform(0.5, 1.5) * t
-                                             + rng.uniform(0, 2 * np.pi))
-                        + 0.1 * drift / (np.std(drift) + 1e-12))
+    if relative_load is None:
+        relative_load = hand_load(n, fs_hz, rng)
+    load = fp.load_n * relative_load
     k = fp.stiffness_n_per_mm
     xs = x_mm.tolist()
     fn = load.tolist()

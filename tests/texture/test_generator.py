@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import scipy.signal as ss
 
-from fydpad.texture.scan_generator import TEXTURES, generate_scan
+from fydpad.texture.scan_generator import TEXTURES, generate_scan, hand_load, tip_path
 
 
 def test_at_least_12_textures_and_paper_specimens():
@@ -75,3 +75,75 @@ def test_grating_comb_spacing_and_every_tenth_harmonic_vanishes(name, speed):
             assert line(k) < 0.1 * np.sqrt(line(k - 1) * line(k + 1)), k
             checked += 1
     assert checked >= 1
+
+
+# ------------------------------------------------------------------ contact and impacts
+def _flight_over_a_step(depth_m: float, preload_m_s2: float, fs: float = 10_000.0):
+    """A flat surface that drops by ``depth_m`` over 2 samples at index 1000."""
+    n = 4000
+    surface = np.zeros(n)
+    surface[1000:] = -depth_m
+    surface[1000] = -depth_m / 2
+    return surface, tip_path(surface, np.full(n, preload_m_s2), fs)
+
+
+def test_a_tip_the_preload_can_hold_follows_the_surface_exactly():
+    fs = 10_000.0
+    t = np.arange(20_000) / fs
+    surface = 1e-5 * np.sin(2 * np.pi * 30 * t)  # peak acceleration 0.36 m/s^2
+    assert tip_path(surface, np.full(t.size, 5.0), fs) is surface
+
+
+@pytest.mark.parametrize("depth_m, preload", [(20e-6, 10.0), (80e-6, 40.0), (5e-6, 2.0)])
+def test_off_a_step_the_tip_falls_freely_and_lands_where_the_ballistic_path_says(
+        depth_m, preload):
+    fs = 10_000.0
+    surface, tip = _flight_over_a_step(depth_m, preload, fs)
+    assert np.all(tip >= surface - 1e-15)  # never inside the surface
+    air = np.flatnonzero(tip > surface)
+    # Leaves at the edge with the surface's velocity there (half the step per sample,
+    # from the central difference), falls with the preload, lands on the lower level.
+    t0 = 999
+    v0 = -depth_m / 4 * fs
+    tau = (-v0 - np.sqrt(v0 * v0 + 2 * preload * depth_m)) / -preload  # z0 + v0 t - p t^2/2 = -d
+    assert air[0] == t0 + 1
+    assert abs((air[-1] + 1 - t0) / fs - tau) <= 1.5 / fs
+    acc = np.gradient(np.gradient(tip, 1 / fs), 1 / fs)
+    flight = acc[air[0] + 2: air[-1] - 1]
+    np.testing.assert_allclose(flight, -preload, rtol=1e-6)
+    # The landing returns the fall's momentum at once: an upward impulse equal to the
+    # tip's downward speed at touchdown.
+    land = air[-1] + 1
+    impulse = acc[land - 2: land + 3].sum() / fs
+    v_touch = v0 - preload * (land - t0) / fs
+    assert impulse == pytest.approx(-v_touch, rel=0.1)
+    assert acc[land - 2: land + 3].max() > 20 * preload
+
+
+def test_a_light_hand_loses_contact_on_the_rough_textures_at_the_papers_speeds():
+    """Impacts are exercised where a light touch meets them: brick and the sandpapers at
+    35 mm/s, not at 10 mm/s, and never on glass or the gratings; at the textures' own
+    loads only brick does, and only when fast."""
+    fast = {n: generate_scan(n, 35.0, seconds=6.0, seed=2, load_scale=0.3).in_flight_share
+            for n in ("brick", "sandpaper_p80", "sandpaper_p320", "glass", "R1")}
+    assert fast["brick"] > 0.05 and fast["sandpaper_p320"] > 0.02
+    assert fast["sandpaper_p80"] > 0.001
+    assert fast["glass"] == 0.0 and fast["R1"] == 0.0
+    assert generate_scan("brick", 10.0, seconds=6.0, seed=2,
+                         load_scale=0.3).in_flight_share == 0.0
+    own = {v: generate_scan("brick", v, seconds=6.0, seed=2).in_flight_share
+           for v in (20.0, 40.0)}
+    assert own[20.0] == 0.0 and own[40.0] > 0.0005
+    with pytest.raises(ValueError, match="load_scale"):
+        generate_scan("brick", 10.0, seconds=1.0, load_scale=0.0)
+
+
+def test_the_hands_load_has_no_filter_transient_at_the_stroke_ends():
+    """sosfiltfilt's edges once swung the load to -0.5 or 2.5 times its mean in the first
+    0.2 s (a negative preload); now the whole stroke stays in the hand's range."""
+    fs = 10_000.0
+    for seed in range(30):
+        load = hand_load(round(8 * fs), fs, np.random.default_rng([seed, 1]))
+        assert 0.25 < load.min() and load.max() < 1.75
+        edge = np.r_[load[: round(0.2 * fs)], load[-round(0.2 * fs):]]
+        assert np.abs(edge - 1).max() < 0.75
