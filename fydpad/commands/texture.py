@@ -316,6 +316,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--friction", action="store_true",
                    help="also force_n and friction_n columns (a Coulomb/stick-slip contact "
                    "over the same profile with a varying normal load)")
+    g.add_argument("--load-scale", type=float, default=1.0, metavar="S",
+                   help="the hand's mean load over each texture's own (default 1). Below 1 "
+                   "the tip leaves the surface more often and lands with impacts: at 0.3, "
+                   "a light touch, brick from 20 mm/s and the sandpapers from 25-30 mm/s "
+                   "(docs/texture.md, 'The scan generator'); written as # load_scale=S")
     g.set_defaults(func=run_generate)
 
 
@@ -1135,10 +1140,15 @@ def run_generate(args: argparse.Namespace) -> int:
     unknown = [n for n in names if n not in TEXTURES]
     if unknown:
         raise UserError(f"--textures: unknown {', '.join(unknown)} (known: {', '.join(TEXTURES)})")
+    if not (math.isfinite(args.load_scale) and args.load_scale > 0):
+        raise UserError(f"--load-scale: give a positive number, not {args.load_scale:g}")
     out = _make_dir(args.out_dir, "--out-dir")
     jobs = [(n, s, args.seed + k) for n in names for s in args.speeds for k in range(args.strokes)]
     for n, s, seed in progress(jobs, total=len(jobs), desc="generate"):
-        scan = generate_scan(n, s, args.seconds, seed=seed, friction=args.friction)
+        scan = generate_scan(n, s, args.seconds, seed=seed, friction=args.friction,
+                             load_scale=args.load_scale)
+        if args.load_scale != 1.0:
+            scan.meta["load_scale"] = f"{args.load_scale:g}"
         save_generated(scan, out / f"{n}_{s:g}mms_s{seed}.csv")
     print(f"{out}: {len(jobs)} scans")
     return 0

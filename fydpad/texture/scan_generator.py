@@ -10,7 +10,7 @@ A hand drags a tool (tip + accelerometer) over a surface. Per stroke:
   where the profile falls faster than the preload can pull it down, the tip leaves,
   flies over what it passes (a ballistic path) and lands with an impact
   (:func:`tip_path`): a non-linearity no linear model holds. At the textures' own
-  loads only brick (from about 30 mm/s) and sandpaper_p320 (at 40) meet it; a light
+  loads only brick (above 30 mm/s) and sandpaper_p320 (at 40) meet it; a light
   hand (``load_scale=0.3``) meets it on brick and the sandpapers from 20-30 mm/s, more
   the faster (docs/texture.md, "The scan generator");
 - friction stick-slip: the tip sticks, the tangential force builds and releases at
@@ -187,11 +187,13 @@ def hand_load(n: int, fs: float, rng: np.random.Generator) -> Array:
     """The hand's normal load over its mean: a 0.5-1.5 Hz sway of 15 % and a drift
     below 1.5 Hz of 10 % RMS (``n`` samples at ``fs``)."""
     t = np.arange(n) / fs
-    # Filtered with 0.5 s of noise either side, cut off: the filter's edge transients
-    # (up to 25 times the drift's RMS at 10 kHz) stay outside the stroke.
-    pad = round(0.5 * fs)
-    drift = ss.sosfiltfilt(ss.butter(2, 1.5, fs=fs, output="sos"),
-                           rng.standard_normal(n + 2 * pad))[pad:pad + n]
+    # Forward and backward from rest over 1 s of noise either side, cut off. (sosfiltfilt
+    # starts each pass at the steady state of its edge sample: at 10 kHz a transient of
+    # up to 50 times the drift's RMS, the load negative in the stroke's first 0.3 s.)
+    pad = round(1.0 * fs)
+    sos = ss.butter(2, 1.5, fs=fs, output="sos")
+    noise = rng.standard_normal(n + 2 * pad)
+    drift = ss.sosfilt(sos, ss.sosfilt(sos, noise)[::-1])[::-1][pad:pad + n]
     return (1.0 + 0.15 * np.sin(2 * np.pi * rng.uniform(0.5, 1.5) * t
                                 + rng.uniform(0, 2 * np.pi))
             + 0.1 * drift / (np.std(drift) + 1e-12))
@@ -206,6 +208,9 @@ def tip_path(surface_m: Array, preload_m_s2: Array, fs: float) -> Array:
     over whatever it passes, until it meets the surface again: an inelastic landing,
     the jump in velocity an impact.
     """
+    if not np.all(preload_m_s2 > 0):
+        raise ValueError("tip_path: the preload must be positive everywhere (a tip pressed "
+                         "with none never lands)")
     dt = 1.0 / fs
     vel = np.gradient(surface_m, dt)
     acc = np.gradient(vel, dt)
@@ -249,7 +254,7 @@ def generate_scan(
 
     ``load_scale``: the hand's mean normal load over the texture's own (its preload
     scales with it). At 1 the textures hardly lose contact at the paper's speeds (brick
-    from about 30 mm/s, sandpaper_p320 at 40); at 0.3, a light touch, brick does from 20
+    above 30 mm/s, sandpaper_p320 at 40); at 0.3, a light touch, brick does from 20
     mm/s, sandpaper_p320 from 25, sandpaper_p80 from 30 (docs/texture.md, "The scan
     generator").
     ``scan.in_flight_share`` is the share of the stroke the tip spent off the surface.

@@ -93,6 +93,8 @@ def test_bad_input_is_a_user_error(workdir, tmp_path):
             str(tmp_path / "x.csv"))
     with pytest.raises(UserError, match="unknown nope"):
         run("generate-scans", "--out-dir", str(tmp_path), "--textures", "nope")
+    with pytest.raises(UserError, match="--load-scale"):
+        run("generate-scans", "--out-dir", str(tmp_path), "--load-scale", "0")
     short = tmp_path / "short.csv"
     short.write_text("t_s,ax,ay,az,speed_mm_s\n" + "".join(
         f"{k / 1000:.3f},0.1,0.2,{k % 3},20\n" for k in range(300)))
@@ -121,3 +123,23 @@ def test_fit_warns_when_the_scans_are_of_several_surfaces(workdir, tmp_path, cap
     assert run("fit", *scans, "--out", str(tmp_path / "mix.json"), "--speeds", "10,30",
                "--order", "60", "--surface", "R1+felt") == 0
     assert "surfaces" not in capsys.readouterr().err
+
+
+def test_generate_scans_with_a_light_touch_writes_that_stroke_and_says_so(tmp_path):
+    """--load-scale 0.3 writes the generator's light-touch stroke (the physics is tested in
+    test_generator.py: brick at 35 mm/s is then off the surface a fifth of the time) and
+    the file's header says which load it was scanned with."""
+    from fydpad.texture.scan_generator import generate_scan
+    from fydpad.texture.scan_io import read_scan
+
+    for scale, sub in (("1", "own"), ("0.3", "light")):
+        assert run("generate-scans", "--out-dir", str(tmp_path / sub), "--textures", "brick",
+                   "--speeds", "35", "--strokes", "1", "--seconds", "3",
+                   "--load-scale", scale) == 0
+    own = read_scan(tmp_path / "own" / "brick_35mms_s1.csv")
+    light = read_scan(tmp_path / "light" / "brick_35mms_s1.csv")
+    assert light.meta.get("load_scale") == "0.3" and "load_scale" not in own.meta
+    expected = generate_scan("brick", 35.0, 3.0, seed=1, load_scale=0.3)
+    assert expected.in_flight_share > 0.1
+    np.testing.assert_allclose(light.acc, expected.acc, atol=1e-5)
+    assert np.abs(light.acc[:, 2] - own.acc[:, 2]).max() > 1.0  # m/s^2: impacts differ

@@ -302,22 +302,26 @@ def test_targets_at_a_modelled_speed_over_every_texture(every_texture_long):
     assert not misses, misses
 
 
-def _mean_figures(models, speed: float, strokes: int = 4) -> dict[str, tuple]:
+def _mean_figures(models, speed: float, strokes: int = 4, load_scale: float = 1.0
+                  ) -> dict[str, tuple]:
     """{texture: (mean LSD - ceiling, its standard error, mean correlation, its standard
     error)} over ``strokes`` held-out 12 s strokes (seeds 1100 + j), each with its own
     second recording (seeds 2100 + j) and its own draw of the synthesis (4100 + j):
     benchmarks/texture_targets.py with train seed 1. One stroke and one second
     recording make the target a comparison of two draws, which a third recording of the
     surface fails in about one cell in five (docs/texture.md, "The targets on several
-    strokes per cell")."""
+    strokes per cell"). ``load_scale``: the hand's load over the textures' own, as in
+    ``generate_scan``."""
     out = {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for model in models:
             gap, corr = [], []
             for j in range(strokes):
-                held = generate_scan(model.surface, speed, HELD_S, seed=1100 + j)
-                second = generate_scan(model.surface, speed, HELD_S, seed=2100 + j)
+                held = generate_scan(model.surface, speed, HELD_S, seed=1100 + j,
+                                     load_scale=load_scale)
+                second = generate_scan(model.surface, speed, HELD_S, seed=2100 + j,
+                                       load_scale=load_scale)
                 mask = evaluation_mask(held, model)
                 ceil = compare_recordings(held, second, model, mask)
                 c, _ = evaluate_scan(model, held, mask=mask, seed=4100 + j)
@@ -415,3 +419,41 @@ def test_identification_target_100_percent(identification):
     missed = [(a["scan"], a["predicted"]) for a in ident.assignments
               if a["predicted"] != a["label"]]
     assert ident.rate == 1.0, missed
+
+
+# ------------------------------------------------------------------ a light touch
+LIGHT_LOAD = 0.3
+
+
+@pytest.fixture(scope="module")
+def light_touch_figures():
+    """brick and sandpaper_p320 scanned with a light touch (``load_scale=0.3``: the tip
+    is off the surface 2-33 % of the time at 30-40 mm/s, docs/texture.md "The scan
+    generator"), fitted as every texture is (two 10 s strokes per speed, seeds 1-2),
+    scored on the means of four held-out strokes at 30, 35 and 40 mm/s."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        models = [fit_texture([generate_scan(n, s, TRAIN_S, seed=1 + j, load_scale=LIGHT_LOAD)
+                               for s in SPEEDS for j in range(TRAIN_STROKES)])[0]
+                  for n in ("brick", "sandpaper_p320")]
+    return {v: _mean_figures(models, v, load_scale=LIGHT_LOAD) for v in (30.0, 35.0, 40.0)}
+
+
+def test_a_light_touch_meets_the_targets_with_the_tip_flying(light_touch_figures):
+    """Impacts and all: sandpaper_p320 (in flight 2 %, 7 % and 15 % of the time) at 30, 35
+    and 40 mm/s and brick (33 %) at 40, on the means of four strokes. Measured LSD over
+    the ceiling -0.08, -0.02, -0.18 dB (correlation 0.979-0.988) and +0.09 dB (0.981)."""
+    cells = [(v, "sandpaper_p320") for v in (30.0, 35.0, 40.0)] + [(40.0, "brick")]
+    for v, name in cells:
+        misses = _mean_misses({name: light_touch_figures[v][name]})
+        assert not misses, (v, misses)
+
+
+@pytest.mark.xfail(strict=True, reason="measured on the means of four strokes: +0.37 dB over "
+                   "the ceiling (SE 0.09), correlation 0.987; +0.42 / +0.37 / +0.48 on 8 "
+                   "strokes with train seeds 1 / 5 / 8, where a third recording is within "
+                   "0.05 dB: the model is 1-2 dB loud at 100-200 Hz with brick's tip in flight "
+                   "a fifth of the time (docs/texture.md, 'The scan generator')")
+def test_a_light_touch_on_brick_between_scanned_speeds(light_touch_figures):
+    misses = _mean_misses({"brick": light_touch_figures[35.0]["brick"]})
+    assert not misses, misses
