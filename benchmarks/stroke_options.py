@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 
 from fydpad.texture.scan_generator import TEXTURES
 
@@ -30,6 +31,6 @@ def textures_and_speeds(ap: argparse.ArgumentParser, args: argparse.Namespace
     if unknown:
         ap.error(f"--textures: no generator texture {', '.join(unknown)} "
                  f"(known: {', '.join(TEXTURES)})")
-    if not args.load_scale > 0:
+    if not (math.isfinite(args.load_scale) and args.load_scale > 0):
         ap.error(f"--load-scale: give a positive number, not {args.load_scale}")
     return names, [float(v) for v in args.speeds.split(",")]

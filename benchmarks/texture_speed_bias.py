@@ -15,6 +15,7 @@ nothing.
 
     python benchmarks/texture_speed_bias.py [--textures all] [--speeds 10,15,...,40]
         [--train-seed 1] [--held 8] [--bands] [--form default|two-part] [--set F=V ...]
+        [--load-scale 1]
 """
 
 from __future__ import annotations

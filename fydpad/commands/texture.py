@@ -319,7 +319,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--load-scale", type=float, default=1.0, metavar="S",
                    help="the hand's mean load over each texture's own (default 1). Below 1 "
                    "the tip leaves the surface more often and lands with impacts: at 0.3, "
-                   "a light touch, brick from 20 mm/s and the sandpapers from 25-30 mm/s "
+                   "a light touch, brick from 20 mm/s, the sandpapers from 25-30 mm/s, cork "
+                   "barely "
                    "(docs/texture.md, 'The scan generator'); written as # load_scale=S")
     g.set_defaults(func=run_generate)
 
