@@ -89,7 +89,7 @@ def test_a_tip_the_preload_can_hold_follows_the_surface_exactly():
 def test_off_a_drop_the_tip_falls_at_the_preload_and_lands_with_an_impact(depth_m, preload):
     """A surface that falls away from rest at 5 times the preload's acceleration down to a
     flat floor ``depth_m`` below: the tip leaves at once, falls freely at the preload
-    (flights of 20-63 samples), lands within 1.5 samples of sqrt(2 d / p) and returns an
+    (flights of 20-22 samples), lands within 1.5 samples of sqrt(2 d / p) and returns an
     upward impulse equal to its touchdown speed sqrt(2 d p). A tip that fell at another
     rate, or did not fall, misses every one of these."""
     fs, n = 10_000.0, 4000
