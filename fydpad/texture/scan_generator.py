@@ -432,7 +432,9 @@ def friction_forces(tex: Texture, x_mm: Array, fs_hz: float, rng: np.random.Gene
     The hand pulls the contact through a spring of stiffness k; the contact sticks
     until the spring force reaches mu_s F_n, then slips to mu_k F_n (instantaneous).
     Each sample reports the force averaged over its interval (a force sensor's
-    averaging), computed exactly for any number of slips within the sample.
+    averaging), computed exactly for any number of slips within the sample. The normal
+    force is the texture's load times ``relative_load`` (the hand's, drawn from ``rng``
+    by :func:`hand_load` when not given).
     """
     fp = friction_params(tex)
     mu_k, mu_s = friction_truth(tex)
