@@ -63,19 +63,18 @@ def cell(name: str, model, speed: float, held: int, base: int, third: bool,
     correlation."""
     out = {"ceiling": [], "model": [], "model_corr": [], "third": [], "third_corr": [],
            "paper": [], "paper_corr": []}
+    def scan(seed: int):
+        return generate_scan(name, speed, HELD_S, seed=seed, load_scale=load_scale)
+
     for j in range(held):
-        stroke = generate_scan(name, speed, HELD_S, seed=base + 1000 + j,
-                               load_scale=load_scale)
-        second = generate_scan(name, speed, HELD_S, seed=base + 2000 + j,
-                               load_scale=load_scale)
+        stroke, second = scan(base + 1000 + j), scan(base + 2000 + j)
         mask = evaluation_mask(stroke, model)
         out["ceiling"].append(compare_recordings(stroke, second, model, mask).lsd_db)
         c, _ = evaluate_scan(model, stroke, mask=mask, seed=base + 4000 + j)  # own draw
         out["model"].append(c.lsd_db)
         out["model_corr"].append(c.psd_correlation)
         if third:
-            c = compare_recordings(stroke, generate_scan(
-                name, speed, HELD_S, seed=base + 3000 + j, load_scale=load_scale), model, mask)
+            c = compare_recordings(stroke, scan(base + 3000 + j), model, mask)
             out["third"].append(c.lsd_db)
             out["third_corr"].append(c.psd_correlation)
         if paper is not None:

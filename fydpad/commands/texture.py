@@ -1148,8 +1148,6 @@ def run_generate(args: argparse.Namespace) -> int:
     for n, s, seed in progress(jobs, total=len(jobs), desc="generate"):
         scan = generate_scan(n, s, args.seconds, seed=seed, friction=args.friction,
                              load_scale=args.load_scale)
-        if args.load_scale != 1.0:
-            scan.meta["load_scale"] = f"{args.load_scale:g}"
         save_generated(scan, out / f"{n}_{s:g}mms_s{seed}.csv")
     print(f"{out}: {len(jobs)} scans")
     return 0

@@ -288,8 +288,9 @@ def generate_scan(
     frng = np.random.default_rng([seed, zlib.crc32(tex.name.encode()),
                                   int(speed_mm_s * 100), 1])
     load = load_scale * hand_load(n, fs, frng)
-    z_m = tip_path(z_mm * 1e-3, tex.preload_m_s2 * load, fs)
-    in_flight_share = float(np.mean(z_m > z_mm * 1e-3))
+    surface_m = z_mm * 1e-3
+    z_m = tip_path(surface_m, tex.preload_m_s2 * load, fs)
+    in_flight_share = float(np.mean(z_m > surface_m))
     # Vertical tip acceleration: second time derivative of the tip's path.
     az = np.gradient(np.gradient(z_m, 1 / fs), 1 / fs)
     # Stick-slip: releases at random slip distances along the path.
@@ -328,8 +329,10 @@ def generate_scan(
     acc = acc + noise_m_s2 * rng.standard_normal(acc.shape)
     scan = _with_position(tex, speed_mm_s, seed, t, acc, v_out, x_out)
     scan.in_flight_share = in_flight_share  # type: ignore[attr-defined]
+    if load_scale != 1.0:  # said in the file's header (save_generated writes meta)
+        scan.meta["load_scale"] = f"{load_scale:g}"
     if friction:
-        forces = np.column_stack(friction_forces(tex, x, fs, frng, relative_load=load))
+        forces = np.column_stack(friction_forces(tex, x, load))
         forces = ss.decimate(forces, q, ftype="fir", axis=0, zero_phase=True)[:m]
         forces += force_noise_n * frng.standard_normal(forces.shape)
         scan.force_n = forces[:, 0]
@@ -425,22 +428,19 @@ def friction_mu_true(texture: str | Texture) -> Array:
     return 0.5 * (mu_k + mu_s)
 
 
-def friction_forces(tex: Texture, x_mm: Array, fs_hz: float, rng: np.random.Generator,
-                    relative_load: Array | None = None) -> tuple[Array, Array]:
+def friction_forces(tex: Texture, x_mm: Array, relative_load: Array) -> tuple[Array, Array]:
     """(normal force, friction force) in N at each sample of the hand's path ``x_mm``.
 
     The hand pulls the contact through a spring of stiffness k; the contact sticks
     until the spring force reaches mu_s F_n, then slips to mu_k F_n (instantaneous).
     Each sample reports the force averaged over its interval (a force sensor's
     averaging), computed exactly for any number of slips within the sample. The normal
-    force is the texture's load times ``relative_load`` (the hand's, drawn from ``rng``
-    by :func:`hand_load` when not given).
+    force is the texture's load times ``relative_load`` (the hand's, :func:`hand_load`,
+    at each sample of ``x_mm``).
     """
     fp = friction_params(tex)
     mu_k, mu_s = friction_truth(tex)
     n = x_mm.size
-    if relative_load is None:
-        relative_load = hand_load(n, fs_hz, rng)
     load = fp.load_n * relative_load
     k = fp.stiffness_n_per_mm
     xs = x_mm.tolist()

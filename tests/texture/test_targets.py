@@ -235,14 +235,20 @@ def every_texture():
 TRAIN_STROKES, TRAIN_S, HELD_S = 2, 10.0, 12.0
 
 
+def _models(names, load_scale: float = 1.0) -> list:
+    """The default fit of each texture on TRAIN_STROKES strokes of TRAIN_S per speed
+    (seeds 1, 2, ...)."""
+    return [fit_texture([generate_scan(n, s, TRAIN_S, seed=1 + j, load_scale=load_scale)
+                         for s in SPEEDS for j in range(TRAIN_STROKES)])[0] for n in names]
+
+
 @pytest.fixture(scope="module")
 def every_texture_long():
     """A model of every texture (two 10 s strokes per speed, seeds 1-2) and its held-out
     12 s stroke at 30 mm/s (seed 50)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        models = [fit_texture([generate_scan(n, s, TRAIN_S, seed=1 + j) for s in SPEEDS
-                               for j in range(TRAIN_STROKES)])[0] for n in TEXTURES]
+        models = _models(TEXTURES)
         scans = [generate_scan(n, 30.0, HELD_S, seed=50) for n in TEXTURES]
     return models, scans
 
@@ -433,9 +439,7 @@ def light_touch_figures():
     scored on the means of four held-out strokes at 30, 35 and 40 mm/s."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        models = [fit_texture([generate_scan(n, s, TRAIN_S, seed=1 + j, load_scale=LIGHT_LOAD)
-                               for s in SPEEDS for j in range(TRAIN_STROKES)])[0]
-                  for n in ("brick", "sandpaper_p320")]
+        models = _models(("brick", "sandpaper_p320"), LIGHT_LOAD)
     return {v: _mean_figures(models, v, load_scale=LIGHT_LOAD) for v in (30.0, 35.0, 40.0)}
 
 
