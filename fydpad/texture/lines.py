@@ -69,12 +69,14 @@ MAX_SPEED_RATE = 1.5
 EDGE_S = 0.25
 #: Speed grid of the amplitude table (mm/s).
 GRID_STEP_MM_S = 0.5
-#: A rib without a comb (:func:`_rib`) is searched from here (the 10 Hz high-pass's
-#: corner: a 2.5 mm rib sits at 4-16 Hz at 10-40 mm/s, below the comb search's 15 Hz
-#: but for the fastest strokes); its line must be the strongest peak of every stroke
-#: that can see it, in at least RIB_MIN_STROKES strokes whose median speeds span
+#: A rib without a comb (:func:`_rib`) is searched from here, a little under the 10 Hz
+#: high-pass's corner (a 2.5 mm rib sits at 4-16 Hz at 10-40 mm/s, below the comb
+#: search's 15 Hz but for the fastest strokes; a hand asked for 30 mm/s wanders down to
+#: 25 in a stroke, where the rib is at 10 Hz: searched from the corner, only the 40 mm/s
+#: strokes saw it, and corduroy got no lines); its line must be the strongest peak of
+#: every stroke that can see it, in at least RIB_MIN_STROKES strokes whose median speeds span
 #: RIB_MIN_SPEED_RATIO (a hum on a constant-speed rig stands at one k in every stroke).
-RIB_F_LO = 10.0
+RIB_F_LO = 8.0
 RIB_MIN_STROKES = 2
 RIB_MIN_SPEED_RATIO = 1.2
 #: ... among the RIB_TOP_PEAKS strongest peaks of each of them (and the strongest in at

@@ -173,8 +173,7 @@ def hand_speed(speed_mm_s: float, seconds: float, fs: float, rng: np.random.Gene
     n = round(seconds * fs)
     t = np.arange(n) / fs
     sway = 0.1 * np.sin(2 * np.pi * rng.uniform(0.3, 0.8) * t + rng.uniform(0, 2 * np.pi))
-    drift = ss.sosfiltfilt(ss.butter(2, 0.7, fs=fs, output="sos"), rng.standard_normal(n))
-    drift = 0.06 * drift / (np.std(drift) + 1e-12)
+    drift = 0.06 * slow_noise(n, fs, 0.7, rng, pad_s=2.0)
     v = speed_mm_s * (1.0 + variation * (sway + drift))
     ramp = min(0.3, seconds / 4) * (variation > 0)
     if ramp > 0:
@@ -187,16 +186,27 @@ def hand_load(n: int, fs: float, rng: np.random.Generator) -> Array:
     """The hand's normal load over its mean: a 0.5-1.5 Hz sway of 15 % and a drift
     below 1.5 Hz of 10 % RMS (``n`` samples at ``fs``)."""
     t = np.arange(n) / fs
-    # Forward and backward from rest over 1 s of noise either side, cut off. (sosfiltfilt
-    # starts each pass at the steady state of its edge sample: at 10 kHz a transient of
-    # up to 50 times the drift's RMS, the load negative in the stroke's first 0.3 s.)
-    pad = round(1.0 * fs)
-    sos = ss.butter(2, 1.5, fs=fs, output="sos")
-    noise = rng.standard_normal(n + 2 * pad)
-    drift = ss.sosfilt(sos, ss.sosfilt(sos, noise)[::-1])[::-1][pad:pad + n]
+    drift = slow_noise(n, fs, 1.5, rng, pad_s=1.0)
     return (1.0 + 0.15 * np.sin(2 * np.pi * rng.uniform(0.5, 1.5) * t
                                 + rng.uniform(0, 2 * np.pi))
-            + 0.1 * drift / (np.std(drift) + 1e-12))
+            + 0.1 * drift)
+
+
+def slow_noise(n: int, fs: float, cutoff_hz: float, rng: np.random.Generator,
+               pad_s: float) -> Array:
+    """Unit-RMS Gaussian noise low-passed at ``cutoff_hz`` (2nd-order Butterworth, forward
+    and backward), stationary from its first sample to its last.
+
+    Filtered from rest over ``pad_s`` of noise either side, then cut off: sosfiltfilt
+    starts each pass at the steady state of its edge sample instead, at 10 kHz a
+    transient of 50-100 times the drift's RMS that lasts a second and, normalised away,
+    leaves the middle a fraction of its RMS (a hand's speed drift of 6 % was 0.7-2.6 %
+    mid-stroke, 15-60 % at its ends; the load went negative)."""
+    pad = round(pad_s * fs)
+    sos = ss.butter(2, cutoff_hz, fs=fs, output="sos")
+    noise = rng.standard_normal(n + 2 * pad)
+    drift = ss.sosfilt(sos, ss.sosfilt(sos, noise)[::-1])[::-1][pad:pad + n]
+    return drift / (np.std(drift) + 1e-12)
 
 
 def tip_path(surface_m: Array, preload_m_s2: Array, fs: float) -> Array:

@@ -32,23 +32,26 @@ FS = 1000.0
 
 
 def test_a_hands_strokes_cover_their_wander_not_their_ramps():
-    """Strokes at 10 and 40 mm/s (the generator's hand: a wander of a few mm/s, 0.25 s
+    """Strokes at 10 and 40 mm/s (the generator's hand: a wander of 9 % RMS, 0.3 s
     ramps at each end through every slower speed). One stroke each, and 24 each: the
     ramps add 2-3 ms per 0.5 mm/s bin per stroke, so without the steady-speed rule 24
-    strokes' ramps cover 15-30 mm/s (checked below); with it the gap stays."""
+    strokes' ramps cover 15-30 mm/s (checked below); with it the gap stays. What lies
+    between the ramps is covered (the wander's tails of one 4 s stroke spend under the
+    0.1 s a bin needs: 95-98 % of it is)."""
     for strokes_per_speed in (1, 24):
         strokes = [generate_scan("felt", v, 4.0, seed=3 + k) for v in (10.0, 40.0)
                    for k in range(strokes_per_speed)]
         spans = scanned_spans([s.speed_mm_s for s in strokes], FS)
         assert len(spans) == 2, (strokes_per_speed, spans)
         for v, (lo, hi) in zip((10.0, 40.0), spans, strict=True):
-            v_all = np.concatenate([s.speed_mm_s for s in strokes
-                                    if abs(np.median(s.speed_mm_s) - v) < 5])
+            ramp = round(0.3 * FS)
+            wander = np.concatenate([s.speed_mm_s[ramp:-ramp] for s in strokes
+                                     if abs(np.median(s.speed_mm_s) - v) < 5])
             assert lo <= v <= hi
-            assert np.mean((v_all >= lo) & (v_all <= hi)) > 0.85  # the wander is covered
-        (gap,) = gaps_within(spans, 10.0, 40.0)  # 40 mm/s strokes wander down to ~33
-        assert gap[0] < 15.0 and gap[1] > 30.0, gap
-        assert inside(np.array([15.0, 20.0, 25.0, 30.0]), [gap]).all()
+            assert np.mean((wander >= lo) & (wander <= hi)) > 0.93
+        (gap,) = gaps_within(spans, 10.0, 40.0)  # 40 mm/s strokes wander down to ~30
+        assert gap[0] < 15.0 and gap[1] > 25.0, gap
+        assert inside(np.array([15.0, 20.0, 25.0]), [gap]).all()
     # The rule matters: counting every sample, the 24 strokes' ramps fill the gap.
     every = np.concatenate([s.speed_mm_s for s in strokes])
     edges, _ = speed_histogram([every], FS)
@@ -122,11 +125,14 @@ def test_fit_records_and_says_where_it_interpolates(felt, tmp_path, capsys):
                "--out", str(out), "--speeds", "10,30", "--order", "60") == 0
     said = capsys.readouterr().out
     prov = json.loads(out.read_text())["provenance"]
-    (gap,) = prov["interpolated_mm_s"]
-    assert gap[0] < 15.0 and gap[1] > 25.0
-    assert len(prov["speed_coverage_mm_s"]) == 2
-    assert "no scan between" in said and describe([tuple(gap)]) in said
-    assert f"scan strokes at {round(gap[0] + gap[1]) / 2:g} mm/s" in said  # the gap's middle
+    gaps = [tuple(g) for g in prov["interpolated_mm_s"]]
+    # The 30 mm/s stroke wanders down to ~23 mm/s; a hole in its wander is a gap too.
+    widest = max(gaps, key=lambda g: g[1] - g[0])
+    assert widest[0] < 15.0 and widest[1] > 20.0, gaps
+    assert len(prov["speed_coverage_mm_s"]) == len(gaps) + 1
+    assert "no scan between" in said and describe(gaps) in said
+    middles = ", ".join(f"{round(a + b) / 2:g}" for a, b in gaps)  # each gap's middle
+    assert f"scan strokes at {middles} mm/s" in said, said
 
 
 def test_a_per_speed_fit_reports_the_speeds_it_did_not_use():

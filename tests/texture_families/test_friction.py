@@ -65,9 +65,9 @@ def test_mu_reproduced_by_position_at_any_speed_within_2_percent(fitted, name, f
                                atol=1e-3)
 
 
-@pytest.mark.xfail(strict=True, reason="measured p99 2.3-3.8 % (R2) vs target 2 % at "
+@pytest.mark.xfail(strict=True, reason="measured p99 2.3-3.7 % (R2) vs target 2 % at "
                    "every point: the tool's compliance (load-dependent lag, stick-slip); "
-                   "1.4-1.8 % with a rigid contact")
+                   "1.3-1.8 % with a rigid contact")
 def test_mu_within_2_percent_at_99_percent_of_positions(fitted):
     for v in FIT_SPEEDS:
         scan, fam = fitted["R2", v]

@@ -137,16 +137,24 @@ def r1_between():
 
 
 def test_between_modelled_speeds_the_network_beats_lsf_interpolation(r1_between):
-    """R1 at 25 mm/s, held-out stroke: measured corr 0.898 vs 0.683, LSD 2.23 vs 2.85 dB
-    (order-100 network against the order-200 LPC family with LSF interpolation)."""
+    """R1 at 25 mm/s, held-out stroke: measured corr 0.838 vs 0.759 (order-100 network
+    against the order-200 LPC family with LSF interpolation; 0.898 vs 0.683 before
+    session 14's hand, whose strokes wander 9 % RMS)."""
     r = r1_between
     assert r["corr_net"] > r["corr_lpc"] + 0.05, r
+
+
+@pytest.mark.xfail(strict=True, reason="measured R1 at 25 mm/s: LSD 2.30 dB for the network, "
+                   "2.31 for LSF interpolation, a tie (2.23 against 2.85 before session 14's "
+                   "hand, whose strokes wander 9 % RMS) (docs/texture_mlp.md)")
+def test_between_modelled_speeds_the_networks_lsd_beats_lsf_interpolation(r1_between):
+    r = r1_between
     assert r["lsd_net"] < r["lsd_lpc"] - 0.1, r
 
 
-@pytest.mark.xfail(strict=True, reason="measured R1 at 25 mm/s: corr 0.898 (< 0.95), LSD "
-                   "2.23 dB against a ceiling of 0.49 dB (> +0.25): windows of a hand's "
-                   "stroke cover 25 mm/s too thinly")
+@pytest.mark.xfail(strict=True, reason="measured R1 at 25 mm/s: corr 0.838 (< 0.95), LSD "
+                   "2.30 dB against a ceiling of 1.52 dB (> +0.25; 2.23 against 0.49 before "
+                   "session 14's hand): windows of a hand's stroke cover 25 mm/s too thinly")
 def test_network_meets_the_issue_7_targets_between_speeds(r1_between):
     r = r1_between
     assert r["corr_net"] >= 0.95 and r["lsd_net"] <= r["lsd_ceiling"] + 0.25, r
