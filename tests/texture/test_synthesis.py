@@ -218,9 +218,11 @@ def sandpaper_calibrated() -> TextureModel:
     return model
 
 
-@pytest.mark.xfail(strict=True, reason="measured with the default (calibrated) fit: LSD 2.57 dB "
-                   "(2.49 with noise seed 2), +3.7 dB at 320-420 Hz over the filters' average "
-                   "(2.35 / 2.30 dB and +3.4 with the base at 150 iterations) "
+@pytest.mark.xfail(strict=True, reason="measured with the default (calibrated) fit: LSD 2.24 dB "
+                   "(2.33 with noise seed 2), +1.9 dB at 320-420 Hz over the filters' average "
+                   "(+0.0 with seed 2; session 14's hand, whose stroke here spans 20-29 mm/s; "
+                   "before it 2.57 / 2.49 dB and +3.7, with the base at 150 iterations 2.35 / "
+                   "2.30 dB and +3.4) "
                    "(the pooled fit's table +0.4-0.8): its table changes faster with speed, "
                    "and the FIR's filter of now on past noise leaks the strong low band into "
                    "the weak top one. Every lag at the mean speed over it, without slack, "
@@ -232,7 +234,7 @@ def test_fir_spectrum_of_the_default_fit_along_a_hands_stroke(sandpaper_calibrat
 
 
 def test_fir_spectrum_along_a_hands_stroke_has_no_switching_leak(sandpaper):
-    """Along a hand's stroke (22-28 mm/s) the spectrum is the filters' average: no leak
+    """Along a hand's stroke (20-29 mm/s) the spectrum is the filters' average: no leak
     of the strong low band into the weak top one. Measured LSD 0.9-1.2 dB (the Welch
     estimate alone scatters ~0.55 dB); a stepwise table FIR gives 11 dB (+27 dB at
     440-480 Hz), which is why g is interpolated between table entries."""

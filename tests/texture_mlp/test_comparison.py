@@ -29,7 +29,9 @@ def test_neither_family_predicts_the_samples(felt):
 
 
 @pytest.mark.xfail(strict=True, reason="measured on felt's test thirds: power-spectrum "
-                   "correlation 0.044 (network) vs 0.888 (LPC), LSD 20.6 vs 2.1 dB; the network "
-                   "renders 1.6 % of the recorded RMS (the conditional mean of a random texture)")
+                   "correlation 0.073 (network) vs 0.946 (LPC), LSD 39.2 vs 2.7 dB; the "
+                   "network renders 0.24 % of the recorded RMS (the conditional mean of a "
+                   "random texture; session 14's strokes; before them 0.044 vs 0.888, 20.6 vs "
+                   "2.1 dB, 1.6 %)")
 def test_network_spectrum_is_as_close_as_the_lpc_family(felt):
     assert felt["corr_mlp"] >= felt["corr_lpc"] and felt["lsd_mlp"] <= felt["lsd_lpc"], felt
