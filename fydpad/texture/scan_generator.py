@@ -199,9 +199,9 @@ def slow_noise(n: int, fs: float, cutoff_hz: float, rng: np.random.Generator,
 
     Filtered from rest over ``pad_s`` of noise either side, then cut off: sosfiltfilt
     starts each pass at the steady state of its edge sample instead, at 10 kHz a
-    transient of 50-100 times the drift's RMS that lasts a second and, normalised away,
+    transient of tens of times the drift's RMS that lasts a second and, normalised away,
     leaves the middle a fraction of its RMS (a hand's speed drift of 6 % was 0.7-2.6 %
-    mid-stroke, 15-60 % at its ends; the load went negative)."""
+    mid-stroke, up to 60 % off in its first and last 0.3 s; the load went negative)."""
     pad = round(pad_s * fs)
     sos = ss.butter(2, cutoff_hz, fs=fs, output="sos")
     noise = rng.standard_normal(n + 2 * pad)
