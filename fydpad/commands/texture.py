@@ -251,6 +251,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="between the spectra: bands (default: RMS dB difference of the "
                    "third-octave band levels) or lsd (log-spectral distance on 4 Hz bins, "
                    "as before)")
+    i.add_argument("--seed", type=int, default=0,
+                   help="noise seed of the models that synthesize noise (LPC, mlp_lsf, "
+                   "HaTT; default 0): the same seed, the same confusion matrix")
     i.set_defaults(func=run_identify)
 
     c = tsub.add_parser(
@@ -276,6 +279,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "cannot be fitted on the scans is reported, not fatal)")
     c.add_argument("--specimens", action="store_true", help="also the 2 x 2 of Table I")
     c.add_argument("--trials", type=int, default=3, help="--specimens: trials per specimen")
+    c.add_argument("--seed", type=int, default=0,
+                   help="noise seed of the models that synthesize noise (LPC, mlp_lsf, "
+                   "HaTT; default 0): the same seed, the same confusion matrix")
     c.add_argument("--out-dir", required=True, metavar="DIR")
     c.set_defaults(func=run_compare)
 
@@ -1039,7 +1045,7 @@ def run_identify(args: argparse.Namespace) -> int:
         warnings.simplefilter("ignore")
         ident = identify(models, scans, method=args.method, distance=args.distance,
                          wrap=lambda it: progress(it, total=len(scans), desc="identify"),
-                         model_names=args.models)
+                         model_names=args.models, seed=args.seed)
     print(f"identification rate {ident.rate:.1%} ({len(scans)} scans, {len(models)} models)")
     if args.json:
         Path(args.json).write_text(json.dumps(ident.to_json(), indent=1) + "\n",
@@ -1063,7 +1069,7 @@ def _run_identify_family(args: argparse.Namespace, kinds: set[str]) -> int:
     scans = read_scans(args.scans)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        ident = identify_families(fams, labels, scans,
+        ident = identify_families(fams, labels, scans, seed=args.seed,
                                   wrap=lambda it: progress(it, total=len(scans),
                                                            desc="identify"))
     print(f"{next(iter(kinds))}: identification rate {ident.rate:.1%} ({len(scans)} scans, "
@@ -1094,7 +1100,7 @@ def run_compare(args: argparse.Namespace) -> int:
     result: dict = {"train": args.train, "scans": args.scans, "families": {}}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = compare_families(train, test, kinds)
+        res = compare_families(train, test, kinds, seed=args.seed)
         for kind, ident in res.items():
             if isinstance(ident, str):
                 print(f"{kind:9s} {ident}")

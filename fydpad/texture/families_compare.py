@@ -57,10 +57,14 @@ def observe(scan, what: str, highpass_hz: float = 10.0) -> np.ndarray:
 
 
 def identify_families(models: Sequence, labels: Sequence[str], scans: Sequence, *,
-                      highpass_hz: float = 10.0,
+                      highpass_hz: float = 10.0, seed: int = 0,
                       wrap: Callable[[Iterable], Iterable] = lambda it: it
                       ) -> Identification:
-    """Assign each scan to the nearest model (all of one family, one per surface)."""
+    """Assign each scan to the nearest model (all of one family, one per surface).
+
+    A family that synthesizes noise (the LPC family, ``mlp_lsf`` through it, a HaTT
+    model: those with a ``seed``) draws it from ``seed`` for every scan, so a run is
+    reproducible; built without one, each run drew its own and close calls flipped."""
     names = list(dict.fromkeys(list(labels) + [s.surface for s in scans]))
     conf = np.zeros((len(names), len(names)), int)
     assignments = []
@@ -72,6 +76,8 @@ def identify_families(models: Sequence, labels: Sequence[str], scans: Sequence, 
         sel = (f >= band[0]) & (f <= min(band[1], scan.fs_hz / 2))
         dists = []
         for m in models:
+            if hasattr(m, "seed"):
+                m.seed = seed
             m.reset()
             syn = m.render(finger, channel)
             _, ps = welch_psd(syn - np.mean(syn), scan.fs_hz, mask)
@@ -112,9 +118,10 @@ def fit_per_surface(kind: str, train: dict[str, list], **options) -> tuple[list,
 
 
 def compare_families(train: Sequence, test: Sequence, kinds: Sequence[str],
-                     wrap: Callable[[Iterable], Iterable] = lambda it: it
+                     wrap: Callable[[Iterable], Iterable] = lambda it: it, seed: int = 0
                      ) -> dict[str, Identification | str]:
-    """Per family: fit one model per training surface, identify every test scan."""
+    """Per family: fit one model per training surface, identify every test scan (noise
+    drawn from ``seed``: :func:`identify_families`)."""
     out: dict[str, Identification | str] = {}
     groups = by_surface(train)
     for kind in kinds:
@@ -123,7 +130,7 @@ def compare_families(train: Sequence, test: Sequence, kinds: Sequence[str],
         except Exception as exc:  # a family that cannot fit these scans is reported
             out[kind] = f"not fitted: {exc}"
             continue
-        out[kind] = identify_families(models, labels, test, wrap=wrap)
+        out[kind] = identify_families(models, labels, test, wrap=wrap, seed=seed)
     return out
 
 
