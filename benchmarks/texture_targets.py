@@ -158,10 +158,9 @@ def main() -> None:
             ("all", tot, n * len(speeds))]:
         line = (f"  {label}: model {m['model']}/{cells} [{m['undecided']}] "
                 f"({m['single']}/{cells * args.held} strokes)")
-        for who in ("third", "paper") if args.third or args.paper else ():
-            if getattr(args, who):
-                line += (f", {who} {m[who]}/{cells} [{m[who + '_undecided']}] "
-                         f"({m[who + '_single']}/{cells * args.held})")
+        for who in [w for w in ("third", "paper") if getattr(args, w)]:
+            line += (f", {who} {m[who]}/{cells} [{m[who + '_undecided']}] "
+                     f"({m[who + '_single']}/{cells * args.held})")
         print(line)
 
 

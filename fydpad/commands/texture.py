@@ -51,6 +51,11 @@ def _fit_kinds() -> tuple[str, ...]:
     return FIT_KIND_NAMES
 
 
+#: identify's and compare's --seed (families_compare.identify_families).
+IDENTIFY_SEED_HELP = ("noise seed of the models that synthesize noise (LPC, mlp_lsf, HaTT; "
+                      "default 0): the same seed, the same confusion matrix")
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "texture", help="texture models: fit from scans, synthesize, evaluate, identify",
@@ -251,9 +256,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="between the spectra: bands (default: RMS dB difference of the "
                    "third-octave band levels) or lsd (log-spectral distance on 4 Hz bins, "
                    "as before)")
-    i.add_argument("--seed", type=int, default=0,
-                   help="noise seed of the models that synthesize noise (LPC, mlp_lsf, "
-                   "HaTT; default 0): the same seed, the same confusion matrix")
+    i.add_argument("--seed", type=int, default=0, help=IDENTIFY_SEED_HELP)
     i.set_defaults(func=run_identify)
 
     c = tsub.add_parser(
@@ -279,9 +282,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "cannot be fitted on the scans is reported, not fatal)")
     c.add_argument("--specimens", action="store_true", help="also the 2 x 2 of Table I")
     c.add_argument("--trials", type=int, default=3, help="--specimens: trials per specimen")
-    c.add_argument("--seed", type=int, default=0,
-                   help="noise seed of the models that synthesize noise (LPC, mlp_lsf, "
-                   "HaTT; default 0): the same seed, the same confusion matrix")
+    c.add_argument("--seed", type=int, default=0, help=IDENTIFY_SEED_HELP)
     c.add_argument("--out-dir", required=True, metavar="DIR")
     c.set_defaults(func=run_compare)
 
