@@ -145,10 +145,13 @@ def test_bad_settings_refused(station):
 
 
 def _xy(page):
-    page.wait_for_function("() => document.getElementById('x') && "
-                           "document.getElementById('x').textContent !== ''")
-    return (float(page.locator("#x").text_content()), float(page.locator("#y").text_content()),
-            int(page.evaluate("since")))
+    """(x, y, frames since load) read in one turn of the page's script: read one by one,
+    a frame could blank #x or #y between the wait and the read (a CI run read '')."""
+    got = page.wait_for_function(
+        "() => { const x = document.getElementById('x'), y = document.getElementById('y');"
+        " return x && y && x.textContent !== '' && y.textContent !== ''"
+        " ? [x.textContent, y.textContent, since] : null; }").json_value()
+    return float(got[0]), float(got[1]), int(got[2])
 
 
 def test_contact_moves_on_the_page(station, page):
