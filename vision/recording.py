@@ -11,7 +11,7 @@ import json
 import math
 import os
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -293,6 +293,14 @@ class CsvRowWriter:
 
     def write(self, *values: object) -> None:
         self._fh.write(",".join(_fmt(v) for v in values) + "\n")
+        now = time.monotonic()
+        if now - self._last_flush >= self._flush_every_s:
+            self._fh.flush()
+            self._last_flush = now
+
+    def write_rows(self, rows: Iterable[Sequence[object]]) -> None:
+        """Many rows in one write (a log's writer thread, a chunk at a time)."""
+        self._fh.write("".join(",".join(map(_fmt, r)) + "\n" for r in rows))
         now = time.monotonic()
         if now - self._last_flush >= self._flush_every_s:
             self._fh.flush()
