@@ -10,6 +10,7 @@ import csv
 import json
 import math
 import os
+import stat
 import time
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -313,7 +314,8 @@ class CsvRowWriter:
     def close(self) -> None:
         if not self._fh.closed:
             self._fh.flush()
-            os.fsync(self._fh.fileno())
+            if stat.S_ISREG(os.fstat(self._fh.fileno()).st_mode):  # a pipe has no fsync
+                os.fsync(self._fh.fileno())
             self._fh.close()
 
     def __enter__(self) -> CsvRowWriter:
