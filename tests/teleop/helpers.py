@@ -99,6 +99,7 @@ class Master:
         self.sock.setsockopt(zmq.ROUTING_ID, self.routing_id)
         self.sock.connect(endpoint)
         self.x_mm = x_mm
+        self.operator_hold = False  # the samples' operator-hold flag, from now on
         self.period_s = 1.0 / rate_hz
         t0 = time.monotonic()
         self.offset_s = (-t0 if clock_from_zero else clock_offset_s)
@@ -116,7 +117,8 @@ class Master:
         t_next = time.monotonic()
         while not self._stop.is_set():
             t = self.clock()
-            msg = P.encode_sample(P.Sample(self.seq, t, t, self.x_mm, 0.0, 1.0, 1.0, True))
+            msg = P.encode_sample(P.Sample(self.seq, t, t, self.x_mm, 0.0, 1.0, 1.0, True,
+                                           operator_hold=self.operator_hold))
             self.seq += 1
             self.sent.append(msg)
             self.sock.send(msg)
