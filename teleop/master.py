@@ -1,5 +1,5 @@
 """Master side: stream FingerState samples to a slave at their real rate, collect its state,
-and build the report of RECORDING_FORMAT.md (paper IV-B, eq. 6).
+and build the report of docs/recording_format.md (paper IV-B, eq. 6).
 
     from teleop.master import run_session
     session = run_session(states, "tcp://127.0.0.1:5555", truth=truth_rows)
@@ -227,7 +227,7 @@ def run_session(states: Sequence[FingerState], endpoint: str, cfg: TeleopConfig 
 
 def build_report(main: StreamLog, base: StreamLog | None,
                  truth: np.ndarray | None = None) -> dict:
-    """The RECORDING_FORMAT.md report from a main pass and an optional baseline pass."""
+    """The docs/recording_format.md report from a main pass and an optional baseline pass."""
     t, m, c = main.arrays()
     tl, sl = main.slave_log()
     mae = mae_per_axis(t, m, c, tl, sl)

@@ -1,6 +1,6 @@
 """Readers and writers for the pad session recording and the tracking output.
 
-The formats are the contract of ``RECORDING_FORMAT.md``; every error names the file
+The formats are the contract of docs/recording_format.md; every error names the file
 and the key, or the line number (the header is line 1).
 """
 

@@ -20,7 +20,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=(
             "Track a pad session recording, stream the finger states to a slave robot "
             "(`teleop slave`) at the recording's own frame rate, collect the slave's actual "
-            "positions and write the tele-operation report of RECORDING_FORMAT.md: MAE per "
+            "positions and write the tele-operation report of docs/recording_format.md: MAE per "
             "axis (eq. 6), the same under the paper's condition (10 Hz master, slave holds), "
             "lag, link latency, and the error against the true finger where the recording "
             "has truth.csv."

@@ -51,7 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "tele-operation follows at the same rate (default: [loops] vision_hz of "
                    "the config, 30, or the camera's rate when lower)")
     p.add_argument("--record", metavar="DIR",
-                   help="record the session (RECORDING_FORMAT.md) as it goes")
+                   help="record the session (docs/recording_format.md) as it goes")
     p.add_argument("--no-video", action="store_true", help="with --record: no video file")
     p.add_argument("--stats", metavar="FILE", help="write loop statistics as JSON on exit")
     p.add_argument("--motors", choices=["none", "sim", "qb"], default="none",
