@@ -1,4 +1,4 @@
-"""The bounded buffer between a renderer and a sound card's callback (issue 8).
+"""The bounded buffer between a renderer and a sound card's callback.
 
 :class:`SampleRing` is a single-producer single-consumer ring of float32 samples. The
 writer only advances ``_w`` and the reader only ``_r``, each after its copy, so neither

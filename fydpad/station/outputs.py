@@ -1,4 +1,4 @@
-"""Output channels of the live station (issue 8): ``fydpad run --channel [SIGNAL=]TARGET``.
+"""Output channels of the live station: ``fydpad run --channel [SIGNAL=]TARGET``.
 
 The render process's texture family writes, besides the motors' vibration term, to named
 channels each at its own rate (docs/channels.md): ``vibration`` and ``tension`` come from

@@ -1,4 +1,4 @@
-"""``fydpad run --channel``: the station's texture signals on output channels (issue 8).
+"""``fydpad run --channel``: the station's texture signals on output channels.
 
 A replayed blob circling the pad, the simulated motors and a friction model: the 1 kHz
 vibration term goes to WAV and CSV files, the friction family's electrostatic channel
