@@ -15,16 +15,16 @@ import pytest
 pytest.importorskip("rosbags", reason="the ros extra (pip install 'fydpad[ros]') is absent")
 pytest.importorskip("mcap_ros2", reason="the independent reader mcap-ros2-support is absent")
 
-import cv2  # noqa: E402
-import yaml  # noqa: E402
-from mcap.reader import make_reader  # noqa: E402
-from mcap_ros2.decoder import DecoderFactory  # noqa: E402
+import cv2
+import yaml
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
 
-from fydpad.cli import main  # noqa: E402
-from fydpad.config import load_config  # noqa: E402
-from fydpad.export.bag import TOPICS, export_bag  # noqa: E402
-from vision.indentation import IndentationEstimator  # noqa: E402
-from vision.recording import read_csv_columns, read_meta  # noqa: E402
+from fydpad.cli import main
+from fydpad.config import load_config
+from fydpad.export.bag import TOPICS, export_bag
+from vision.indentation import IndentationEstimator
+from vision.recording import read_csv_columns, read_meta
 
 ROOT = Path(__file__).resolve().parents[2]
 RECORDINGS = ROOT / "recordings"
@@ -161,7 +161,8 @@ def _check_metadata(bag: Path, msgs: dict) -> None:
 
 
 def _check_tf(msgs: dict, rec: Path) -> None:
-    ((t, tf),) = msgs["/tf_static"]
+    ((t_tf, tf),) = msgs["/tf_static"]
+    assert t_tf == 0
     frames = {(x.header.frame_id, x.child_frame_id): x.transform for x in tf.transforms}
     ws = frames[("base_link", "fydpad_workspace")]
     origin = load_config(DEVICE).teleop.mapping.origin_mm
