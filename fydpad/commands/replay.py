@@ -31,6 +31,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="the slave's ZeroMQ endpoint, e.g. tcp://127.0.0.1:5555")
     p.add_argument("--report", metavar="REPORT.json", required=True, help="report to write")
     p.add_argument("--plot", metavar="PNG", help="master and slave per axis over time (Fig. 11)")
+    p.add_argument("--slave-log", metavar="CSV",
+                   help="write the slave's command and actual position per tick on the "
+                   "recording's clock (for `fydpad export bag --slave-log`)")
     p.add_argument("--no-baseline", action="store_true",
                    help="skip the second pass under the paper's condition")
     add_config_argument(p)
@@ -49,6 +52,10 @@ def run(args: argparse.Namespace) -> int:
     except TimeoutError as exc:
         raise UserError(str(exc)) from None
     Path(args.report).write_text(json.dumps(session.report, indent=2) + "\n")
+    if args.slave_log:
+        from fydpad.export.slave_log import write_slave_log
+
+        write_slave_log(session, args.slave_log)
     if args.plot:
         session.plot(args.plot, title=rec.path.name)
     print(format_report(rec.path.name, session.report))
