@@ -85,12 +85,15 @@ def _position(fs: FingerState) -> tuple[float, float, float]:
 def stream(states: Iterable[FingerState], sock: MasterSocket, *, rate_hz: float | None = None,
            hold_mode: bool = False, preroll_s: float = 0.5, tail_s: float = 0.3,
            first_seq: int = 1, preroll_state: FingerState | None = None,
+           operator_hold: Callable[[float], bool] | None = None,
            clock: Callable[[], float] = time.monotonic) -> StreamLog:
     """Send ``states`` at the times their ``t_s`` say, collecting slave states meanwhile.
 
     ``rate_hz`` decimates (the paper's 10 Hz master); every input sample is still logged
     as the master position to score against. ``preroll_s`` of ``preroll_state`` (default:
     the first sample) brings the arm to the start first (not scored).
+    ``operator_hold(t_s)``: whether the operator holds the robot at recording time ``t_s``
+    (the samples then carry the operator-hold flag).
     """
     log = StreamLog()
     seq = first_seq
@@ -113,7 +116,8 @@ def stream(states: Iterable[FingerState], sock: MasterSocket, *, rate_hz: float 
         nonlocal seq
         x, y, z = _position(fs)
         force = fs.force_n if math.isfinite(fs.force_n) else math.nan
-        msg = P.Sample(seq, t_cap, clock(), x, y, z, force, fs.contact, hold_mode)
+        held = operator_hold is not None and operator_hold(fs.t_s)
+        msg = P.Sample(seq, t_cap, clock(), x, y, z, force, fs.contact, hold_mode, held)
         seq += 1
         if sock.send(P.encode_sample(msg)):
             log.sent += 1
@@ -173,12 +177,22 @@ def _chain(first: FingerState, rest: Iterable[FingerState]) -> Iterable[FingerSt
 
 
 def _dropped(log: StreamLog) -> int:
-    """Samples the slave refused during this pass, plus those never sent."""
-    acks = [st for _, st in log.states]
-    if not acks:
+    """Samples the slave refused during this pass, plus those never sent or lost.
+
+    A slave's counters are its process's: a restarted slave counts from 0 again (seen as
+    ``received`` or ``dropped`` going down), so the pass is split there and each slave's
+    counters are differenced on their own."""
+    states = [st for _, st in log.states]
+    if not states:
         return log.sent + log.send_failed
-    delivered = acks[-1].received - acks[0].received + 1
-    refused = acks[-1].dropped - acks[0].dropped
+    delivered = refused = 0
+    first = prev = states[0]
+    for st in [*states[1:], None]:
+        if st is None or st.received < prev.received or st.dropped < prev.dropped:
+            delivered += prev.received - first.received + 1
+            refused += prev.dropped - first.dropped
+            first = st
+        prev = st if st is not None else prev
     return log.send_failed + max(0, log.sent - delivered) + refused
 
 
