@@ -21,7 +21,14 @@ from teleop import protocol as P
 from teleop.config import TeleopConfig
 from teleop.link import MasterSocket, wait_readable
 from teleop.realtime import realtime_scheduling
-from teleop.report import axes_dict, best_lag_s, latency_ms, mae_per_axis, plot_tracking
+from teleop.report import (
+    axes_dict,
+    best_lag_s,
+    latency_ms,
+    mae_per_axis,
+    plot_tracking,
+    truth_breakdown,
+)
 from vision.state import FingerState
 
 
@@ -260,6 +267,8 @@ def build_report(main: StreamLog, base: StreamLog | None,
         t_true = main.t0_s + (tt[:, 0] - main.t_s0)
         rep["truth_mae_mm"] = axes_dict(mae_per_axis(t_true, tt[:, 2:5], tt[:, 1] > 0.5,
                                                       tl, sl))
+        rep["truth_breakdown_mm"] = truth_breakdown(t, m, c, tl, sl, t_true, tt[:, 2:5],
+                                                    tt[:, 1] > 0.5)
     return rep
 
 
