@@ -105,6 +105,11 @@ def _run_slave(args: argparse.Namespace, cfg: TeleopConfig, scheduling: str) -> 
     except (OSError, FileNotFoundError, ArmFault, ValueError) as e:
         print(f"teleop slave: {e}", file=sys.stderr)
         return 2
+    except Exception as e:  # a fault in the loop or the link: the robot is stopped (finally)
+        log.exception("slave loop fault")
+        print(f"teleop slave: stopped the robot on a fault: {type(e).__name__}: {e}",
+              file=sys.stderr)
+        return 1
     finally:
         arm.close()
         signal.signal(signal.SIGTERM, old_handlers[0])

@@ -34,7 +34,8 @@ STATUS_NOT_OWNER = 7  # (acknowledgement only) another master owns the arm: samp
 
 # Why a state was sent.
 REASON_TICK = 0
-REASON_ACK = 1
+REASON_ACK = 1  # acknowledgement of an accepted sample
+REASON_REFUSED = 2  # acknowledgement of a refused sample (the slave counted it as dropped)
 
 _HEADER = "<4sBB"
 # magic, version, type, flags u16, seq u64, t_capture f64, t_send f64, x, y, z, force f64
