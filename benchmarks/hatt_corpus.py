@@ -38,7 +38,7 @@ from fydpad.texture.fit import fit_paper
 from fydpad.texture.identify import identify
 from fydpad.texture.penn import read_penn
 from fydpad.texture.scan_generator import hand_speed, penn_scan, plateau_speed
-from fydpad.texture.select import select_model
+from fydpad.texture.select import _piece, fit_candidate, select_model
 from fydpad.texture.synthesis import TextureRenderer
 
 PLATEAUS_MM_S = (10.0, 20.0, 30.0, 40.0)
@@ -80,6 +80,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("dir", type=Path, help="directory of HaTT Models_*.xml files")
     ap.add_argument("--only", help="comma-separated material names (default: every file)")
     ap.add_argument("--json", type=Path, help="write every figure as JSON")
+    ap.add_argument("--rows", type=Path,
+                    help="append each surface's figures to this JSON-lines file as it is done "
+                    "and skip the surfaces it already holds (a long run resumes)")
     args = ap.parse_args(argv)
     only = None if args.only is None else {s.strip() for s in args.only.split(",")}
     # Filtered by file name before any file is opened.
@@ -90,10 +93,22 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 2
     rows, models, scans20 = [], {"default": [], "paper": []}, []
+    done = {}
+    if args.rows is not None and args.rows.exists():
+        for line in args.rows.read_text().splitlines():
+            r = json.loads(line)
+            done[r["surface"]] = r
     t0 = time.perf_counter()
     warnings.simplefilter("ignore")  # clamping beyond the fitted speeds: said by fit/synth
     for path in progress(files, desc="surfaces", unit="surface"):
         name, train, held, second = surface_scans(path)
+        if name in done:  # its figures from the rows file; refitted for identification
+            rows.append(done[name])
+            models["default"].append(fit_candidate(done[name]["winner"], [train],
+                                                   PLATEAUS_MM_S))
+            models["paper"].append(fit_paper([train]))
+            scans20.append(held[20.0])
+            continue
         default, sel = select_model([train], speeds_mm_s=PLATEAUS_MM_S)
         paper = fit_paper([train])
         row = {"surface": name, "winner": sel.winner, "validated": sel.validated,
@@ -103,10 +118,20 @@ def main(argv: list[str] | None = None) -> int:
             k = f"{s:g}"
             row["speeds"][k] = {"default": d[k][0], "paper": p[k][0], "ceiling": d[k][1]}
         rows.append(row)
+        if args.rows is not None:
+            with args.rows.open("a") as fh:
+                fh.write(json.dumps(row, allow_nan=False) + "\n")
+        print(f"{name}: chose {sel.winner}; mean LSD default "
+              f"{np.mean([v['default']['lsd_db'] for v in row['speeds'].values()]):.2f} dB, "
+              f"paper {np.mean([v['paper']['lsd_db'] for v in row['speeds'].values()]):.2f}, "
+              f"ceiling {np.mean([v['ceiling']['lsd_db'] for v in row['speeds'].values()]):.2f}",
+              flush=True)
         models["default"].append(default)
         models["paper"].append(paper)
         scans20.append(held[20.0])
-    ident = {k: identify(m, scans20) for k, m in models.items()}
+    # The first 5 s of each 20 mm/s stroke: N x N syntheses, kept short.
+    crops = [_piece(sc, 0, round(5 * sc.fs_hz), "5s") for sc in scans20]
+    ident = {k: identify(m, crops) for k, m in models.items()}
     for row, a, b in zip(rows, ident["default"].assignments, ident["paper"].assignments,
                          strict=True):
         row["identified"] = {"default": a["predicted"] == a["label"],
