@@ -51,7 +51,10 @@ FOLLOWING_ERROR_RAD = 0.3  # a joint this far behind its reference: protective s
 MAX_CATCHUP_S = 0.06  # a caller starved longer than this: the controller re-syncs
 LOOKAHEAD_RANGE_S = (0.03, 0.2)
 GAIN_RANGE = (100.0, 2000.0)
-SAFETY_NORMAL, SAFETY_PROTECTIVE_STOP = 1, 3  # ur-rtde getSafetyMode values
+SAFETY_NORMAL, SAFETY_PROTECTIVE_STOP = 1, 3
+#: Where the arm stands at power-on: (0.55, 0, 0.25) m, tool down, flange x along base x
+#: (the default mapping's home; teleop.config.MappingConfig.origin_mm).
+READY_POSE = (0.55, 0.0, 0.25, -math.pi, 0.0, 0.0)  # ur-rtde getSafetyMode values
 
 
 class SimURController:
@@ -67,8 +70,11 @@ class SimURController:
         self.data = mujoco.MjData(self.model)
         self._kin = mujoco.MjData(self.model)  # for inverse kinematics, never stepped
         mujoco.mj_resetDataKeyframe(self.model, self.data, 0)
-        mujoco.mj_forward(self.model, self.data)
         self._site = self.model.site("tcp").id
+        # Powered on at rest in the ready pose: the tool down over the default workspace
+        # centre, reached from the Menagerie's home posture (elbow up).
+        self.data.qpos[:] = self.ik(READY_POSE, self.data.qpos, iters=100)
+        mujoco.mj_forward(self.model, self.data)
         self._kp_model = self.model.actuator_gainprm[:, 0].copy()
         self.q_lo = self.model.jnt_range[:, 0].copy()
         self.q_hi = self.model.jnt_range[:, 1].copy()

@@ -50,9 +50,18 @@ def _servo_for(arm: URArm, clock: Clock, target_mm, seconds: float, log=None) ->
             log.append((clock.t_s, arm.actual_mm(), np.array(arm.recv.getActualQ())))
 
 
-def test_start_reaches_home_and_holds_it_against_gravity():
+def test_movel_reaches_the_pose_at_its_speed_and_holds_it_against_gravity():
     arm, clock = _arm()
     np.testing.assert_allclose(arm.actual_mm(), HOME_MM, atol=0.05)
+    c = arm.ctrl.c
+    t0 = c.t_sim_s
+    goal = HOME_MM + np.array([60.0, -50.0, -30.0])
+    assert arm.ctrl.moveL(arm._pose(goal), 0.1, 0.5)
+    np.testing.assert_allclose(arm.actual_mm(), goal, atol=0.05)
+    # 85 mm at 0.1 m/s, then the 0.3 s settle: the move took its time on the arm's clock.
+    assert c.t_sim_s - t0 == pytest.approx(np.linalg.norm(goal - HOME_MM) / 100.0 + 0.3,
+                                           abs=0.01)
+    assert arm.ctrl.moveL(arm._pose(HOME_MM), 0.1, 0.5)
     _servo_for(arm, clock, HOME_MM, 1.0)
     np.testing.assert_allclose(arm.actual_mm(), HOME_MM, atol=0.05)  # no sag
     # The tool points down: the flange's z axis along -z of the base.
