@@ -12,8 +12,10 @@ from __future__ import annotations
 
 import ipaddress
 import logging
+import os
 import select
 import time
+from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 from urllib.parse import urlparse
@@ -21,11 +23,40 @@ from urllib.parse import urlparse
 import zmq
 import zmq.auth
 from zmq.auth.thread import ThreadAuthenticator
+from zmq.utils.monitor import recv_monitor_message
 
 from teleop.config import LinkConfig
 from teleop.keys import client_keys, server_keys
 
 log = logging.getLogger(__name__)
+
+# ZMQ_MAXMSGSIZE on both sockets (docs/protocol.md): the largest message is a state (96
+# bytes), CURVE's handshake commands stay under 400; a peer sending more is disconnected by
+# libzmq from the length in the frame header, before any of it is read into memory.
+MAX_MSG_SIZE = 4096
+
+# Socket-monitor events of a refused handshake -> the name counted and logged.
+HANDSHAKE_FAILED = {
+    zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL: "no_detail",
+    zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL: "protocol",
+    zmq.EVENT_HANDSHAKE_FAILED_AUTH: "auth",
+}
+_HANDSHAKE_HINT = {
+    "no_detail": "the connection failed during the handshake",
+    "protocol": "a client without CurveZMQ keys, with the wrong server key, or speaking "
+                "another protocol",
+    "auth": "a client key not in authorized_clients/",
+}
+
+# The monitor's value for a protocol failure, by name (for auth it is the ZAP status, 400).
+_PROTOCOL_ERRORS = {getattr(zmq, n): n for n in dir(zmq) if n.startswith("PROTOCOL_ERROR_")}
+
+
+def master_routing_id() -> bytes:
+    """A routing id unique to this master socket, random at its creation: a TCP reconnect
+    keeps it, so the slave sees the same master; a new process is a new master. 16 bytes,
+    the first never 0 (libzmq reserves ids starting with a zero byte)."""
+    return b"M" + os.urandom(15)
 
 
 def is_loopback(endpoint: str) -> bool:
@@ -113,6 +144,14 @@ class SlaveSocket:
         self.sock = self.ctx.socket(zmq.ROUTER)
         self.sock.linger = 0
         self.sock.setsockopt(zmq.RCVHWM, 1000)
+        self.sock.setsockopt(zmq.MAXMSGSIZE, MAX_MSG_SIZE)
+        # A master reconnecting with its routing id takes it over at once (the old TCP
+        # connection may not be seen dead yet); without this libzmq drops the new one.
+        self.sock.setsockopt(zmq.ROUTER_HANDOVER, 1)
+        self.handshakes_failed: Counter[str] = Counter()
+        self.monitor = self.sock.get_monitor_socket(
+            zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL | zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL
+            | zmq.EVENT_HANDSHAKE_FAILED_AUTH)
         self.curve = curve_enabled(cfg, endpoint)
         if self.curve:
             keys_dir = Path(cfg.keys_dir)
@@ -130,7 +169,33 @@ class SlaveSocket:
             raise OSError(f"slave cannot bind {endpoint}: {e}") from e
         self.endpoint = self.sock.getsockopt_string(zmq.LAST_ENDPOINT)
 
+    def poll_monitor(self) -> int:
+        """Count and log every refused handshake the socket monitor reported (non-blocking;
+        the slave calls it each tick). Refusals that never reach ZAP (a client without keys,
+        or with the wrong server key) are seen only here. Returns how many were read."""
+        n = 0
+        while True:
+            try:
+                ev = recv_monitor_message(self.monitor, zmq.NOBLOCK)
+            except zmq.Again:
+                return n
+            except zmq.ZMQError:  # the monitor is closed
+                return n
+            kind = HANDSHAKE_FAILED.get(ev["event"])
+            if kind is None:
+                continue
+            n += 1
+            self.handshakes_failed[kind] += 1
+            detail = _PROTOCOL_ERRORS.get(int(ev["value"]), str(int(ev["value"])))
+            log.warning("refused a handshake on %s (%s, code %s): %s", self.endpoint, kind,
+                        detail, _HANDSHAKE_HINT[kind])
+
     def close(self) -> None:
+        try:
+            self.sock.disable_monitor()
+        except zmq.ZMQError:
+            pass
+        self.monitor.close(linger=0)
         self.sock.close(linger=0)
         if self.auth is not None:
             self.auth.stop()
@@ -152,6 +217,9 @@ class MasterSocket:
         self.ctx = ctx or zmq.Context.instance()
         self.sock = self.ctx.socket(zmq.DEALER)
         self.sock.linger = 0
+        self.routing_id = master_routing_id()
+        self.sock.setsockopt(zmq.ROUTING_ID, self.routing_id)
+        self.sock.setsockopt(zmq.MAXMSGSIZE, MAX_MSG_SIZE)
         self.sock.sndhwm = cfg.send_hwm
         self.sock.setsockopt(zmq.IMMEDIATE, 1)  # never queue samples for a slave not there
         self.sock.setsockopt(zmq.RECONNECT_IVL, 50)

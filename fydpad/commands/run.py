@@ -51,7 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "tele-operation follows at the same rate (default: [loops] vision_hz of "
                    "the config, 30, or the camera's rate when lower)")
     p.add_argument("--record", metavar="DIR",
-                   help="record the session (RECORDING_FORMAT.md) as it goes")
+                   help="record the session (docs/recording_format.md) as it goes")
     p.add_argument("--no-video", action="store_true", help="with --record: no video file")
     p.add_argument("--bag", metavar="BAGDIR",
                    help="with --record: when the station stops, also export the recording as "
@@ -97,7 +97,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-realtime", action="store_true",
                    help="do not ask for SCHED_FIFO and a core for the render process")
     add_config_argument(p)
-    # -- web view (issue 10) --
+    # -- web view --
     p.add_argument("--web", metavar="[HOST:]PORT",
                    help="serve the web view (live image, plots, setup, experiment runner); "
                    "loopback unless HOST is given, then with a token printed at start")
@@ -331,7 +331,7 @@ def run(args: argparse.Namespace) -> int:
                     err := link.tracking_error_mm(state)) else None),
             }
         options.teleop_send = send
-    # -- web view (issue 10) --
+    # -- web view --
     web = None
     if getattr(args, "web", None):
         from fydpad.web import parse_web_address, start_web
@@ -360,7 +360,7 @@ def run(args: argparse.Namespace) -> int:
     finally:
         signal.signal(signal.SIGINT, previous)
         signal.signal(signal.SIGTERM, previous_term)
-        if web is not None:  # web view (issue 10)
+        if web is not None:  # web view
             web.stop()
         if link is not None:
             station.stats["link"] = {"sent": link.sent, "send_failed": link.send_failed,
