@@ -46,11 +46,15 @@ CONTROL_HZ = 500.0
 PHYSICS_DT_S = 0.001
 JOINT_SPEED_RAD_S = math.pi  # UR5e data sheet: 180 deg/s on every joint
 GAIN_AT_MODEL_KP = 300.0  # ur-rtde's default servoL gain maps to the Menagerie's kp
-FOLLOWING_ERROR_RAD = 0.15  # a joint this far behind its reference: protective stop
+JOINT_ACCEL_RAD_S2 = 40.0  # the reference's acceleration bound (not published by UR: chosen)
+FOLLOWING_ERROR_RAD = 0.3  # a joint this far behind its reference: protective stop
 MAX_CATCHUP_S = 0.06  # a caller starved longer than this: the controller re-syncs
 LOOKAHEAD_RANGE_S = (0.03, 0.2)
 GAIN_RANGE = (100.0, 2000.0)
-SAFETY_NORMAL, SAFETY_PROTECTIVE_STOP = 1, 3  # ur-rtde getSafetyMode values
+SAFETY_NORMAL, SAFETY_PROTECTIVE_STOP = 1, 3
+#: Where the arm stands at power-on: (0.55, 0, 0.25) m, tool down, flange x along base x
+#: (the default mapping's home; teleop.config.MappingConfig.origin_mm).
+READY_POSE = (0.55, 0.0, 0.25, -math.pi, 0.0, 0.0)  # ur-rtde getSafetyMode values
 
 
 class SimURController:
@@ -66,13 +70,17 @@ class SimURController:
         self.data = mujoco.MjData(self.model)
         self._kin = mujoco.MjData(self.model)  # for inverse kinematics, never stepped
         mujoco.mj_resetDataKeyframe(self.model, self.data, 0)
-        mujoco.mj_forward(self.model, self.data)
         self._site = self.model.site("tcp").id
+        # Powered on at rest in the ready pose: the tool down over the default workspace
+        # centre, reached from the Menagerie's home posture (elbow up).
+        self.data.qpos[:] = self.ik(READY_POSE, self.data.qpos, iters=100)
+        mujoco.mj_forward(self.model, self.data)
         self._kp_model = self.model.actuator_gainprm[:, 0].copy()
         self.q_lo = self.model.jnt_range[:, 0].copy()
         self.q_hi = self.model.jnt_range[:, 1].copy()
         self.q_ref = self.data.qpos.copy()
         self.q_target: np.ndarray | None = None
+        self._v_ref = np.zeros(self.model.nv)  # the reference's joint speeds
         self.lookahead_s = 0.1
         self.gain = GAIN_AT_MODEL_KP
         self.connected = True
@@ -111,14 +119,19 @@ class SimURController:
         if self.protective_stop:
             return
         q = self.data.qpos
+        dv = JOINT_ACCEL_RAD_S2 * dt_s
         if self.q_target is not None and self.script_running:
             v = (self.q_target - self.q_ref) / self.lookahead_s
             v = np.clip(v, -JOINT_SPEED_RAD_S, JOINT_SPEED_RAD_S)
-            nxt = self.q_ref + v * dt_s
-            if np.any(nxt < self.q_lo) or np.any(nxt > self.q_hi):
-                self._pstop("joint limit")
-                return
-            self.q_ref = nxt
+        else:  # servoStop, stopScript: decelerate to rest where the reference is
+            v = np.zeros_like(self._v_ref)
+        v = np.clip(v, self._v_ref - dv, self._v_ref + dv)
+        self._v_ref = v
+        nxt = self.q_ref + v * dt_s
+        if np.any(nxt < self.q_lo) or np.any(nxt > self.q_hi):
+            self._pstop("joint limit")
+            return
+        self.q_ref = nxt
         err = np.abs(q - self.q_ref)
         if float(err.max()) > FOLLOWING_ERROR_RAD:
             self._pstop(f"joint {int(err.argmax())} lags its reference by "
@@ -138,6 +151,7 @@ class SimURController:
         self.stop_reason = why
         self.q_target = None
         self.q_ref = self.data.qpos.copy()  # brakes: hold where the arm is
+        self._v_ref[:] = 0.0
         self.data.ctrl[:] = self.q_ref
 
     # -- kinematics -----------------------------------------------------------------------
@@ -146,8 +160,13 @@ class SimURController:
         if qpos is not None:
             d.qpos[:] = qpos
         self._mj.mj_kinematics(self.model, d)
-        rot = Rotation.from_matrix(d.site_xmat[self._site].reshape(3, 3))
-        return [*d.site_xpos[self._site].tolist(), *rot.as_rotvec().tolist()]
+        quat = np.empty(4)  # w, x, y, z
+        self._mj.mju_mat2Quat(quat, d.site_xmat[self._site])
+        if quat[0] < 0:
+            quat = -quat
+        s = float(np.linalg.norm(quat[1:]))
+        rv = quat[1:] * (2.0 * math.atan2(s, quat[0]) / s) if s > 1e-12 else np.zeros(3)
+        return [*d.site_xpos[self._site].tolist(), *rv.tolist()]
 
     def ik(self, pose: list[float], seed: np.ndarray, iters: int = 8) -> np.ndarray:
         return self.ik_matrix(np.asarray(pose[:3], float),
@@ -169,7 +188,7 @@ class SimURController:
             e_p = p_goal - d.site_xpos[self._site]
             r_now = d.site_xmat[self._site].reshape(3, 3)
             # Orientation error of two frames: half the sum of their axes' cross products.
-            e_r = 0.5 * np.cross(r_now.T, r_goal.T).sum(axis=0)
+            e_r = 0.5 * _cross_sum(r_now, r_goal)
             if float(e_p @ e_p) < 1e-14 and float(e_r @ e_r) < 1e-12:
                 break
             mj.mj_jacSite(self.model, d, jp, jr, self._site)
@@ -220,6 +239,7 @@ class SimURController:
                 self._pstop("moveL through a joint limit")
                 return False
             self.q_ref = q
+            self._v_ref[:] = 0.0
             for _ in range(round(1.0 / (CONTROL_HZ * PHYSICS_DT_S))):
                 self.step()
             if self.protective_stop:
@@ -228,6 +248,15 @@ class SimURController:
             self.step()
         self._offset_s = self.clock() - self.t_sim_s  # the move took its time; now live
         return self.ok()
+
+
+def _cross_sum(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Sum over columns k of a[:, k] x b[:, k] (without np.cross's per-call overhead)."""
+    return np.array([
+        float(a[1] @ b[2] - a[2] @ b[1]),
+        float(a[2] @ b[0] - a[0] @ b[2]),
+        float(a[0] @ b[1] - a[1] @ b[0]),
+    ])
 
 
 def _rotvec_matrix(rv: np.ndarray) -> np.ndarray:
