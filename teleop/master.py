@@ -1,5 +1,5 @@
 """Master side: stream FingerState samples to a slave at their real rate, collect its state,
-and build the report of RECORDING_FORMAT.md (paper IV-B, eq. 6).
+and build the report of docs/recording_format.md (paper IV-B, eq. 6).
 
     from teleop.master import run_session
     session = run_session(states, "tcp://127.0.0.1:5555", truth=truth_rows)
@@ -21,7 +21,14 @@ from teleop import protocol as P
 from teleop.config import TeleopConfig
 from teleop.link import MasterSocket, wait_readable
 from teleop.realtime import realtime_scheduling
-from teleop.report import axes_dict, best_lag_s, latency_ms, mae_per_axis, plot_tracking
+from teleop.report import (
+    axes_dict,
+    best_lag_s,
+    latency_ms,
+    mae_per_axis,
+    plot_tracking,
+    truth_breakdown,
+)
 from vision.state import FingerState
 
 
@@ -241,7 +248,7 @@ def run_session(states: Sequence[FingerState], endpoint: str, cfg: TeleopConfig 
 
 def build_report(main: StreamLog, base: StreamLog | None,
                  truth: np.ndarray | None = None) -> dict:
-    """The RECORDING_FORMAT.md report from a main pass and an optional baseline pass."""
+    """The docs/recording_format.md report from a main pass and an optional baseline pass."""
     t, m, c = main.arrays()
     tl, sl = main.slave_log()
     mae = mae_per_axis(t, m, c, tl, sl)
@@ -260,6 +267,8 @@ def build_report(main: StreamLog, base: StreamLog | None,
         t_true = main.t0_s + (tt[:, 0] - main.t_s0)
         rep["truth_mae_mm"] = axes_dict(mae_per_axis(t_true, tt[:, 2:5], tt[:, 1] > 0.5,
                                                       tl, sl))
+        rep["truth_breakdown_mm"] = truth_breakdown(t, m, c, tl, sl, t_true, tt[:, 2:5],
+                                                    tt[:, 1] > 0.5)
     return rep
 
 

@@ -2,7 +2,7 @@
 
 Every message is one ZeroMQ frame, little-endian, fixed size, starting with the
 4-byte magic ``FYDT``, a version byte and a type byte. Positions are in the
-workspace frame (RECORDING_FORMAT.md), millimetres; times are seconds of the
+workspace frame (docs/recording_format.md), millimetres; times are seconds of the
 sender's monotonic clock.
 """
 

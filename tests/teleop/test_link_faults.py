@@ -1,4 +1,4 @@
-"""Fault tests over real sockets and processes (issue 5): each test says what it proves."""
+"""Fault tests over real sockets and processes: each test says what it proves."""
 
 from __future__ import annotations
 
