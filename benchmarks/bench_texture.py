@@ -1,4 +1,4 @@
-"""Texture benchmarks (issue 7 targets), run on demand: ``python benchmarks/bench_texture.py``.
+"""Texture benchmarks, run on demand: ``python benchmarks/bench_texture.py``.
 
 Each figure is printed beside a baseline measured in the same run:
 - block synthesis of 1 s at order 200 (target <= 1 ms, i.e. >= 1000x real time) against
