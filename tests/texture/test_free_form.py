@@ -206,7 +206,7 @@ def test_cli_fit_free_form_flag(tmp_path):
 
 @pytest.fixture(scope="module")
 def target_figures():
-    """test_targets.py's ``figures`` set-up (one 8 s training stroke per speed, held-out
+    """The generator's held-out set-up (one 8 s training stroke per speed, held-out
     8 s strokes seed 100, ceiling seed 200) for the calibrated form:
     {(texture, speed): (corr, lsd, ceiling)}."""
     from fydpad.texture.evaluate import evaluate_scan
