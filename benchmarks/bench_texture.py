@@ -181,7 +181,7 @@ def lines_benchmark(best) -> None:
 
 
 def quality(textures: list[str] | None = None) -> None:
-    """Held-out figures of the issue's targets for every texture (minutes; --quality)."""
+    """Held-out figures against the texture targets for every texture (minutes; --quality)."""
     from fydpad.texture.evaluate import compare_recordings, evaluate_scan, evaluation_mask
     from fydpad.texture.fit import fit_texture
     from fydpad.texture.identify import identify
