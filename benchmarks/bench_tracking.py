@@ -10,7 +10,7 @@ its best pass: a burst of load on a shared machine then hits all of them alike i
 one method's whole measurement.
 
 Usage: python benchmarks/bench_tracking.py [RECDIR] [--frames N] [--repeats N]
-Targets (issue 4): robust >= 1000 frames/s and >= 2x faster than numpy-paper.
+Targets: robust >= 1000 frames/s and >= 2x faster than numpy-paper.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Issue 7's accuracy targets measured on several held-out strokes per cell
+"""The texture accuracy targets measured on several held-out strokes per cell
 (docs/texture.md, "The targets on several strokes per cell").
 
 The target: on strokes the fit never saw, power-spectrum correlation >= 0.95 and LSD
@@ -11,7 +11,7 @@ recording, and compares the means: the model's mean LSD over the mean ceiling, a
 mean correlation. ``--third`` scores a third recording per stroke the same way (what a
 replica of the surface that is itself a recording meets); ``--paper`` scores the paper's
 plain method the same way: the per-speed LPC fit pooled over each speed's runs, its
-coefficients interpolated linearly between the fitted speeds (the issue asks for it
+coefficients interpolated linearly between the fitted speeds (the anchor, scored
 beside the default fit, on the same strokes). Each cell prints the mean gap
 and its standard error (SE); ``?`` marks a cell whose verdict the draw decides (a mean
 within two standard errors of its limit: sandpaper_p80's strokes scatter by 3.5 dB).

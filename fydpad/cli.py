@@ -15,7 +15,7 @@ from vision.recording import RecordingError
 #: Subcommand modules, in the order ``--help`` lists them.
 COMMANDS = (
     "demo", "track", "run", "replay", "synth", "calibrate", "softness", "texture", "experiment",
-    "chain", "config",
+    "chain", "config", "export",
 )
 
 

@@ -114,6 +114,11 @@ def _run_slave(args: argparse.Namespace, cfg: TeleopConfig, scheduling: str) -> 
     except (OSError, FileNotFoundError, ArmFault, ValueError) as e:
         print(f"teleop slave: {e}", file=sys.stderr)
         return 2
+    except Exception as e:  # a fault in the loop or the link: the robot is stopped (finally)
+        log.exception("slave loop fault")
+        print(f"teleop slave: stopped the robot on a fault: {type(e).__name__}: {e}",
+              file=sys.stderr)
+        return 1
     finally:
         arm.close()
         signal.signal(signal.SIGTERM, old_handlers[0])
@@ -147,7 +152,9 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Bind ENDPOINT, follow the master's samples with the robot; "
                                    "Ctrl-C stops the robot and writes the report.")
     s.add_argument("--robot", choices=("sim", "ur"), default="sim",
-                   help="sim: PyBullet KUKA iiwa (default); ur: Universal Robots via ur-rtde")
+                   help="sim: PyBullet KUKA iiwa (default); ur: Universal Robots via ur-rtde "
+                        "(with --ur-host sim: a UR5e in MuJoCo behind the same ur-rtde calls, "
+                        "the mujoco extra; docs/teleop.md)")
     s.add_argument("--bind", required=True,
                    help="ZeroMQ endpoint, e.g. tcp://0.0.0.0:5555 or tcp://127.0.0.1:* "
                         "(random port, printed)")
@@ -155,7 +162,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--config", metavar="FILE",
                    help="the device file (`fydpad config show`): its [teleop.*] tables; the "
                         "other sections are the station's and are skipped")
-    s.add_argument("--ur-host", help="UR controller address (with --robot ur)")
+    s.add_argument("--ur-host", help="UR controller address (with --robot ur); 'sim': the "
+                                     "simulated UR5e controller (MuJoCo)")
     s.add_argument("--curve", choices=("auto", "on", "off"),
                    help="CurveZMQ: auto = on unless the endpoint is loopback")
     s.add_argument("--keys", metavar="DIR", help="CurveZMQ key directory")

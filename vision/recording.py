@@ -1,6 +1,6 @@
 """Readers and writers for the pad session recording and the tracking output.
 
-The formats are the contract of ``RECORDING_FORMAT.md``; every error names the file
+The formats are the contract of docs/recording_format.md; every error names the file
 and the key, or the line number (the header is line 1).
 """
 
@@ -10,8 +10,9 @@ import csv
 import json
 import math
 import os
+import stat
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -298,6 +299,14 @@ class CsvRowWriter:
             self._fh.flush()
             self._last_flush = now
 
+    def write_rows(self, rows: Iterable[Sequence[object]]) -> None:
+        """Many rows in one write (a log's writer thread, a chunk at a time)."""
+        self._fh.write("".join(",".join(map(_fmt, r)) + "\n" for r in rows))
+        now = time.monotonic()
+        if now - self._last_flush >= self._flush_every_s:
+            self._fh.flush()
+            self._last_flush = now
+
     def flush(self) -> None:
         self._fh.flush()
         self._last_flush = time.monotonic()
@@ -305,7 +314,8 @@ class CsvRowWriter:
     def close(self) -> None:
         if not self._fh.closed:
             self._fh.flush()
-            os.fsync(self._fh.fileno())
+            if stat.S_ISREG(os.fstat(self._fh.fileno()).st_mode):  # a pipe has no fsync
+                os.fsync(self._fh.fileno())
             self._fh.close()
 
     def __enter__(self) -> CsvRowWriter:

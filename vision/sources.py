@@ -64,7 +64,7 @@ class CameraConfig:
     #: Lens model from ``fydpad calibrate camera`` (absent: no undistortion).
     intrinsics: CameraIntrinsics | None = None
     #: Image-to-workspace homography from ``fydpad calibrate workspace`` (absent: the
-    #: linear ROI mapping of RECORDING_FORMAT.md).
+    #: linear ROI mapping of docs/recording_format.md).
     workspace_homography: WorkspaceHomography | None = None
 
     def __post_init__(self) -> None:

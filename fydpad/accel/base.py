@@ -1,4 +1,4 @@
-"""The accelerometer interface every backend implements (issue 8).
+"""The accelerometer interface every backend implements.
 
 A backend delivers samples as an ``(n, 4)`` float array: ``t_s, ax_m_s2, ay_m_s2,
 az_m_s2`` with ``t_s`` on the device's clock (seconds, monotonic). ``read`` returns

@@ -1,4 +1,4 @@
-"""The output-channel interface (issue 8).
+"""The output-channel interface.
 
 A renderer produces a signal at its own rate; a channel consumes blocks at the
 channel's rate (``rate_hz``). Between the two, :mod:`fydpad.channels.resample`

@@ -51,8 +51,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "tele-operation follows at the same rate (default: [loops] vision_hz of "
                    "the config, 30, or the camera's rate when lower)")
     p.add_argument("--record", metavar="DIR",
-                   help="record the session (RECORDING_FORMAT.md) as it goes")
+                   help="record the session (docs/recording_format.md) as it goes")
     p.add_argument("--no-video", action="store_true", help="with --record: no video file")
+    p.add_argument("--bag", metavar="BAGDIR",
+                   help="with --record: when the station stops, also export the recording as "
+                   "a ROS 2 bag (MCAP) here, as `fydpad export bag` does (docs/ros.md)")
     p.add_argument("--stats", metavar="FILE", help="write loop statistics as JSON on exit")
     p.add_argument("--motors", choices=["none", "sim", "qb"], default="none",
                    help="motor backend (default: %(default)s)")
@@ -98,7 +101,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-realtime", action="store_true",
                    help="do not ask for SCHED_FIFO and a core for the render process")
     add_config_argument(p)
-    # -- web view (issue 10) --
+    # -- web view --
     p.add_argument("--web", metavar="[HOST:]PORT",
                    help="serve the web view (live image, plots, setup, experiment runner); "
                    "loopback unless HOST is given, then with a token printed at start")
@@ -327,6 +330,15 @@ def run(args: argparse.Namespace) -> int:
     if sensor_spec:  # the live board replaces the source's own IR and force
         sensors = _serial_sensors(sensor_spec, config)
         indentation = LiveIndentation(IndentationEstimator.from_config(config.ir))
+    if args.bag:  # --bag: refused here, before the station starts, not after the session
+        from fydpad.commands.export import require_rosbags
+
+        if not args.record:
+            raise UserError("--bag needs --record DIR (the bag is exported from the recording)")
+        if Path(args.bag).exists():
+            raise UserError(f"--bag {args.bag}: already exists (a bag is written to a new "
+                            "directory)")
+        require_rosbags()
     if args.record:
         Path(args.record).mkdir(parents=True, exist_ok=True)
     if args.teleop is None and (args.curve or args.keys):
@@ -389,7 +401,7 @@ def run(args: argparse.Namespace) -> int:
                     err := link.tracking_error_mm(state)) else None),
             }
         options.teleop_send = send
-    # -- web view (issue 10) --
+    # -- web view --
     web = None
     if getattr(args, "web", None):
         from fydpad.web import parse_web_address, start_web
@@ -418,7 +430,7 @@ def run(args: argparse.Namespace) -> int:
     finally:
         signal.signal(signal.SIGINT, previous)
         signal.signal(signal.SIGTERM, previous_term)
-        if web is not None:  # web view (issue 10)
+        if web is not None:  # web view
             web.stop()
         link_summary = None
         if link is not None:
@@ -442,6 +454,10 @@ def run(args: argparse.Namespace) -> int:
           f"jitter p99 {r.get('jitter_ms', {}).get('p99', math.nan):.2f} ms, "
           f"frame-to-command p99 "
           f"{stats.get('frame_to_command_ms', {}).get('p99', math.nan):.1f} ms")
+    if args.bag:
+        from fydpad.commands.export import export_recording
+
+        print(export_recording(args.record, args.bag, args.config, video=not args.no_video))
     if link_summary is not None:
         print(f"fydpad run: {link_summary}", file=sys.stderr)
         return 3

@@ -27,9 +27,10 @@ if TYPE_CHECKING:
     from fydpad.texture.scan_io import Scan
 
 #: The interpolation between modelled speeds (fydpad.texture.interpolation, docs/texture.md).
-INTERPOLATION_HELP = ("interpolation between modelled speeds: stretch (default: the nearest "
-                      "models' spectra stretched to the speed, and a two-part model's own "
-                      "spectrum), lsf, reflection, or linear (the paper's)")
+INTERPOLATION_HELP = ("interpolation between modelled speeds (default: the model file's "
+                      "own, which fit chose): nearest (the paper's per-speed fits), stretch "
+                      "(the spectra moved along frequency with speed), lsf, reflection, or "
+                      "linear")
 
 def _floats(text: str) -> list[float]:
     try:
@@ -137,6 +138,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "scans: a fixed tool/floor part and a surface part that moves with speed; "
                    "rendered at every speed by the 'stretch' method. Against the pooled fit: "
                    "better between speeds, R2 0.2 dB worse at 20 mm/s (docs/texture.md)")
+    f.add_argument("--form", choices=("auto", "paper", "calibrated"), default="auto",
+                   help="auto (default): validate every form on held-out blocks of the "
+                   "scans' speed plateaus and whole inner plateaus, keep the best (ties to "
+                   "the simpler), refit it on all the scans and print the table; 'paper': "
+                   "the paper's method read plainly (a 5 mm/s window LPC per speed, no "
+                   "interpolation); 'calibrated': the speed-resolved spectrum. The options "
+                   "below select the older forms")
     form = f.add_mutually_exclusive_group()
     form.add_argument("--free-form", nargs="?", const="calibrated", default=AUTO,
                       choices=("calibrated", "free", "surface"),
@@ -493,6 +501,8 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
         print(f"fydpad texture fit: warning: the scans are of {len(set(labels))} surfaces "
               f"(# surface=: {counts}), pooled into one model labelled {labels[0]}; fit "
               "each surface on its own, or name the mix with --surface", file=sys.stderr)
+    if _selects(args):
+        return _run_select(args, scans)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         model, reports = fit_texture(
@@ -563,6 +573,38 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
     return 0
 
 
+def _selects(args: argparse.Namespace) -> bool:
+    """No option of the older forms given: the validated choice (or --form's)."""
+    return (args.free_form == AUTO and not args.two_part and not args.speed_normalise
+            and args.method == "autocorrelation" and args.prewhiten_order == 8)
+
+
+def _run_select(args: argparse.Namespace, scans: list) -> int:
+    from fydpad.texture.model_file import save_model
+    from fydpad.texture.select import fit_candidate, select_model, selection_table
+
+    kw = dict(order=args.order, tolerance_mm_s=args.tolerance, highpass_hz=args.highpass_hz,
+              surface=args.surface, drive_band_hz=tuple(args.drive_band))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        if args.form == "auto":
+            model, sel = select_model(
+                scans, speeds_mm_s=args.speeds, **kw,
+                wrap=lambda it: progress(it, desc="validate", unit="fit"))
+            table = selection_table(sel)
+        else:
+            model = fit_candidate(args.form, scans, args.speeds, **kw)
+            table = [f"  form {args.form} as asked (--form): not validated"]
+    _print_warnings("fit", _scan_names(args.scans), caught)
+    save_model(model, args.out)
+    print(f"{args.out}: surface {model.surface}, order {model.order}, {model.fs_hz:g} Hz, "
+          f"form {model.provenance.get('form', 'calibrated')}, {len(model.speeds_mm_s)} "
+          f"models at {model.speeds_mm_s[0]:g}-{model.speeds_mm_s[-1]:g} mm/s, "
+          f"interpolation {model.interpolation}")
+    print("\n".join(table))
+    return 0
+
+
 def _check_fit_options(args: argparse.Namespace, fs_hz: float) -> None:
     """The fit's filters and targets against the scans' rate: each option that would
     fail in the fit (a traceback) or be written into the model (failing on reading)."""
@@ -615,7 +657,8 @@ def run_synth(args: argparse.Namespace) -> int:
         print(f"fydpad texture synth: warning: {args.model}: {w.message}", file=sys.stderr)
     _note_gap(model.provenance, args.model, args.speed_mm_s)
     with CsvRowWriter(args.out, ("t_s", "a"), comment=f"surface={model.surface} "
-                      f"speed_mm_s={args.speed_mm_s:g} method={args.method}") as wr:
+                      f"speed_mm_s={args.speed_mm_s:g} "
+                      f"method={args.method or model.interpolation}") as wr:
         for k, v in enumerate(a):
             wr.write(k / model.fs_hz, float(v))
     print(f"{args.out}: {n} samples, rms {float(np.sqrt(np.mean(a * a))):.4g} m/s^2")

@@ -1,4 +1,4 @@
-"""Robot arms the slave loop drives, behind one Protocol (DESIGN.md: device backends).
+"""Robot arms the slave loop drives, behind one Protocol (docs/architecture.md).
 
 Every arm takes positions in its base frame in millimetres; the attitude is fixed with
 the tool perpendicular to the surface (paper IV-B).
