@@ -80,7 +80,7 @@ def test_truth_breakdown_separates_sensing_from_the_link_per_axis():
     contact = np.ones(t.size, bool)
     contact[:5] = False
     truth = np.column_stack([10 * np.sin(t), 5 * np.cos(t), 3 + np.sin(2 * t)])
-    master = truth + [0.3, 0.0, 2.0]
+    master = truth + np.array([0.3, 0.0, 2.0])
     master[~contact, :2] = np.nan
     tl = np.arange(-0.1, 2.1, 0.001)
     slave = np.column_stack([10 * np.sin(tl) + 0.3, 5 * np.cos(tl) + 0.1,
