@@ -11,6 +11,8 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass
 
+from vision.errors import DeviceFault
+
 MAGIC = b"FYDT"
 VERSION = 1
 
@@ -43,8 +45,11 @@ SAMPLE_SIZE = _SAMPLE.size
 STATE_SIZE = _STATE.size
 
 
-class ProtocolError(ValueError):
+class ProtocolError(DeviceFault, ValueError):
     """A message that is not a valid version-1 FYDT message."""
+
+    device = "link peer"
+    check = "that master and slave run the same protocol version (docs/protocol.md)"
 
 
 @dataclass(frozen=True, slots=True)

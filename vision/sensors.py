@@ -22,12 +22,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from vision.config import ForceConfig, IRConfig
+from vision.errors import DeviceFault
 from vision.force import raw_to_force, saturation_flags
 from vision.recording import PadRecording
 
 
-class SensorError(RuntimeError):
+class SensorError(DeviceFault, RuntimeError):
     """A sensor device is missing, disconnected or silent; the message names it."""
+
+    device = "sensor board"
+    check = "its cable, its power and the [sensors] port in the configuration"
 
 
 @dataclass(frozen=True, slots=True)
@@ -189,8 +193,11 @@ class DataLine:
     force_raw: int | None
 
 
-class LineError(ValueError):
+class LineError(DeviceFault, ValueError):
     """A line that is not a valid board line; the message says why."""
+
+    device = "serial line"
+    check = "the baud rate and that the board speaks this protocol version"
 
 
 def unframe_line(line: bytes) -> list[str]:
