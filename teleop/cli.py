@@ -13,6 +13,7 @@ import tomllib
 from pathlib import Path
 
 from teleop.config import OTHER_SECTIONS, TeleopConfig, check_rt_priority
+from vision.errors import FydpadError
 
 log = logging.getLogger("teleop")
 
@@ -85,7 +86,6 @@ def _run_slave(args: argparse.Namespace, cfg: TeleopConfig, scheduling: str) -> 
     from teleop.link import SlaveSocket
     from teleop.mapping import Mapping
     from teleop.slave import SlaveLoop, make_arm
-    from teleop.slaves import ArmFault
 
     stop = threading.Event()
 
@@ -111,7 +111,7 @@ def _run_slave(args: argparse.Namespace, cfg: TeleopConfig, scheduling: str) -> 
                 if args.report:
                     Path(args.report).write_text(json.dumps(rep, indent=2) + "\n")
                 print(json.dumps(rep), flush=True)
-    except (OSError, FileNotFoundError, ArmFault, ValueError) as e:
+    except (OSError, FydpadError, ValueError) as e:  # ArmFault is a FydpadError
         print(f"teleop slave: {e}", file=sys.stderr)
         return 2
     except Exception as e:  # a fault in the loop or the link: the robot is stopped (finally)

@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from vision.config import PAPER_SENSORS_MM, IRConfig
+from vision.errors import UserError
 from vision.ir import PAPER_POLY_CM, VALID_VOLTAGE_RANGE_V
 
 #: Voltages where eq. (1) is nearly flat (slope under about 13 mm/V): low resolution.
@@ -645,7 +646,7 @@ def indentation_at_frames(
 # --------------------------------------------------------------------------- eq. (1) refit
 
 
-class IRCalibrationError(ValueError):
+class IRCalibrationError(UserError, ValueError):
     """(distance, voltage) pairs too few or degenerate for a fit; the message says why."""
 
 
