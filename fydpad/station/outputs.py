@@ -1,11 +1,11 @@
-"""Output channels of the live station (issue 8): ``fydpad run --channel [SIGNAL=]TARGET``.
+"""Output channels of the live station: ``fydpad run --channel [SIGNAL=]TARGET``.
 
 The render process's texture family writes, besides the motors' vibration term, to named
 channels each at its own rate (docs/channels.md): ``vibration`` and ``tension`` come from
 the family's 1 kHz ``tick`` (eq. 3's texture term before the chain compensation, which
 belongs to the motors' chain only); a family's other declared channels (friction's
-electrostatic ``audio`` V = b mu(x) Y(t) of paper 001 eq. 2, a grating's ``audio`` V_e or
-``force`` F_v of paper 002) are rendered at their own rate (48 kHz) by the family's
+electrostatic ``audio`` V = b mu(x) Y(t) of Jiao 2018 eq. 2, a grating's ``audio`` V_e or
+``force`` F_v of Ito 2019) are rendered at their own rate (48 kHz) by the family's
 ``render`` over each block, from the ticks' finger stream.
 
 Nothing per tick but stores into preallocated arrays: every ``block_ticks`` ticks
