@@ -185,6 +185,9 @@ class SerialSensorFeed:
 
     def __init__(self, board):
         self.board = board
+        #: Called with the deadman pedal's state (True pressed) on each change, and once
+        #: with the first state read; unset: the pedal is not used.
+        self.on_pedal: Callable[[bool], None] | None = None
         self.samples = 0
         self.invalid_ir = 0
         self.saturated_force = 0
@@ -193,6 +196,7 @@ class SerialSensorFeed:
         # Lines queued before the station started are stale: start from the newest.
         self.board.flush_input()
         clock = ClockOffset()  # the board's clock onto the station's
+        last_pedal: bool | None = None
         try:
             while not stop.is_set():
                 ir, force = self.board.read()
@@ -206,6 +210,11 @@ class SerialSensorFeed:
                     latest.set_force(t_s, force.force_n)
                     self.saturated_force += force.saturated
                 self.samples += 1
+                pedal = self.board.pedal
+                if pedal is not None and pedal != last_pedal:
+                    last_pedal = pedal
+                    if self.on_pedal is not None:
+                        self.on_pedal(pedal)
         finally:
             self.board.close()
 
@@ -214,7 +223,7 @@ class SerialSensorFeed:
 
     def status(self) -> dict:
         st = self.board.stats
-        return {"port": self.board.port, "samples": self.samples,
+        return {"port": self.board.port, "samples": self.samples, "pedal": self.board.pedal,
                 "bad_lines": st.bad_checksum + st.malformed + st.overlong,
                 "invalid_ir": self.invalid_ir, "saturated_force": self.saturated_force,
                 "board_resets": st.board_resets}
@@ -318,7 +327,10 @@ class Station:
         self.operator_hold = False
         self.hold_events: list[tuple[float, bool, str]] = []
         self._hold_lock = threading.Lock()
+        self._deadman_released = False
         self._events: CsvRowWriter | None = None
+        if isinstance(sensors, SerialSensorFeed):  # a deadman pedal: released holds
+            sensors.on_pedal = lambda pressed: self.set_operator_hold(not pressed, "pedal")
 
     # -- operator hold -----------------------------------------------------------
 
@@ -329,6 +341,10 @@ class Station:
         ``operator_hold`` control), the softness stays. Each change is recorded."""
         on = bool(on)
         with self._hold_lock:
+            if source == "pedal":
+                self._deadman_released = on
+            elif not on and self._deadman_released:
+                return self.operator_hold  # the deadman pedal is released: it holds
             if on == self.operator_hold:
                 return on
             self.operator_hold = on
