@@ -357,8 +357,9 @@ class Station:
                 except Exception as exc:  # a link fault is the link's: never this input's
                     self.faults.append(f"operator hold on the link: {exc}")
                     self.stop_event.set()
-            if self._events is not None:
+            if self._events is not None:  # rare: each one on disk at once
                 self._events.write(t_s, "hold" if on else "release", source)
+                self._events.flush()
         return on
 
     def toggle_operator_hold(self, source: str = "api") -> bool:
