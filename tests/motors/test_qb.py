@@ -167,7 +167,7 @@ def test_the_board_stops_by_itself_when_commands_stop(emu):
     stops = emu.watchdog_stops
     assert stops and stops[-1][1] <= emu.last_frame_s + 0.02 + 1e-9
     assert all(stop - last == pytest.approx(0.02) for last, stop in stops)
-    assert list(emu.plant.duty) == [0.0, 0.0] and not emu.plant.powered
+    assert emu.activation == 0 and not emu.plant.powered
     m.close()
 
 
