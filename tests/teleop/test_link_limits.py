@@ -92,6 +92,26 @@ print("cut off" if mon.poll(30_000) and zmq.utils.monitor.recv_monitor_message(m
 """
 
 
+def test_master_stream_carries_the_operator_hold():
+    """teleop.master.stream(operator_hold=...) against a slave over a real socket: the
+    samples in the held span carry the flag, the slave reports "operator hold" there and
+    tracks again after it."""
+    from teleop.link import MasterSocket
+    from teleop.master import stream
+    from teleop.trajectories import circle, finger_stream
+
+    states, _ = finger_stream(circle(), 2.0)
+    cfg = TeleopConfig()
+    cfg.safety.watchdog_s = 1.0  # a starved test thread is no fault here
+    with SlaveThread(cfg) as sl, MasterSocket(sl.endpoint, cfg.link) as sock:
+        log = stream(states, sock, preroll_s=0.3, operator_hold=lambda t: 0.5 <= t < 1.2)
+        statuses = [st.status for _, st in log.states if st.reason == P.REASON_TICK]
+        assert sl.loop.counts["operator_holds"] == 1
+    assert P.STATUS_OPERATOR_HOLD in statuses
+    after = statuses[max(i for i, s in enumerate(statuses) if s == P.STATUS_OPERATOR_HOLD):]
+    assert P.STATUS_TRACKING in after
+
+
 def test_a_100_mb_message_is_cut_off_without_stalling_the_slave(tmp_path):
     """ZMQ_MAXMSGSIZE (4096 bytes): a process sending 100 MB is disconnected by libzmq from
     the frame header; the slave never reads it, the streaming master keeps the arm and the
