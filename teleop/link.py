@@ -106,6 +106,11 @@ def wait_readable(sock: zmq.Socket, t_end_s: float, clock: Callable[[], float]) 
         select.select([fd], [], [], remaining)
 
 
+def tcp_endpoint(endpoint: str) -> str:
+    """``HOST:PORT`` as ``tcp://HOST:PORT``; an endpoint with a transport is kept as is."""
+    return endpoint if "://" in endpoint else f"tcp://{endpoint}"
+
+
 def curve_enabled(cfg: LinkConfig, endpoint: str) -> bool:
     if cfg.curve not in ("auto", "on", "off"):
         raise ValueError(f"link.curve must be 'auto', 'on' or 'off', got {cfg.curve!r}")
@@ -230,6 +235,11 @@ class MasterSocket:
     def __init__(self, endpoint: str, cfg: LinkConfig | None = None,
                  ctx: zmq.Context | None = None) -> None:
         cfg = cfg or LinkConfig()
+        endpoint = tcp_endpoint(endpoint)
+        keys = None
+        if curve_enabled(cfg, endpoint):  # a missing key file fails before any socket
+            keys_dir = Path(cfg.keys_dir)
+            keys = client_keys(keys_dir), server_keys(keys_dir, public_only=True)[0]
         self.ctx = ctx or zmq.Context.instance()
         self.sock = self.ctx.socket(zmq.DEALER)
         self.sock.linger = 0
@@ -240,14 +250,17 @@ class MasterSocket:
         self.sock.setsockopt(zmq.IMMEDIATE, 1)  # never queue samples for a slave not there
         self.sock.setsockopt(zmq.RECONNECT_IVL, 50)
         self.sock.setsockopt(zmq.RECONNECT_IVL_MAX, 500)
-        if curve_enabled(cfg, endpoint):
-            keys_dir = Path(cfg.keys_dir)
-            pub, sec = client_keys(keys_dir)
-            server_pub, _ = server_keys(keys_dir, public_only=True)
+        self.curve = keys is not None
+        if keys is not None:
+            (pub, sec), server_pub = keys
             self.sock.curve_publickey = pub
             self.sock.curve_secretkey = sec
             self.sock.curve_serverkey = server_pub
-        self.sock.connect(endpoint)
+        try:
+            self.sock.connect(endpoint)
+        except zmq.ZMQError as e:
+            self.close()
+            raise OSError(f"master cannot connect to {endpoint}: {e}") from e
         self.endpoint = endpoint
 
     def send(self, data: bytes) -> bool:

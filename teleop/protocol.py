@@ -11,6 +11,8 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass
 
+from vision.errors import DeviceFault
+
 MAGIC = b"FYDT"
 VERSION = 2
 
@@ -48,8 +50,11 @@ SAMPLE_SIZE = _SAMPLE.size
 STATE_SIZE = _STATE.size
 
 
-class ProtocolError(ValueError):
+class ProtocolError(DeviceFault, ValueError):
     """A message that is not a valid FYDT message of this version."""
+
+    device = "link peer"
+    check = "that master and slave run the same protocol version (docs/protocol.md)"
 
 
 @dataclass(frozen=True, slots=True)
