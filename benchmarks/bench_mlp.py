@@ -1,4 +1,4 @@
-"""Neural-network texture benchmarks (issue 9), run on demand: ``python benchmarks/bench_mlp.py``.
+"""Neural-network texture benchmarks, run on demand: ``python benchmarks/bench_mlp.py``.
 
 Each figure is printed beside a baseline measured in the same run:
 - ``MlpTexture.tick`` (the 1 kHz path: preallocated arrays, weights with the scaling and

@@ -1,4 +1,4 @@
-"""What ``fydpad run --channel`` costs the 1 kHz render loop (issue 8).
+"""What ``fydpad run --channel`` costs the 1 kHz render loop.
 
 1. In process: the time of ``ChannelOutputs.tick`` per tick (the store, and every 10th tick
    the block's render and hand-off) for a friction model's vibration term to a WAV file,

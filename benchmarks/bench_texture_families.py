@@ -1,9 +1,9 @@
-"""Texture-family benchmarks (issue 9), run on demand:
+"""Texture-family benchmarks, run on demand:
 ``python benchmarks/bench_texture_families.py``.
 
 The per-tick cost of each family's ``tick`` (the station's 1 kHz render process calls it
 once a tick; the budget is the 1 ms tick shared with eq. 3 and the motors) against the
-LPC family's tick (order 200, issue 4's path) measured in the same run as the baseline
+LPC family's tick (order 200, the station's path) measured in the same run as the baseline
 (the penn family: HaTT-schema files of the orders named, 10 kHz models, 10 model
 samples and the anti-alias low-pass per tick);
 and the offline ``render`` throughput (x real time) of 10 s at 1 kHz and the audio

@@ -1,5 +1,5 @@
 """Master side: stream FingerState samples to a slave at their real rate, collect its state,
-and build the report of RECORDING_FORMAT.md (paper IV-B, eq. 6).
+and build the report of docs/recording_format.md (paper IV-B, eq. 6).
 
     from teleop.master import run_session
     session = run_session(states, "tcp://127.0.0.1:5555", truth=truth_rows)
@@ -92,12 +92,15 @@ def _position(fs: FingerState) -> tuple[float, float, float]:
 def stream(states: Iterable[FingerState], sock: MasterSocket, *, rate_hz: float | None = None,
            hold_mode: bool = False, preroll_s: float = 0.5, tail_s: float = 0.3,
            first_seq: int = 1, preroll_state: FingerState | None = None,
+           operator_hold: Callable[[float], bool] | None = None,
            clock: Callable[[], float] = time.monotonic) -> StreamLog:
     """Send ``states`` at the times their ``t_s`` say, collecting slave states meanwhile.
 
     ``rate_hz`` decimates (the paper's 10 Hz master); every input sample is still logged
     as the master position to score against. ``preroll_s`` of ``preroll_state`` (default:
     the first sample) brings the arm to the start first (not scored).
+    ``operator_hold(t_s)``: whether the operator holds the robot at recording time ``t_s``
+    (the samples then carry the operator-hold flag).
     """
     log = StreamLog()
     seq = first_seq
@@ -120,7 +123,8 @@ def stream(states: Iterable[FingerState], sock: MasterSocket, *, rate_hz: float 
         nonlocal seq
         x, y, z = _position(fs)
         force = fs.force_n if math.isfinite(fs.force_n) else math.nan
-        msg = P.Sample(seq, t_cap, clock(), x, y, z, force, fs.contact, hold_mode)
+        held = operator_hold is not None and operator_hold(fs.t_s)
+        msg = P.Sample(seq, t_cap, clock(), x, y, z, force, fs.contact, hold_mode, held)
         seq += 1
         if sock.send(P.encode_sample(msg)):
             log.sent += 1
@@ -180,12 +184,22 @@ def _chain(first: FingerState, rest: Iterable[FingerState]) -> Iterable[FingerSt
 
 
 def _dropped(log: StreamLog) -> int:
-    """Samples the slave refused during this pass, plus those never sent."""
-    acks = [st for _, st in log.states]
-    if not acks:
+    """Samples the slave refused during this pass, plus those never sent or lost.
+
+    A slave's counters are its process's: a restarted slave counts from 0 again (seen as
+    ``received`` or ``dropped`` going down), so the pass is split there and each slave's
+    counters are differenced on their own."""
+    states = [st for _, st in log.states]
+    if not states:
         return log.sent + log.send_failed
-    delivered = acks[-1].received - acks[0].received + 1
-    refused = acks[-1].dropped - acks[0].dropped
+    delivered = refused = 0
+    first = prev = states[0]
+    for st in [*states[1:], None]:
+        if st is None or st.received < prev.received or st.dropped < prev.dropped:
+            delivered += prev.received - first.received + 1
+            refused += prev.dropped - first.dropped
+            first = st
+        prev = st if st is not None else prev
     return log.send_failed + max(0, log.sent - delivered) + refused
 
 
@@ -234,7 +248,7 @@ def run_session(states: Sequence[FingerState], endpoint: str, cfg: TeleopConfig 
 
 def build_report(main: StreamLog, base: StreamLog | None,
                  truth: np.ndarray | None = None) -> dict:
-    """The RECORDING_FORMAT.md report from a main pass and an optional baseline pass."""
+    """The docs/recording_format.md report from a main pass and an optional baseline pass."""
     t, m, c = main.arrays()
     tl, sl = main.slave_log()
     mae = mae_per_axis(t, m, c, tl, sl)

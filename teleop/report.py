@@ -1,4 +1,4 @@
-"""Tracking figures of RECORDING_FORMAT.md: MAE (paper eq. 6), lag, latency; Fig. 11 plot.
+"""Tracking figures of docs/recording_format.md: MAE (paper eq. 6), lag, latency; Fig. 11 plot.
 
 Pure functions over arrays in one clock (the master's).
 """
@@ -13,7 +13,7 @@ AXES = ("x", "y", "z")
 
 
 def scored_rows(t_s: np.ndarray, contact: np.ndarray) -> np.ndarray:
-    """Mask of the samples from the first contact on (RECORDING_FORMAT.md)."""
+    """Mask of the samples from the first contact on (docs/recording_format.md)."""
     idx = np.flatnonzero(contact)
     mask = np.zeros(t_s.size, bool)
     if idx.size:

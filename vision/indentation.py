@@ -6,7 +6,7 @@ to the fabric above it. A finger pushes the fabric *down*, towards the base, so 
 shrinks: ``e_i = z_i - zbar_i`` (zbar_i the rest distance) is negative when pressing.
 The plane through the three points (x_i, y_i, e_i) evaluated at the contact centroid
 gives eq. (2)'s delta, also negative when pressing; the indentation (positive down,
-RECORDING_FORMAT.md) is ``-delta``.
+docs/recording_format.md) is ``-delta``.
 
 Eq. (2) is the plane for the paper's sensor positions (-22, -3), (0, 27), (22, -3) mm:
 solved for delta it is the barycentric interpolation of e_0, e_1, e_2. This module
@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from vision.config import PAPER_SENSORS_MM, IRConfig
+from vision.errors import UserError
 from vision.ir import PAPER_POLY_CM, VALID_VOLTAGE_RANGE_V
 
 #: Voltages where eq. (1) is nearly flat (slope under about 13 mm/V): low resolution.
@@ -171,7 +172,7 @@ def resolve_baseline_mm(
     estimated_mm: ArrayLike | None,
     base_to_fabric_mm: float,
 ) -> NDArray[np.float64]:
-    """RECORDING_FORMAT.md's rule: the given ``baseline_mm``; where absent, the estimate
+    """docs/recording_format.md's rule: the given ``baseline_mm``; where absent, the estimate
     from samples without contact; where there is none, ``base_to_fabric_mm``."""
     if configured_mm is not None:
         return np.asarray(configured_mm, dtype=np.float64).copy()
@@ -645,7 +646,7 @@ def indentation_at_frames(
 # --------------------------------------------------------------------------- eq. (1) refit
 
 
-class IRCalibrationError(ValueError):
+class IRCalibrationError(UserError, ValueError):
     """(distance, voltage) pairs too few or degenerate for a fit; the message says why."""
 
 

@@ -1,6 +1,6 @@
 """Readers and writers for the pad session recording and the tracking output.
 
-The formats are the contract of ``RECORDING_FORMAT.md``; every error names the file
+The formats are the contract of docs/recording_format.md; every error names the file
 and the key, or the line number (the header is line 1).
 """
 
@@ -10,8 +10,9 @@ import csv
 import json
 import math
 import os
+import stat
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -19,6 +20,8 @@ from typing import IO, Any
 import cv2
 import numpy as np
 from numpy.typing import NDArray
+
+from vision.errors import UserError
 
 IMAGE_FLIPS = ("none", "horizontal", "vertical", "both")
 DEFAULT_IR_SENSORS_MM: tuple[tuple[float, float], ...] = ((-22.0, -3.0), (0.0, 27.0), (22.0, -3.0))
@@ -28,7 +31,7 @@ TRUTH_COLUMNS = ("t_s", "frame", "contact", "x_mm", "y_mm", "indentation_mm")
 VIDEO_NAMES = ("video.avi", "video.mp4")
 
 
-class RecordingError(ValueError):
+class RecordingError(UserError, ValueError):
     """A recording file is missing or malformed; the message names the file and key or line."""
 
 
@@ -298,6 +301,14 @@ class CsvRowWriter:
             self._fh.flush()
             self._last_flush = now
 
+    def write_rows(self, rows: Iterable[Sequence[object]]) -> None:
+        """Many rows in one write (a log's writer thread, a chunk at a time)."""
+        self._fh.write("".join(",".join(map(_fmt, r)) + "\n" for r in rows))
+        now = time.monotonic()
+        if now - self._last_flush >= self._flush_every_s:
+            self._fh.flush()
+            self._last_flush = now
+
     def flush(self) -> None:
         self._fh.flush()
         self._last_flush = time.monotonic()
@@ -305,7 +316,8 @@ class CsvRowWriter:
     def close(self) -> None:
         if not self._fh.closed:
             self._fh.flush()
-            os.fsync(self._fh.fileno())
+            if stat.S_ISREG(os.fstat(self._fh.fileno()).st_mode):  # a pipe has no fsync
+                os.fsync(self._fh.fileno())
             self._fh.close()
 
     def __enter__(self) -> CsvRowWriter:

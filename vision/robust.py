@@ -1,4 +1,4 @@
-"""A contact tracker that survives real footage (see docs/robust_tracking.md).
+"""A contact tracker that survives real footage (see docs/tracking.md).
 
 The paper's fixed grey-level threshold fails as soon as the light changes, the fabric
 has a mark on it, or a hovering finger casts a shadow. This tracker measures each

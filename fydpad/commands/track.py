@@ -33,7 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="track the finger's contact in a recording or a live camera",
         description=(
             "Track the finger's contact centroid in every frame of a pad session recording "
-            "(or a live camera) and write the tracking output of RECORDING_FORMAT.md: "
+            "(or a live camera) and write the tracking output of docs/recording_format.md: "
             "t_s,frame,contact,x_mm,y_mm,indentation_mm, one row per frame, written as the "
             "frames are processed (an interrupted run keeps what it had). Where the recording "
             "has truth.csv, the accuracy against it is printed at the end."

@@ -44,12 +44,12 @@ class DriveChain:
         self._k_lo, self._k_hi = (table.k_range_n_per_mm if table is not None
                                   else (0.0, math.inf))
         self._strict = cfg.softness.strict
-        self.compensator = None  # chain compensation (issue 8): TF inverse, per stiffness
+        self.compensator = None  # chain compensation: TF inverse, per stiffness
         if spec.compensate is not None:
             from fydpad.chain.live import open_compensator
 
             self.compensator = open_compensator(spec.compensate, spec.rate_hz)
-        self.channels = None  # --channel: the texture's signals to cards and files (issue 8)
+        self.channels = None  # --channel: the texture's signals to cards and files
         if spec.channels:
             from fydpad.station.outputs import ChannelOutputs
 

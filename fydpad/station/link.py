@@ -1,5 +1,6 @@
 """The live station's tele-operation link: the latest finger state to the slave at the
-vision rate, the slave's state back, and "hold" on the way out (paper III-C)."""
+vision rate, the slave's state back, the operator hold in every sample, and "hold" on the
+way out (paper III-C; docs/protocol.md)."""
 
 from __future__ import annotations
 
@@ -28,6 +29,25 @@ class StationLink:
         #: The slave's newest state (None until it answers).
         self.slave: P.State | None = None
         self._answered_at = math.nan  # monotonic time of the slave's newest state
+        self._operator_hold = False
+        self._last_state: FingerState | None = None
+
+    @property
+    def operator_hold(self) -> bool:
+        """True while the operator holds the robot (every sample carries the flag)."""
+        return self._operator_hold
+
+    def set_operator_hold(self, on: bool) -> None:
+        """Hold (True) or release (False) the robot. Every following sample carries the
+        flag; one is sent now (the last finger state again, or "no contact" before any), so
+        the slave stands still without waiting for the next frame. On release the slave
+        glides back to the finger at ``safety.resume_speed_mm_s``."""
+        on = bool(on)
+        if on == self._operator_hold:
+            return
+        self._operator_hold = on
+        last = self._last_state
+        self.send(last if last is not None else FingerState.no_contact(time.monotonic()))
 
     def answer_age_s(self) -> float:
         """Seconds since the slave last answered (inf before it ever has): a slave that
@@ -36,6 +56,7 @@ class StationLink:
             time.monotonic() - self._answered_at)
 
     def send(self, state: FingerState) -> None:
+        self._last_state = state
         now = time.monotonic()
         if state.contact:
             z = state.indentation_mm if math.isfinite(state.indentation_mm) else 0.0
@@ -44,7 +65,8 @@ class StationLink:
             x = y = math.nan
             z = 0.0
         force = state.force_n if math.isfinite(state.force_n) else math.nan
-        sample = P.Sample(self._seq, now, now, x, y, z, force, bool(state.contact))
+        sample = P.Sample(self._seq, now, now, x, y, z, force, bool(state.contact),
+                          operator_hold=self._operator_hold)
         self._seq += 1
         if self._sock.send(P.encode_sample(sample)):
             self.sent += 1

@@ -10,6 +10,11 @@ from shared memory and never waiting on anything.
 Each tick: read the newest finger state (seqlock, no wait) -> the render chain (texture
 vibration, softness position, eq. 3 PWM) -> the actuator. On a stop request, a fault
 or any exception: vibration off, motors to rest (``RenderChain.safe_stop``).
+
+No disk I/O in the loop: the commands log's rows go into a preallocated ring that a
+thread writes (:class:`fydpad.station.row_log.RingRowLog`), as file channels' blocks do
+(:class:`fydpad.station.outputs.FileWriter`); a disk that stalls past the ring's 2.5 s
+drops rows, counted in the stats (``commands_log.dropped``), never a tick.
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ from __future__ import annotations
 import math
 import multiprocessing as mp
 import os
+import sys
 import time
 import traceback
 from dataclasses import dataclass, field
@@ -25,9 +31,9 @@ from typing import Any, Protocol
 
 from fydpad.errors import one_line_warnings
 from fydpad.pacing import LatencyHistogram, LoopTimer
+from fydpad.station.row_log import DEFAULT_BUFFER_S, RingRowLog
 from fydpad.station.shared import SharedFingerState, SharedRecord
 from teleop.realtime import request_realtime
-from vision.recording import CsvRowWriter
 
 #: Control values the station may change while the render process runs. ``texture_index``
 #: selects the texture model among ``[RenderSpec.texture, *RenderSpec.textures]`` (-1: none;
@@ -72,6 +78,8 @@ class RenderSpec:
     motor_options: dict = field(default_factory=dict)
     #: Write every tick's commands here (CSV), or None.
     commands_csv: str | None = None
+    #: Seconds of commands-log rows buffered against a stalled disk (at ``rate_hz``).
+    commands_buffer_s: float = DEFAULT_BUFFER_S
     #: Try SCHED_FIFO and a core of its own (needs the right to; falls back silently).
     realtime: bool = True
     #: A custom chain, "module:callable" taking the spec (labs' own actuators, tests).
@@ -123,15 +131,19 @@ def render_main(
 ) -> None:
     """Entry point of the render process; posts ("stats", dict) and maybe ("fault", text)."""
     one_line_warnings("fydpad run")  # this process's warnings (a clamped speed) as one line
+    # The writer threads (commands log, file channels) format under the GIL: a tick that
+    # wants it back waits at most this long, not CPython's default 5 ms.
+    sys.setswitchinterval(1e-4)
     scheduling = request_realtime(50, cpu=-1) if spec.realtime else "normal"
     timer = LoopTimer(spec.rate_hz, "render")
     latency = LatencyHistogram()
     chain: RenderChain | None = None
-    log: CsvRowWriter | None = None
+    log: RingRowLog | None = None
     try:
         chain = build_chain(spec)
         if spec.commands_csv:
-            log = CsvRowWriter(Path(spec.commands_csv), ("t_s", "frame", *chain.outputs))
+            log = RingRowLog(Path(spec.commands_csv), ("t_s", "frame", *chain.outputs),
+                             spec.rate_hz, spec.commands_buffer_s, integer_columns=("frame",))
         last_seq = 0
         last_ctl_seq = -1
         # Optional: a chain that switches textures or takes b live (DriveChain does).
@@ -165,11 +177,13 @@ def render_main(
                     latency.add(time.perf_counter() - v[7])
                     last_seq = seq
                 if log is not None:
-                    log.write(tick_time - t0, int(v[8]), *out)
+                    log.write(tick_time - t0, v[8], *out)
             if timer.stats_due():
                 if os.getppid() != parent:
                     # The station died without stopping us (SIGKILL): stop safely, now.
                     raise RuntimeError("the station process is gone")
+                if log is not None and log.error is not None:
+                    raise RuntimeError(f"commands log {spec.commands_csv}: {log.error}")
                 # Once a second: the live figures for the status line and the web view.
                 live = {"render": timer.stats().as_dict(),
                         "frame_to_command_ms": latency.percentiles_ms()}
@@ -192,7 +206,7 @@ def render_main(
             try:
                 log.close()
             except BaseException as exc:
-                faults.append(f"commands log {spec.commands_csv}: {exc}")
+                faults.append(f"commands log {exc}")
         for fault in faults:
             results.put(("fault", f"render process: {fault}"))
         stats = timer.stats().as_dict()
@@ -200,6 +214,8 @@ def render_main(
         stale = state.stale_reads + control.stale_reads
         if stale:
             stats["stale_reads"] = stale
+        if log is not None:
+            stats["commands_log"] = log.stats()
         if chain is not None and hasattr(chain, "stats"):
             try:
                 stats["chain"] = chain.stats()

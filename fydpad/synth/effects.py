@@ -1,4 +1,4 @@
-"""The conditions of real footage (issue 4), each a flag, all combinable.
+"""The conditions of real footage, each a flag, all combinable.
 
 ``Effects`` names which are on. The ones that change the light over time are small
 deterministic processes drawn once from the session's Generator:

@@ -353,7 +353,7 @@ class SyntheticPad:
 
     def write(self, outdir: str | Path, video_name: str = "video.avi",
               progress: Callable[[Iterator[Any], int], Iterator[Any]] | None = None) -> Path:
-        """Write the session as a pad session recording (RECORDING_FORMAT.md)."""
+        """Write the session as a pad session recording (docs/recording_format.md)."""
         outdir = Path(outdir)
         with PadRecordingWriter(outdir, self.meta(), video_name=video_name) as w:
             t_ir, v = self.ir()

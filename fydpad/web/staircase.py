@@ -1,4 +1,4 @@
-"""The friction-gain staircase (paper 001 IV-C, ``fydpad texture staircase``) as a web
+"""The friction-gain staircase (Jiao 2018 IV-C, ``fydpad texture staircase``) as a web
 session: the same :class:`~fydpad.texture.staircase.Staircase`, the same log
 (``trial,b,answer,reversal``, one row per answer, fsync'ed) replayed to resume, one log
 per participant in ``RESULTS/staircase/PARTICIPANT.csv``.

@@ -1,6 +1,6 @@
 """The experiment's stimuli: the paper's four with grating texture models, or a file.
 
-By default each stimulus renders a rectangular grating model (paper 002 4.2, the
+By default each stimulus renders a rectangular grating model (Ito 2019 4.2, the
 FYD-pad's specimens: 90 % ridge, the default 8:2 vibrotactile/friction ratio) of its
 period, written to ``RESULTS/textures/grating-<period>mm.json`` so the plan and the
 render process name a real file (rewritten, atomically, whenever its content would

@@ -1,7 +1,7 @@
 """`fydpad replay` against a real `teleop slave` process, and `fydpad demo`, over loopback.
 
 These prove the chain runs end to end over real sockets and writes the report of
-RECORDING_FORMAT.md, with the simulated arm following the finger (errors far below the
+docs/recording_format.md, with the simulated arm following the finger (errors far below the
 workspace's size). The accuracy targets themselves are checked in virtual time, where a
 shared machine's scheduling cannot blur them (tests/teleop/test_tracking.py).
 """

@@ -1,4 +1,4 @@
-"""The report's figures as RECORDING_FORMAT.md defines them (eq. 6), on hand-made logs."""
+"""The report's figures as docs/recording_format.md defines them (eq. 6), on hand-made logs."""
 
 from __future__ import annotations
 
