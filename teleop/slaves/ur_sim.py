@@ -344,6 +344,11 @@ def unlock_protective_stop(controller: SimURController) -> None:
 def connect_sim(frequency_hz: float = CONTROL_HZ, clock: Callable[[], float] = time.monotonic
                 ) -> tuple[SimRTDEControl, SimRTDEReceive]:
     """Both interfaces on one new simulated controller (``--ur-host sim``)."""
+    try:
+        import mujoco  # noqa: F401
+    except ImportError:
+        # ValueError, not RuntimeError: no point retrying, nothing on the network to check.
+        raise ValueError("--ur-host sim needs MuJoCo: pip install 'fydpad[mujoco]'") from None
     if abs(frequency_hz - CONTROL_HZ) > 1e-6:
         raise RuntimeError(f"the simulated UR5e runs at {CONTROL_HZ:.0f} Hz (e-Series), "
                            f"asked for {frequency_hz:g} Hz")
