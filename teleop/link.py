@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import ipaddress
 import logging
+import math
 import os
 import select
 import time
@@ -35,18 +36,32 @@ log = logging.getLogger(__name__)
 # libzmq from the length in the frame header, before any of it is read into memory.
 MAX_MSG_SIZE = 4096
 
-# Socket-monitor events of a refused handshake -> the name counted and logged.
-HANDSHAKE_FAILED = {
-    zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL: "no_detail",
-    zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL: "protocol",
-    zmq.EVENT_HANDSHAKE_FAILED_AUTH: "auth",
-}
-_HANDSHAKE_HINT = {
+# Socket-monitor events of a refused handshake. ZAP (the authenticator) sees only clients
+# that completed the CURVE exchange; these see every refusal.
+_HANDSHAKE_EVENTS = (zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL | zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL
+                     | zmq.EVENT_HANDSHAKE_FAILED_AUTH)
+HANDSHAKE_HINTS = {
+    "no_keys": "a client without CurveZMQ keys (or with keys, to a slave without)",
+    "wrong_server_key": "a client holding the wrong server.key",
+    "unknown_client_key": "a client key not in authorized_clients/",
+    "protocol_error": "a peer speaking another protocol",
     "no_detail": "the connection failed during the handshake",
-    "protocol": "a client without CurveZMQ keys, with the wrong server key, or speaking "
-                "another protocol",
-    "auth": "a client key not in authorized_clients/",
 }
+HANDSHAKE_LOG_EVERY_S = 10.0  # one line per kind at most this often, with the running count
+
+
+def handshake_failure_kind(event: int, value: int) -> str:
+    """The name a refused handshake is counted under (HANDSHAKE_HINTS)."""
+    if event == zmq.EVENT_HANDSHAKE_FAILED_AUTH:
+        return "unknown_client_key"
+    if event == zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL:
+        if value == zmq.PROTOCOL_ERROR_ZMTP_MECHANISM_MISMATCH:
+            return "no_keys"
+        if value == zmq.PROTOCOL_ERROR_ZMTP_CRYPTOGRAPHIC:
+            return "wrong_server_key"
+        return "protocol_error"
+    return "no_detail"
+
 
 # The monitor's value for a protocol failure, by name (for auth it is the ZAP status, 400).
 _PROTOCOL_ERRORS = {getattr(zmq, n): n for n in dir(zmq) if n.startswith("PROTOCOL_ERROR_")}
@@ -89,6 +104,11 @@ def wait_readable(sock: zmq.Socket, t_end_s: float, clock: Callable[[], float]) 
         if remaining <= 0:
             return False
         select.select([fd], [], [], remaining)
+
+
+def tcp_endpoint(endpoint: str) -> str:
+    """``HOST:PORT`` as ``tcp://HOST:PORT``; an endpoint with a transport is kept as is."""
+    return endpoint if "://" in endpoint else f"tcp://{endpoint}"
 
 
 def curve_enabled(cfg: LinkConfig, endpoint: str) -> bool:
@@ -149,9 +169,8 @@ class SlaveSocket:
         # connection may not be seen dead yet); without this libzmq drops the new one.
         self.sock.setsockopt(zmq.ROUTER_HANDOVER, 1)
         self.handshakes_failed: Counter[str] = Counter()
-        self.monitor = self.sock.get_monitor_socket(
-            zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL | zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL
-            | zmq.EVENT_HANDSHAKE_FAILED_AUTH)
+        self._handshake_logged_s: dict[str, float] = {}
+        self.monitor = self.sock.get_monitor_socket(_HANDSHAKE_EVENTS)
         self.curve = curve_enabled(cfg, endpoint)
         if self.curve:
             keys_dir = Path(cfg.keys_dir)
@@ -177,18 +196,20 @@ class SlaveSocket:
         while True:
             try:
                 ev = recv_monitor_message(self.monitor, zmq.NOBLOCK)
-            except zmq.Again:
+            except zmq.ZMQError:  # Again: none waiting; or the monitor is closed
                 return n
-            except zmq.ZMQError:  # the monitor is closed
-                return n
-            kind = HANDSHAKE_FAILED.get(ev["event"])
-            if kind is None:
+            if not int(ev["event"]) & _HANDSHAKE_EVENTS:
                 continue
             n += 1
+            value = int(ev["value"])
+            kind = handshake_failure_kind(int(ev["event"]), value)
             self.handshakes_failed[kind] += 1
-            detail = _PROTOCOL_ERRORS.get(int(ev["value"]), str(int(ev["value"])))
-            log.warning("refused a handshake on %s (%s, code %s): %s", self.endpoint, kind,
-                        detail, _HANDSHAKE_HINT[kind])
+            now = time.monotonic()
+            if now - self._handshake_logged_s.get(kind, -math.inf) >= HANDSHAKE_LOG_EVERY_S:
+                self._handshake_logged_s[kind] = now
+                log.warning("refused a CurveZMQ handshake on %s: %s (%s, code %s; %d refused "
+                            "so far)", self.endpoint, HANDSHAKE_HINTS[kind], kind,
+                            _PROTOCOL_ERRORS.get(value, value), self.handshakes_failed[kind])
 
     def close(self) -> None:
         try:
@@ -214,6 +235,11 @@ class MasterSocket:
     def __init__(self, endpoint: str, cfg: LinkConfig | None = None,
                  ctx: zmq.Context | None = None) -> None:
         cfg = cfg or LinkConfig()
+        endpoint = tcp_endpoint(endpoint)
+        keys = None
+        if curve_enabled(cfg, endpoint):  # a missing key file fails before any socket
+            keys_dir = Path(cfg.keys_dir)
+            keys = client_keys(keys_dir), server_keys(keys_dir, public_only=True)[0]
         self.ctx = ctx or zmq.Context.instance()
         self.sock = self.ctx.socket(zmq.DEALER)
         self.sock.linger = 0
@@ -224,14 +250,17 @@ class MasterSocket:
         self.sock.setsockopt(zmq.IMMEDIATE, 1)  # never queue samples for a slave not there
         self.sock.setsockopt(zmq.RECONNECT_IVL, 50)
         self.sock.setsockopt(zmq.RECONNECT_IVL_MAX, 500)
-        if curve_enabled(cfg, endpoint):
-            keys_dir = Path(cfg.keys_dir)
-            pub, sec = client_keys(keys_dir)
-            server_pub, _ = server_keys(keys_dir, public_only=True)
+        self.curve = keys is not None
+        if keys is not None:
+            (pub, sec), server_pub = keys
             self.sock.curve_publickey = pub
             self.sock.curve_secretkey = sec
             self.sock.curve_serverkey = server_pub
-        self.sock.connect(endpoint)
+        try:
+            self.sock.connect(endpoint)
+        except zmq.ZMQError as e:
+            self.close()
+            raise OSError(f"master cannot connect to {endpoint}: {e}") from e
         self.endpoint = endpoint
 
     def send(self, data: bytes) -> bool:

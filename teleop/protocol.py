@@ -11,6 +11,8 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass
 
+from vision.errors import DeviceFault
+
 MAGIC = b"FYDT"
 VERSION = 2
 
@@ -34,7 +36,8 @@ STATUS_NOT_OWNER = 7  # (acknowledgement only) another master owns the arm: samp
 
 # Why a state was sent.
 REASON_TICK = 0
-REASON_ACK = 1
+REASON_ACK = 1  # acknowledgement of an accepted sample
+REASON_REFUSED = 2  # acknowledgement of a refused sample (the slave counted it as dropped)
 
 _HEADER = "<4sBB"
 # magic, version, type, flags u16, seq u64, t_capture f64, t_send f64, x, y, z, force f64
@@ -47,8 +50,11 @@ SAMPLE_SIZE = _SAMPLE.size
 STATE_SIZE = _STATE.size
 
 
-class ProtocolError(ValueError):
+class ProtocolError(DeviceFault, ValueError):
     """A message that is not a valid FYDT message of this version."""
+
+    device = "link peer"
+    check = "that master and slave run the same protocol version (docs/protocol.md)"
 
 
 @dataclass(frozen=True, slots=True)

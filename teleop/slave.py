@@ -95,7 +95,7 @@ class SlaveLoop:
             self._latest_recv_s = now_s
             self._send_state(P.REASON_ACK, now_s, s)
         else:
-            self._send_state(P.REASON_ACK, now_s, s, to=ident,
+            self._send_state(P.REASON_REFUSED, now_s, s, to=ident,
                              status=P.STATUS_NOT_OWNER if reason == "not_owner" else None)
 
     @property
@@ -166,7 +166,7 @@ class SlaveLoop:
                      echo_seq=e.seq if e else 0,
                      t_echo_send_s=e.t_send_s if e else math.nan,
                      t_echo_recv_s=now_s if echo is not None else self._latest_recv_s,
-                     t_slave_s=self.clock() if reason == P.REASON_ACK else now_s,
+                     t_slave_s=self.clock() if reason != P.REASON_TICK else now_s,
                      cmd_mm=tuple(cmd_ws), actual_mm=tuple(act_ws),
                      received=self.counts["received"], dropped=self.admission.dropped_total)
         try:
@@ -243,6 +243,10 @@ class SlaveLoop:
 
     def tick(self, now_s: float, dt_s: float) -> None:
         tgt_ws = self._target_ws(now_s)
+        if tgt_ws is not None and not np.all(np.isfinite(tgt_ws)):
+            # Finite samples far out of range can overflow the prediction: hold instead.
+            self.counts["nonfinite_targets"] += 1
+            tgt_ws = None
         if tgt_ws is None:
             cmd = self.limiter.hold(dt_s)
         else:
@@ -287,9 +291,12 @@ class SlaveLoop:
             self.tick(now, min(max(now - t_prev, 1e-4), 0.05))
             self.sock.poll_monitor()
             t_prev = now
+            # Late ticks catch up at half a period at the least (never back to back: the
+            # limiter's step must span real time), and a starved loop skips ahead.
             t_next += period
             if now - t_next > 0.05:  # starved (e.g. CI load): skip ahead, don't burst
                 t_next = now + period
+            t_next = max(t_next, now + 0.5 * period)
         self.t_end_s = self.clock()
 
     def report(self) -> dict:
@@ -306,6 +313,11 @@ class SlaveLoop:
             "operator_holds": self.counts["operator_holds"],
             "stopped": self.stopped,
             "watchdog_trips": self.watchdog.trips,
+            # Per trip: last valid sample -> the tick before the trip; at most watchdog_s
+            # when every trip (and release of the arm) came at the first tick past it.
+            "watchdog_pre_trip_max_s": round(max(self.watchdog.pre_trip_checks_s,
+                                                 default=0.0), 4),
+            "nonfinite_targets": self.counts["nonfinite_targets"],
             "box_clamped_ticks": self.limiter.clamped,
             "arm_faults": self.counts["arm_faults"],
             "auth_denied": LoggingAuthenticator.denied,

@@ -21,6 +21,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from vision.errors import UserError
+
 IMAGE_FLIPS = ("none", "horizontal", "vertical", "both")
 DEFAULT_IR_SENSORS_MM: tuple[tuple[float, float], ...] = ((-22.0, -3.0), (0.0, 27.0), (22.0, -3.0))
 DEFAULT_BASE_TO_FABRIC_MM = 100.0
@@ -29,7 +31,7 @@ TRUTH_COLUMNS = ("t_s", "frame", "contact", "x_mm", "y_mm", "indentation_mm")
 VIDEO_NAMES = ("video.avi", "video.mp4")
 
 
-class RecordingError(ValueError):
+class RecordingError(UserError, ValueError):
     """A recording file is missing or malformed; the message names the file and key or line."""
 
 

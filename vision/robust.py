@@ -259,11 +259,15 @@ class RobustTracker:
     def _fit_gain(self, ratio: NDArray[np.float32]) -> NDArray[np.float32]:
         """A smooth gain field fitted to ``I / B`` over pixels that are not dark."""
         samples = ratio.ravel().take(self._grid_flat).astype(np.float64)
-        floor = _median(samples) * 0.85
-        for i in range(2):
-            # Least squares by the 6x6 normal equations over the samples above the floor
-            # (the rest weighted 0: cheaper than copying the kept rows out).
-            keep = (samples > floor).astype(np.float64)
+        # First a band around the median: a finger or a shadow is darker, a dark thing
+        # learned into the background that has gone (a palm resting at the start)
+        # brighter; then a band around the fit.
+        med = _median(samples)
+        lo, hi = med * 0.85, med * 1.15
+        for i in range(3):
+            # Least squares by the 6x6 normal equations over the samples kept (the rest
+            # weighted 0: cheaper than copying the kept rows out).
+            keep = ((samples > lo) & (samples < hi)).astype(np.float64)
             normal = self._normal
             normal[self._upper] = normal[self._lower] = self._outer_t @ keep
             normal += self._ridge
@@ -272,9 +276,13 @@ class RobustTracker:
             # its ~20 us of Python-side checks per call.
             _, coef = cv2.solve(normal, rhs[:, None], flags=cv2.DECOMP_LU)
             coef = coef.ravel()
-            if i == 0:
-                # Drop samples well below the fit (a finger, a shadow) and refit.
-                floor = (coef @ self._basis_grid_t) * 0.9
+            if i < 2:
+                # Drop samples well below the fit (a finger, a shadow) and well above it
+                # (a dark thing learned into the background that has gone: a palm that
+                # rested at the start), and refit.
+                fit = coef @ self._basis_grid_t
+                lo = fit * 0.9
+                hi = fit * 1.12
         gain = self._gain
         np.matmul(coef.astype(np.float32), self._basis_full, out=gain.reshape(-1))
         cv2.max(gain, 1e-3, dst=gain)

@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 from fydpad.cli import add_config_argument
+from fydpad.commands.run import add_link_arguments, apply_link_arguments
 from fydpad.config import load_config
 from fydpad.errors import UserError
 from fydpad.teleop_run import format_report, recording_states, truth_rows
@@ -31,7 +32,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("recdir", metavar="RECDIR", help="pad session recording")
     p.add_argument("--teleop", metavar="ENDPOINT", required=True,
-                   help="the slave's ZeroMQ endpoint, e.g. tcp://127.0.0.1:5555")
+                   help="the slave's ZeroMQ endpoint, e.g. tcp://10.0.0.5:5555 or "
+                   "10.0.0.5:5555")
+    add_link_arguments(p)
     p.add_argument("--report", metavar="REPORT.json", required=True, help="report to write")
     p.add_argument("--plot", metavar="PNG", help="master and slave per axis over time (Fig. 11)")
     p.add_argument("--slave-log", metavar="CSV",
@@ -47,13 +50,14 @@ def run(args: argparse.Namespace) -> int:
     from teleop.master import run_session
 
     config = load_config(args.config)
+    apply_link_arguments(args, config)
     rec = PadRecording(args.recdir)
     states = recording_states(rec, config)
     try:
         session = run_session(states, args.teleop, config.teleop, truth=truth_rows(rec),
                               baseline=not args.no_baseline)
-    except TimeoutError as exc:
-        raise UserError(str(exc)) from None
+    except (TimeoutError, OSError, ValueError) as exc:
+        raise UserError(f"--teleop {args.teleop}: {exc}") from None
     Path(args.report).write_text(json.dumps(session.report, indent=2) + "\n")
     if args.slave_log:
         from fydpad.export.slave_log import write_slave_log

@@ -77,7 +77,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "family has it); ',fs=X' sets the full scale of WAV and card (default 1). "
                    "Stop or fault silences the card (docs/channels.md)")
     p.add_argument("--teleop", metavar="ENDPOINT",
-                   help="stream the finger to a slave robot (`teleop slave`) at this endpoint")
+                   help="stream the finger to a slave robot (`teleop slave`) at this endpoint "
+                   "(tcp://HOST:PORT or HOST:PORT). A slave that never answers or goes "
+                   "silent leaves the station running (the robot holds by its watchdog); the "
+                   "run then ends with a line saying so and exit status 3")
+    add_link_arguments(p)
     p.add_argument("--vibration-gain", type=float, default=1.0,
                    help="texture vibration gain (the paper: 1)")
     p.add_argument("--texture-method", choices=METHODS, default=None,
@@ -108,6 +112,69 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "docs/experiment.md); default: the paper's SS1-SS4 with grating models")
     # -- end web view --
     p.set_defaults(func=run)
+
+
+def add_link_arguments(p: argparse.ArgumentParser) -> None:
+    """The master's side of the link's security: --curve and --keys (docs/getting_started.md)."""
+    p.add_argument("--curve", choices=("auto", "on", "off"),
+                   help="CurveZMQ on the tele-operation link: auto = on unless the endpoint is "
+                   "loopback (default: [teleop.link] curve of the config, auto)")
+    p.add_argument("--keys", metavar="DIR",
+                   help="CurveZMQ key directory holding server.key, client.key and "
+                   "client.key_secret from the slave's `teleop keys generate DIR` (default: "
+                   "[teleop.link] keys_dir of the config, teleop_keys)")
+
+
+def apply_link_arguments(args: argparse.Namespace, config) -> None:
+    """--curve and --keys over the config's [teleop.link]."""
+    if args.curve:
+        config.teleop.link.curve = args.curve
+    if args.keys:
+        config.teleop.link.keys_dir = args.keys
+
+
+def open_link(endpoint: str, config):
+    """The station's link; a missing key file or a bad endpoint is one line."""
+    from fydpad.station.link import StationLink
+
+    try:
+        return StationLink(endpoint, config.teleop)
+    except (OSError, ValueError) as exc:
+        raise UserError(f"--teleop {endpoint}: {exc}") from None
+
+
+class LinkWatch:
+    """What the run tells at its end about the link: whether the slave ever answered, and
+    how often and how long it went silent (LINK_SILENT_S without an answer) after that."""
+
+    def __init__(self) -> None:
+        self.outages = 0
+        self.longest_silence_s = 0.0
+        self._silent = False
+
+    def update(self, answered: bool, age_s: float) -> None:
+        if not answered:
+            return
+        if age_s > LINK_SILENT_S:
+            self.longest_silence_s = max(self.longest_silence_s, age_s)
+            if not self._silent:
+                self.outages += 1
+                self._silent = True
+        else:
+            self._silent = False
+
+    def summary(self, endpoint: str, answered: bool, sent: int, failed: int) -> str | None:
+        """None for a link that held; else the line that says what went wrong."""
+        if not answered:
+            return (f"tele-operation link {endpoint}: no slave ever answered ({sent} samples "
+                    f"sent, {failed} refused for want of a connection): is `teleop slave` "
+                    "running there, its port open, and are the CurveZMQ settings and keys the "
+                    "same on both sides?")
+        if self.outages:
+            return (f"tele-operation link {endpoint}: the slave went silent {self.outages} "
+                    f"time(s), the longest {self.longest_silence_s:.1f} s; the robot held "
+                    "meanwhile (its watchdog)")
+        return None
 
 
 class _Interrupts:
@@ -274,6 +341,8 @@ def run(args: argparse.Namespace) -> int:
         require_rosbags()
     if args.record:
         Path(args.record).mkdir(parents=True, exist_ok=True)
+    if args.teleop is None and (args.curve or args.keys):
+        raise UserError("--curve and --keys apply to the tele-operation link: give --teleop")
     if args.texture:  # a bad model file fails here, in one line, not in the render process
         from fydpad.station.texture_source import check_family_rate
         from fydpad.texture.families import load_family
@@ -312,16 +381,17 @@ def run(args: argparse.Namespace) -> int:
         status=_status_printer(),
     )
     link = None
+    watch = LinkWatch()
     if args.teleop:
-        from fydpad.station.link import StationLink
-
-        link = StationLink(args.teleop, config.teleop)
+        apply_link_arguments(args, config)
+        link = open_link(args.teleop, config)
         options.teleop_hold = link.hold
     station = Station(source, tracker, meta, options, sensors=sensors, indentation=indentation,
                       force_full_scale_n=config.force.full_scale_n)
     if link is not None:
         def send(state, link=link, station=station) -> None:
             link.send(state)
+            watch.update(link.slave is not None, link.answer_age_s())
             # For the web view and the status: the robot's tracking error, as it is now.
             station.live_stats["link"] = {
                 "endpoint": link.endpoint, "sent": link.sent, "send_failed": link.send_failed,
@@ -362,9 +432,14 @@ def run(args: argparse.Namespace) -> int:
         signal.signal(signal.SIGTERM, previous_term)
         if web is not None:  # web view
             web.stop()
+        link_summary = None
         if link is not None:
+            link_summary = watch.summary(link.endpoint, link.slave is not None, link.sent,
+                                         link.send_failed)
             station.stats["link"] = {"sent": link.sent, "send_failed": link.send_failed,
-                                     "slave_answered": link.slave is not None}
+                                     "slave_answered": link.slave is not None,
+                                     "outages": watch.outages,
+                                     "longest_silence_s": round(watch.longest_silence_s, 3)}
             link.close()
         if options.status is not None:
             print(file=sys.stderr)
@@ -383,4 +458,7 @@ def run(args: argparse.Namespace) -> int:
         from fydpad.commands.export import export_recording
 
         print(export_recording(args.record, args.bag, args.config, video=not args.no_video))
+    if link_summary is not None:
+        print(f"fydpad run: {link_summary}", file=sys.stderr)
+        return 3
     return 0

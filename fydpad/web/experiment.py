@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from vision.errors import UserError
+
 #: CSV columns, one row per answer (docs/experiment.md).
 CSV_FIELDS = ("participant", "trial", "presented", "answer", "correct", "seed", "time_utc")
 
@@ -56,7 +58,7 @@ PAPER_REPEATS = 3
 _PARTICIPANT_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 
 
-class ExperimentError(ValueError):
+class ExperimentError(UserError, ValueError):
     """A bad experiment setting, answer or results file."""
 
 
