@@ -64,7 +64,10 @@ def run(args: argparse.Namespace) -> int:
 
         write_slave_log(session, args.slave_log)
     if args.plot:
-        session.plot(args.plot, title=rec.path.name)
+        from fydpad.plots import plot_teleop
+
+        mae = " / ".join(f"{session.report['mae_mm'][a]:.2f}" for a in "xyz")
+        plot_teleop(args.plot, *session.series(), title=f"{rec.path.name}: MAE x / y / z {mae} mm")
     # Where the error against the truth comes from first: the largest part is named.
     for line in breakdown_lines(session.report):
         print(line)
