@@ -17,6 +17,7 @@ from fydpad.config import load_config
 from fydpad.plots import plot_teleop
 from fydpad.teleop_run import format_report, recording_states, truth_rows
 from vision.recording import PadRecording
+from vision.strict_json import finite
 
 DEMO_RECORDINGS = ("circle", "lissajous", "tapping")
 DEFAULT_OUT = "fydpad-demo"
@@ -163,7 +164,7 @@ def run(args: argparse.Namespace) -> int:
             title += f" (paper's condition {_axes(report['baseline_mae_mm'])} mm)"
         plot_teleop(out / f"{name}.png", *session.series(), title=title)
         (out / f"{name}.json").write_text(
-            json.dumps(report, indent=2, allow_nan=False) + "\n")
+            json.dumps(finite(report), indent=2, allow_nan=False) + "\n")
     print()
     print("\n".join(summary_table(reports)))
     print(dominant_error(reports))

@@ -13,6 +13,7 @@ from fydpad.errors import UserError
 from fydpad.teleop_run import format_report, recording_states, truth_rows
 from teleop.report import breakdown_lines
 from vision.recording import PadRecording
+from vision.strict_json import finite
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -58,7 +59,8 @@ def run(args: argparse.Namespace) -> int:
                               baseline=not args.no_baseline)
     except (TimeoutError, OSError, ValueError) as exc:
         raise UserError(f"--teleop {args.teleop}: {exc}") from None
-    Path(args.report).write_text(json.dumps(session.report, indent=2) + "\n")
+    Path(args.report).write_text(
+        json.dumps(finite(session.report), indent=2, allow_nan=False) + "\n")
     if args.slave_log:
         from fydpad.export.slave_log import write_slave_log
 
