@@ -9,8 +9,8 @@ import warnings
 from collections.abc import Sequence
 
 from fydpad import __version__
-from fydpad.errors import UserError, one_line_warnings
-from vision.recording import PadRecording, RecordingError
+from fydpad.errors import FydpadError, one_line_warnings
+from vision.recording import PadRecording
 
 #: Subcommand modules, in the order ``--help`` lists them.
 COMMANDS = (
@@ -66,7 +66,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     PadRecording.allow_truncated = bool(getattr(args, "allow_truncated", False))
     try:
         return int(args.func(args) or 0)
-    except (UserError, RecordingError) as exc:
+    except FydpadError as exc:  # bad input or a device fault: one line, no traceback
         print(f"fydpad {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

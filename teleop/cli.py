@@ -13,6 +13,7 @@ import tomllib
 from pathlib import Path
 
 from teleop.config import OTHER_SECTIONS, TeleopConfig, check_rt_priority
+from vision.errors import FydpadError
 from vision.strict_json import finite
 
 log = logging.getLogger("teleop")
@@ -86,7 +87,6 @@ def _run_slave(args: argparse.Namespace, cfg: TeleopConfig, scheduling: str) -> 
     from teleop.link import SlaveSocket
     from teleop.mapping import Mapping
     from teleop.slave import SlaveLoop, make_arm
-    from teleop.slaves import ArmFault
 
     stop = threading.Event()
 
@@ -113,7 +113,7 @@ def _run_slave(args: argparse.Namespace, cfg: TeleopConfig, scheduling: str) -> 
                     Path(args.report).write_text(
                         json.dumps(finite(rep), indent=2, allow_nan=False) + "\n")
                 print(json.dumps(finite(rep), allow_nan=False), flush=True)
-    except (OSError, FileNotFoundError, ArmFault, ValueError) as e:
+    except (OSError, FydpadError, ValueError) as e:  # ArmFault is a FydpadError
         print(f"teleop slave: {e}", file=sys.stderr)
         return 2
     except Exception as e:  # a fault in the loop or the link: the robot is stopped (finally)

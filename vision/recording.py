@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from vision.errors import UserError
 from vision.strict_json import finite
 
 IMAGE_FLIPS = ("none", "horizontal", "vertical", "both")
@@ -32,7 +33,7 @@ TRUTH_COLUMNS = ("t_s", "frame", "contact", "x_mm", "y_mm", "indentation_mm")
 VIDEO_NAMES = ("video.avi", "video.mp4")
 
 
-class RecordingError(ValueError):
+class RecordingError(UserError, ValueError):
     """A recording file is missing or malformed; the message names the file and key or line."""
 
 

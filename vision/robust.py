@@ -78,6 +78,9 @@ class RobustParams:
     #: than this (mm) are filled from around them (a grey closing) to look for a finger
     #: already on the fabric.
     bootstrap_fill_mm: float = 36.0
+    #: ... and a fingertip found there must be darkest within this many core radii of
+    #: its centroid (a dried drop, darkest on its rim, is not).
+    bootstrap_max_offcentre: float = 0.5
 
 
 @dataclass(frozen=True, slots=True)
@@ -248,7 +251,9 @@ class RobustTracker:
         found = self._detect(img)
         self.in_contact = False  # the first frame's answer is the next call's
         bg = img.copy()
-        if found is not None:
+        # A fingertip pressed on the fabric is darkest near its middle; a mark that
+        # passes the other checks (a dried drop, darkest on its rim) is not: it stays.
+        if found is not None and self._best_offcentre <= p.bootstrap_max_offcentre:
             x0, y0, bw, bh = self._best_box
             region = np.zeros(self._shape, np.uint8)
             region[y0 : y0 + bh, x0 : x0 + bw] = self._dark[y0 : y0 + bh, x0 : x0 + bw]
@@ -259,11 +264,15 @@ class RobustTracker:
     def _fit_gain(self, ratio: NDArray[np.float32]) -> NDArray[np.float32]:
         """A smooth gain field fitted to ``I / B`` over pixels that are not dark."""
         samples = ratio.ravel().take(self._grid_flat).astype(np.float64)
-        floor = _median(samples) * 0.85
-        for i in range(2):
-            # Least squares by the 6x6 normal equations over the samples above the floor
-            # (the rest weighted 0: cheaper than copying the kept rows out).
-            keep = (samples > floor).astype(np.float64)
+        # First a band around the median: a finger or a shadow is darker, a dark thing
+        # learned into the background that has gone (a palm resting at the start)
+        # brighter; then a band around the fit.
+        med = _median(samples)
+        lo, hi = med * 0.85, med * 1.15
+        for i in range(3):
+            # Least squares by the 6x6 normal equations over the samples kept (the rest
+            # weighted 0: cheaper than copying the kept rows out).
+            keep = ((samples > lo) & (samples < hi)).astype(np.float64)
             normal = self._normal
             normal[self._upper] = normal[self._lower] = self._outer_t @ keep
             normal += self._ridge
@@ -272,9 +281,13 @@ class RobustTracker:
             # its ~20 us of Python-side checks per call.
             _, coef = cv2.solve(normal, rhs[:, None], flags=cv2.DECOMP_LU)
             coef = coef.ravel()
-            if i == 0:
-                # Drop samples well below the fit (a finger, a shadow) and refit.
-                floor = (coef @ self._basis_grid_t) * 0.9
+            if i < 2:
+                # Drop samples well below the fit (a finger, a shadow) and well above it
+                # (a dark thing learned into the background that has gone: a palm that
+                # rested at the start), and refit.
+                fit = coef @ self._basis_grid_t
+                lo = fit * 0.9
+                hi = fit * 1.12
         gain = self._gain
         np.matmul(coef.astype(np.float32), self._basis_full, out=gain.reshape(-1))
         cv2.max(gain, 1e-3, dst=gain)
@@ -388,6 +401,9 @@ class RobustTracker:
                     flatness=flatness,
                 )
                 self._best_box = (x0, y0, bw, bh)
+                # Where its darkest cell lies from its centroid, in core radii.
+                self._best_offcentre = float(np.hypot(px - cu, py - cv_)) / max(
+                    np.sqrt(core_cells / np.pi), 1.0)
         self.in_contact = best is not None
         return best
 

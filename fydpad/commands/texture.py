@@ -76,16 +76,17 @@ def register(sub: argparse._SubParsersAction) -> None:
         "fit", help="fit a model file from scans of one surface",
         description=(
             "Fit one texture model file from one or more scans of the same surface. Each "
-            "scan's three axes are high-passed at --highpass-hz (hand motion, gravity), "
-            "reduced to one signal by DFT321, cut into runs whose speed stays within "
-            "--tolerance of each target speed, and an LPC model of --order is fitted per "
-            "speed up to Nyquist (autocorrelation/Levinson-Durbin or Burg). With two or "
-            "more speeds a speed-resolved spectrum is fitted too by default (--free-form "
-            "calibrated: the two-part S(f,v) of every 0.5 s chunk, corrected to the "
-            "recorded spectrum at each fitted speed), which the renderer follows between "
-            "the fitted speeds; --pooled keeps the per-speed LPC fit alone (the paper's "
-            "model). Every model's stability is "
-            "checked. The 165-220 Hz band of the paper is stored as the output drive "
+            "scan's three axes are high-passed at --highpass-hz (hand motion, gravity) and "
+            "reduced to one signal by DFT321. Two forms are validated on the scans "
+            "themselves: the paper's method read plainly (per speed, an LPC of --order on "
+            "the samples within --tolerance of it, rendered at the nearest fitted speed) "
+            "and the calibrated speed-resolved spectrum; a time block of each speed "
+            "plateau and each inner plateau whole are held out in turn, each form is "
+            "scored by its log-spectral distance there, the best wins (ties within the "
+            "noise to the paper's), is refitted on all the scans and the table printed "
+            "(docs/texture.md, 'How fit chooses'). Scans that cannot be validated (fewer "
+            "than two plateaus of 4.5 s) get the paper's method. Every model's stability "
+            "is checked. The 165-220 Hz band of the paper is stored as the output drive "
             "filter, not used for fitting."),
     )
     f.add_argument("scans", nargs="*", metavar="SCAN.csv", help="texture scan recordings")
@@ -603,7 +604,35 @@ def _run_select(args: argparse.Namespace, scans: list) -> int:
           f"models at {model.speeds_mm_s[0]:g}-{model.speeds_mm_s[-1]:g} mm/s, "
           f"interpolation {model.interpolation}")
     print("\n".join(table))
+    if args.plot:
+        _plot_selected(args, scans, model)
     return 0
+
+
+def _plot_selected(args: argparse.Namespace, scans: list, model) -> None:
+    """Recorded spectrum at each target speed (its samples within the tolerance) against
+    the model rendered there (the all-pole part; a periodic surface's lines apart)."""
+    from fydpad.texture.dft321 import preprocess
+    from fydpad.texture.evaluate import welch_psd
+    from fydpad.texture.interpolation import SpeedInterpolator
+    from fydpad.texture.lpc import ar_psd
+    from fydpad.texture.plots import plot_spectra
+
+    interp = SpeedInterpolator(model)
+    pre = [preprocess(sc.acc, sc.fs_hz, model.highpass_hz) for sc in scans]
+    x = np.concatenate(pre)
+    v = np.concatenate([sc.speed_mm_s for sc in scans])
+    panels = []
+    for s in args.speeds:
+        mask = np.abs(v - s) <= args.tolerance
+        try:
+            f, pr = welch_psd(x, model.fs_hz, mask)
+        except ValueError:
+            continue  # too little near this speed for a spectrum
+        a, s2 = interp(float(s))
+        panels.append((f"{s:g} mm/s", f, pr, ar_psd(a, s2, f, model.fs_hz)))
+    plot_spectra(args.plot, panels, f"{model.surface}: recorded vs model "
+                 f"({model.provenance.get('form', 'calibrated')}, {model.interpolation})")
 
 
 def _check_fit_options(args: argparse.Namespace, fs_hz: float) -> None:

@@ -35,14 +35,18 @@ from fydpad.station.render import CONTROL_FIELDS, RenderSpec, render_main
 from fydpad.station.shared import SharedFingerState, SharedRecord
 from fydpad.station.snapshot import Snapshot, View
 from vision.contact import ContactTracker
+from vision.errors import DeviceFault
 from vision.recording import CsvRowWriter, PadMeta, PadRecordingWriter, TrackWriter, write_meta
 from vision.sources import FrameSource
 from vision.state import FingerState
 from vision.stream import FingerStateBuilder, LiveIndentation
 
 
-class StationFault(RuntimeError):
+class StationFault(DeviceFault, RuntimeError):
     """A loop of the station failed; the station has stopped safely."""
+
+    device = "station"
+    check = "the loop and device the message names (vibration is off, the motors at rest)"
 
 
 @dataclass

@@ -19,7 +19,7 @@ A hand drags a tool (tip + accelerometer) over a surface. Per stroke:
   stiffness of the surface), and the accelerometer adds white noise;
 - the hand's slow motion and gravity (with a slowly tilting hand) appear on all axes.
 
-With ``friction=True`` (issue 9) the scan also carries ``force_n`` and ``friction_n``
+With ``friction=True`` the scan also carries ``force_n`` and ``friction_n``
 from a separate physical model (:func:`friction_forces`; the acceleration columns are the
 same with or without it): the hand's varying normal load (the one the preload follows),
 Coulomb friction on the local slope of the same profile h(x) with a material coefficient
@@ -384,7 +384,7 @@ def save_generated(scan: Scan, path: str | Path) -> Path:
 # --------------------------------------------------------------------------- friction
 @dataclass(frozen=True)
 class FrictionParams:
-    """Friction of a surface against the tool (issue 9's friction scans)."""
+    """Friction of a surface against the tool (the friction family's scans)."""
 
     mu_kinetic: float = 0.45
     static_ratio: float = 1.15  # mu_s / mu_k: the stick-slip sawtooth's height

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vision.errors import UserError
 from vision.strict_json import finite
 
 #: CSV columns, one row per answer (docs/experiment.md).
@@ -58,7 +59,7 @@ PAPER_REPEATS = 3
 _PARTICIPANT_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 
 
-class ExperimentError(ValueError):
+class ExperimentError(UserError, ValueError):
     """A bad experiment setting, answer or results file."""
 
 

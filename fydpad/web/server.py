@@ -34,6 +34,7 @@ from fydpad.web.experiment import (
     plot_png,
     report,
 )
+from fydpad.web.indentation_guide import indentation_guide
 from fydpad.web.staircase import StaircaseSession
 from vision.calibration import CalibratedMapping, CalibrationError
 from vision.strict_json import finite
@@ -480,6 +481,7 @@ class WebView:
         app.router.add_get("/", self.index)
         app.router.add_get("/experiment", self.experiment_page)
         app.router.add_get("/calibrate", self.calibrate_page)
+        app.router.add_get("/indentation-guide", indentation_guide)
         app.router.add_get("/api/state", self.state)
         app.router.add_get("/api/frame.jpg", self.frame_jpg)
         app.router.add_post("/api/settings", self.post_settings)

@@ -110,8 +110,10 @@ def test_cli_fit_validates_and_synth_uses_the_models_interpolation(stroke, tmp_p
     scan = write_scan(tmp_path / "train.csv", stroke.t_s, stroke.acc, stroke.speed_mm_s,
                       meta={"surface": "ridged"})
     out = tmp_path / "m.json"
+    plot = tmp_path / "fit.png"
     assert run_cli("fit", str(scan), "--out", str(out), "--order", "40",
-                   "--form", "paper") == 0
+                   "--form", "paper", "--plot", str(plot)) == 0
+    assert plot.stat().st_size > 10_000
     text = capsys.readouterr().out
     assert "form paper" in text and "interpolation nearest" in text
     assert json.loads(out.read_text())["interpolation"] == "nearest"
