@@ -12,7 +12,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from fydpad.bundled import bundled_recording, recordings_dir
-from fydpad.cli import add_config_argument
+from fydpad.cli import add_config_argument, add_truncation_argument
 from fydpad.config import load_config
 from fydpad.plots import plot_teleop
 from fydpad.teleop_run import format_report, recording_states, truth_rows
@@ -64,6 +64,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-v", "--verbose", action="store_true",
                    help="show the simulated slave's log (watchdog holds between passes, ...)")
     add_config_argument(p)
+    add_truncation_argument(p)
     p.set_defaults(func=run)
 
 

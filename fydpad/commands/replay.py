@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from fydpad.cli import add_config_argument
+from fydpad.cli import add_config_argument, add_truncation_argument
 from fydpad.commands.run import add_link_arguments, apply_link_arguments
 from fydpad.config import load_config
 from fydpad.errors import UserError
@@ -44,6 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-baseline", action="store_true",
                    help="skip the second pass under the paper's condition")
     add_config_argument(p)
+    add_truncation_argument(p)
     p.set_defaults(func=run)
 
 

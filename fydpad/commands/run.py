@@ -10,7 +10,7 @@ import signal
 import sys
 from pathlib import Path
 
-from fydpad.cli import add_config_argument
+from fydpad.cli import add_config_argument, add_truncation_argument
 from fydpad.commands.track import make_tracker
 from fydpad.config import load_config
 from fydpad.errors import UserError
@@ -102,6 +102,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-realtime", action="store_true",
                    help="do not ask for SCHED_FIFO and a core for the render process")
     add_config_argument(p)
+    add_truncation_argument(p)
     # -- web view --
     p.add_argument("--web", metavar="[HOST:]PORT",
                    help="serve the web view (live image, plots, setup, experiment runner); "

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from fydpad.annotate import AnnotatedVideoWriter, annotate_frame
-from fydpad.cli import add_config_argument
+from fydpad.cli import add_config_argument, add_truncation_argument
 from fydpad.config import load_config
 from fydpad.errors import UserError
 from fydpad.opening import open_source
@@ -54,6 +54,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="map a recording through the configuration's camera calibration "
                    "(always on for --camera when the configuration has one)")
     add_config_argument(p)
+    add_truncation_argument(p)
     p.set_defaults(func=run)
 
 
