@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from vision.errors import UserError
+from vision.strict_json import finite
 
 IMAGE_FLIPS = ("none", "horizontal", "vertical", "both")
 DEFAULT_IR_SENSORS_MM: tuple[tuple[float, float], ...] = ((-22.0, -3.0), (0.0, 27.0), (22.0, -3.0))
@@ -171,7 +172,8 @@ def read_meta(recdir: str | Path) -> PadMeta:
 
 def write_meta(recdir: str | Path, meta: PadMeta) -> Path:
     path = Path(recdir) / "meta.json"
-    path.write_text(json.dumps(meta.to_json(), indent=2) + "\n", encoding="utf-8")
+    path.write_text(json.dumps(finite(meta.to_json()), indent=2, allow_nan=False) + "\n",
+                    encoding="utf-8")
     return path
 
 

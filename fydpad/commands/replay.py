@@ -13,6 +13,7 @@ from fydpad.errors import UserError
 from fydpad.teleop_run import format_report, recording_states, truth_rows
 from teleop.report import breakdown_lines
 from vision.recording import PadRecording
+from vision.strict_json import finite
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -58,13 +59,17 @@ def run(args: argparse.Namespace) -> int:
                               baseline=not args.no_baseline)
     except (TimeoutError, OSError, ValueError) as exc:
         raise UserError(f"--teleop {args.teleop}: {exc}") from None
-    Path(args.report).write_text(json.dumps(session.report, indent=2) + "\n")
+    Path(args.report).write_text(
+        json.dumps(finite(session.report), indent=2, allow_nan=False) + "\n")
     if args.slave_log:
         from fydpad.export.slave_log import write_slave_log
 
         write_slave_log(session, args.slave_log)
     if args.plot:
-        session.plot(args.plot, title=rec.path.name)
+        from fydpad.plots import plot_teleop
+
+        mae = " / ".join(f"{session.report['mae_mm'][a]:.2f}" for a in "xyz")
+        plot_teleop(args.plot, *session.series(), title=f"{rec.path.name}: MAE x / y / z {mae} mm")
     # Where the error against the truth comes from first: the largest part is named.
     for line in breakdown_lines(session.report):
         print(line)

@@ -25,6 +25,7 @@ from vision.mapping import workspace_to_roi
 from vision.recording import TrackWriter, read_track
 from vision.sources import CameraConfig, FrameSource, SourceError
 from vision.stream import TrackedFrame, finger_states, live_states
+from vision.strict_json import finite
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -92,7 +93,8 @@ def run(args: argparse.Namespace) -> int:
         _plot(Path(args.plot), cols, m.workspace_mm, truth, str(source))
     print(format_summary(summary))
     if args.json:
-        Path(args.json).write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+        Path(args.json).write_text(
+            json.dumps(finite(summary), indent=2, allow_nan=False) + "\n", encoding="utf-8")
     return 0
 
 
