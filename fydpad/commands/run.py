@@ -32,7 +32,11 @@ def register(sub: argparse._SubParsersAction) -> None:
             "rate, IR and force at the sensor rate, rendering at 1 kHz in a process of its "
             "own, tele-operation at the vision rate), handing each other the latest value. "
             "Ctrl-C, --duration or any fault stops it safely: vibration off, motors to rest, "
-            "robot told to hold, files closed. A second Ctrl-C forces the exit."
+            "robot told to hold, files closed. A second Ctrl-C forces the exit. "
+            "Operator hold: in the terminal, h or the space bar holds the robot still and "
+            "silences the vibration, the same key releases (the robot glides back to the "
+            "finger); also the web view's Hold button and the sensor board's pedal "
+            "(docs/station.md)."
         ),
     )
     src = p.add_mutually_exclusive_group(required=True)
@@ -234,6 +238,8 @@ def format_status(s: dict) -> str:
         else:
             state = "ok"
         line += f"  link {state}"
+    if s.get("operator_hold"):
+        line += "  HOLD"
     board = s.get("sensors")
     if board is not None:
         line += f"  board {board['samples']} ok {board['bad_lines']} bad"
@@ -397,6 +403,7 @@ def run(args: argparse.Namespace) -> int:
         apply_link_arguments(args, config)
         link = open_link(args.teleop, config)
         options.teleop_hold = link.hold
+        options.operator_hold = link.set_operator_hold
     station = Station(source, tracker, meta, options, sensors=sensors, indentation=indentation,
                       force_full_scale_n=config.force.full_scale_n)
     if link is not None:
@@ -434,8 +441,15 @@ def run(args: argparse.Namespace) -> int:
     previous = signal.signal(signal.SIGINT, interrupts)
     # A service manager's SIGTERM stops the station the same safe way as Ctrl-C.
     previous_term = signal.signal(signal.SIGTERM, interrupts)
+    from fydpad.station.hold_keys import HoldKeys
+
+    keys = HoldKeys(lambda: station.toggle_operator_hold("key"))
     try:
-        stats = station.run()
+        with keys:
+            if keys.active:
+                print("press h or space to hold the robot (again to release)",
+                      file=sys.stderr, flush=True)
+            stats = station.run()
     except StationFault as exc:
         raise UserError(f"station stopped safely after a fault: {exc}") from None
     finally:

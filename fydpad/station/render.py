@@ -37,9 +37,10 @@ from teleop.realtime import request_realtime
 
 #: Control values the station may change while the render process runs. ``texture_index``
 #: selects the texture model among ``[RenderSpec.texture, *RenderSpec.textures]`` (-1: none;
-#: the experiment's stimuli); ``friction_b_v`` sets a friction model's b (NaN: the file's).
+#: the experiment's stimuli); ``friction_b_v`` sets a friction model's b (NaN: the file's);
+#: ``operator_hold`` (1: held) silences the vibration whatever ``vibration_enabled`` says.
 CONTROL_FIELDS = ("vibration_gain", "stiffness_n_per_mm", "vibration_enabled", "epoch_s",
-                  "texture_index", "friction_b_v")
+                  "texture_index", "friction_b_v", "operator_hold")
 
 
 class RenderChain(Protocol):
@@ -128,7 +129,7 @@ def render_main(
                 if apply_control is not None:
                     apply_control(ctl[4], ctl[5])
             t0 = ctl[3]  # the station's epoch: t_s = 0 at its first frame
-            gain = ctl[0] if ctl[2] > 0.5 else 0.0
+            gain = ctl[0] if ctl[2] > 0.5 and not ctl[6] > 0.5 else 0.0
             if seq and ctl_seq:
                 out = chain.tick(tick_time - t0, v[1] > 0.5, v[2], v[3], v[5], v[6], gain,
                                  ctl[1])

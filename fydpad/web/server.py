@@ -237,6 +237,7 @@ class WebView:
             "texture": stats.get("texture"),
             # The tele-operation link posts {"mae_mm": [...], ...} here when it lands.
             "link": stats.get("link"),
+            "operator_hold": bool(getattr(self.station, "operator_hold", False)),
             "settings": self.settings(),
             "stimulus": dataclasses.asdict(self.stimulus.current)
             if self.stimulus.current else None,
@@ -315,6 +316,21 @@ class WebView:
         if control:
             self.station.set_control(**control)
         return "applied"
+
+    async def post_hold(self, request):
+        """The operator hold: ``{"on": true|false}`` sets it, ``{}`` toggles it."""
+        try:
+            body = await request.json()
+        except ValueError:
+            body = {}
+        if not isinstance(body, dict) or ("on" in body and not isinstance(body["on"], bool)):
+            return web.json_response({"error": 'expected {"on": true|false} or {}'},
+                                     status=400)
+        if "on" in body:
+            held = self.station.set_operator_hold(body["on"], "web")
+        else:
+            held = self.station.toggle_operator_hold("web")
+        return web.json_response({"ok": True, "operator_hold": held})
 
     async def save(self, request):
         if self.config_path is None:
@@ -485,6 +501,7 @@ class WebView:
         app.router.add_get("/api/state", self.state)
         app.router.add_get("/api/frame.jpg", self.frame_jpg)
         app.router.add_post("/api/settings", self.post_settings)
+        app.router.add_post("/api/hold", self.post_hold)
         app.router.add_post("/api/save", self.save)
         app.router.add_get("/api/experiment", self.exp_status)
         app.router.add_post("/api/experiment/start", self.exp_start)

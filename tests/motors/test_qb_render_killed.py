@@ -42,7 +42,7 @@ def test_killed_render_process_leaves_the_board_at_rest_within_the_watchdog_peri
         state.publish(FingerState(t_s=0.0, contact=True, x_mm=0.0, y_mm=0.0,
                                   indentation_mm=2.0, force_n=1.0), 0.0, 1)
         control = SharedRecord(CONTROL_FIELDS)
-        control.write([1.0, math.nan, 1.0, time.perf_counter(), 0.0, math.nan])
+        control.write([1.0, math.nan, 1.0, time.perf_counter(), 0.0, math.nan, 0.0])
         stop, ready, results = ctx.Event(), ctx.Event(), ctx.Queue()
         p = ctx.Process(target=render_main,
                         args=(spec, state, control, stop, results, ready), daemon=True)
