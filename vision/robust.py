@@ -78,6 +78,9 @@ class RobustParams:
     #: than this (mm) are filled from around them (a grey closing) to look for a finger
     #: already on the fabric.
     bootstrap_fill_mm: float = 36.0
+    #: ... and a fingertip found there must be darkest within this many core radii of
+    #: its centroid (a dried drop, darkest on its rim, is not).
+    bootstrap_max_offcentre: float = 0.5
 
 
 @dataclass(frozen=True, slots=True)
@@ -248,7 +251,9 @@ class RobustTracker:
         found = self._detect(img)
         self.in_contact = False  # the first frame's answer is the next call's
         bg = img.copy()
-        if found is not None:
+        # A fingertip pressed on the fabric is darkest near its middle; a mark that
+        # passes the other checks (a dried drop, darkest on its rim) is not: it stays.
+        if found is not None and self._best_offcentre <= p.bootstrap_max_offcentre:
             x0, y0, bw, bh = self._best_box
             region = np.zeros(self._shape, np.uint8)
             region[y0 : y0 + bh, x0 : x0 + bw] = self._dark[y0 : y0 + bh, x0 : x0 + bw]
@@ -396,6 +401,9 @@ class RobustTracker:
                     flatness=flatness,
                 )
                 self._best_box = (x0, y0, bw, bh)
+                # Where its darkest cell lies from its centroid, in core radii.
+                self._best_offcentre = float(np.hypot(px - cu, py - cv_)) / max(
+                    np.sqrt(core_cells / np.pi), 1.0)
         self.in_contact = best is not None
         return best
 

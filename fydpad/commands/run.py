@@ -10,7 +10,7 @@ import signal
 import sys
 from pathlib import Path
 
-from fydpad.cli import add_config_argument
+from fydpad.cli import add_config_argument, add_truncation_argument
 from fydpad.commands.track import make_tracker
 from fydpad.config import load_config
 from fydpad.errors import UserError
@@ -20,6 +20,7 @@ from fydpad.station.station import SensorFeed, Station, StationFault, StationOpt
 from fydpad.texture.interpolation import METHODS
 from vision.indentation import IndentationEstimator
 from vision.stream import LiveIndentation, recording_estimator
+from vision.strict_json import finite
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -105,6 +106,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-realtime", action="store_true",
                    help="do not ask for SCHED_FIFO and a core for the render process")
     add_config_argument(p)
+    add_truncation_argument(p)
     # -- web view --
     p.add_argument("--web", metavar="[HOST:]PORT",
                    help="serve the web view (live image, plots, setup, experiment runner); "
@@ -201,20 +203,29 @@ class _Interrupts:
 LINK_SILENT_S = 1.0
 
 
+def _num(value: object, spec: str, width: int = 0) -> str:
+    """``value`` formatted by ``spec``, or "-" (right-aligned to ``width``) when there is
+    none yet: no NaN where a user reads."""
+    if isinstance(value, int | float) and math.isfinite(value):
+        return format(value, spec)
+    return "-".rjust(width)
+
+
 def format_status(s: dict) -> str:
     """The live status line: rates and jitter, contact, indentation, force, requested and
-    measured stiffness, the link and the sensor board."""
-    contact = (f"contact x {s['x_mm']:+6.1f} y {s['y_mm']:+6.1f} mm"
+    measured stiffness, the link and the sensor board; "-" for a value not known yet."""
+    contact = (f"contact x {_num(s['x_mm'], '+6.1f', 6)} y {_num(s['y_mm'], '+6.1f', 6)} mm"
                if s["contact"] else "no contact" + " " * 20)
     r = s.get("render") or {}
     v = s.get("vision") or {}
-    line = (f"frames {s['frames']:6d}  {contact}  z {s['indentation_mm']:5.1f} mm  "
-            f"F {s['force_n']:5.2f} N  "
-            f"k {s['measured_n_per_mm']:.2f}/{s['requested_n_per_mm']:.2f} N/mm  "
-            f"vision {v.get('rate_hz', math.nan):4.1f} Hz  "
-            f"render {r.get('rate_hz', math.nan):6.1f} Hz "
-            f"{r.get('on_time_pct', math.nan):5.1f} % on time "
-            f"p99 {r.get('jitter_ms', {}).get('p99', math.nan):.2f} ms")
+    line = (f"frames {s['frames']:6d}  {contact}  z {_num(s['indentation_mm'], '5.1f', 5)} mm  "
+            f"F {_num(s['force_n'], '5.2f', 5)} N  "
+            f"k {_num(s['measured_n_per_mm'], '.2f')}/{_num(s['requested_n_per_mm'], '.2f')} "
+            f"N/mm  "
+            f"vision {_num(v.get('rate_hz'), '4.1f', 4)} Hz  "
+            f"render {_num(r.get('rate_hz'), '6.1f', 6)} Hz "
+            f"{_num(r.get('on_time_pct'), '5.1f', 5)} % on time "
+            f"p99 {_num(r.get('jitter_ms', {}).get('p99'), '.2f')} ms")
     link = s.get("link")
     if link is not None:
         age_s = link.get("answer_age_s", 0.0)
@@ -458,16 +469,17 @@ def run(args: argparse.Namespace) -> int:
         if options.status is not None:
             print(file=sys.stderr)
         if args.stats:
-            Path(args.stats).write_text(json.dumps(station.stats, indent=2) + "\n")
+            Path(args.stats).write_text(
+                json.dumps(finite(station.stats), indent=2, allow_nan=False) + "\n")
     r = stats.get("render", {})
     dropped = (f", {station.frames_dropped} dropped for --vision-hz"
                if station.frames_dropped else "")
     print(f"station ran {station.frames} frames ({station.contact_frames} with contact"
           f"{dropped}); "
           f"render {r.get('rate_hz', 0):.1f} Hz, {r.get('on_time_pct', 0):.2f} % on time, "
-          f"jitter p99 {r.get('jitter_ms', {}).get('p99', math.nan):.2f} ms, "
+          f"jitter p99 {_num(r.get('jitter_ms', {}).get('p99'), '.2f')} ms, "
           f"frame-to-command p99 "
-          f"{stats.get('frame_to_command_ms', {}).get('p99', math.nan):.1f} ms")
+          f"{_num(stats.get('frame_to_command_ms', {}).get('p99'), '.1f')} ms")
     if args.bag:
         from fydpad.commands.export import export_recording
 
