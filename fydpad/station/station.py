@@ -270,8 +270,9 @@ class StationOptions:
     #: Called with the operator hold on each change (the link's ``set_operator_hold``).
     operator_hold: Callable[[bool], None] | None = None
     status: Callable[[dict], None] | None = None
-    #: How long the render process may take to build its chain (a board to connect).
-    render_start_timeout_s: float = 30.0
+    #: How long the render process may take to start and build its chain (a board to
+    #: connect): a bound against a hang; a loaded 2-core machine has taken over 30 s.
+    render_start_timeout_s: float = 120.0
 
 
 class Station:
