@@ -14,6 +14,7 @@ from pathlib import Path
 
 from teleop.config import OTHER_SECTIONS, TeleopConfig, check_rt_priority
 from vision.errors import FydpadError
+from vision.strict_json import finite
 
 log = logging.getLogger("teleop")
 
@@ -109,8 +110,9 @@ def _run_slave(args: argparse.Namespace, cfg: TeleopConfig, scheduling: str) -> 
                 rep = loop.report()
                 rep["scheduling"] = scheduling
                 if args.report:
-                    Path(args.report).write_text(json.dumps(rep, indent=2) + "\n")
-                print(json.dumps(rep), flush=True)
+                    Path(args.report).write_text(
+                        json.dumps(finite(rep), indent=2, allow_nan=False) + "\n")
+                print(json.dumps(finite(rep), allow_nan=False), flush=True)
     except (OSError, FydpadError, ValueError) as e:  # ArmFault is a FydpadError
         print(f"teleop slave: {e}", file=sys.stderr)
         return 2

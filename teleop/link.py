@@ -1,8 +1,10 @@
 """ZeroMQ sockets of the link, with CurveZMQ when the endpoint leaves the machine.
 
 Pattern (docs/protocol.md): the slave binds a ROUTER, the master connects a DEALER.
-One socket each way carries samples and states, several masters can reconnect, and
-the slave answers whoever sent the last sample. A stale sample never waits behind a
+One socket each way carries samples and states. Each master socket has its own random
+routing id, so a reconnect is the same master; one master owns the arm at a time
+(teleop/admission.py). Both sockets refuse messages over MAX_MSG_SIZE; the slave counts
+refused CurveZMQ handshakes from its socket monitor. A stale sample never waits behind a
 fresh one: the master's queue is in order, bounded (``send_hwm``) and refuses to queue
 for an absent peer (ZMQ_IMMEDIATE); the slave drains everything readable each tick, drops
 what aged past ``safety.max_age_s`` and acts on the newest sample only.

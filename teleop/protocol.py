@@ -79,7 +79,7 @@ class State:
 
     status: int
     reason: int
-    echo_seq: int  # seq of the last sample received (0: none)
+    echo_seq: int  # acknowledgement: that sample's seq; periodic: the newest admitted (0: none)
     t_echo_send_s: float  # that sample's t_send_s, master clock
     t_echo_recv_s: float  # when the slave read it, slave clock
     t_slave_s: float  # when this state was sampled, slave clock

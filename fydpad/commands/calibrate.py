@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from fydpad.cli import add_truncation_argument
 from fydpad.errors import UserError
 from vision.config import ForceConfig, IRConfig
 from vision.force import ForceCalibration, ForceCalibrationError, calibrate_force
@@ -104,6 +105,7 @@ def register_indentation(sub: argparse._SubParsersAction) -> None:
                    help="degree in the centroid position (default: 3)")
     p.add_argument("--depth-degree", type=int, default=2,
                    help="degree in the sensors' deflections (default: 2)")
+    add_truncation_argument(p)
     p.set_defaults(func=run_indentation)
 
 

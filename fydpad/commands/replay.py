@@ -6,13 +6,14 @@ import argparse
 import json
 from pathlib import Path
 
-from fydpad.cli import add_config_argument
+from fydpad.cli import add_config_argument, add_truncation_argument
 from fydpad.commands.run import add_link_arguments, apply_link_arguments
 from fydpad.config import load_config
 from fydpad.errors import UserError
 from fydpad.teleop_run import format_report, recording_states, truth_rows
 from teleop.report import breakdown_lines
 from vision.recording import PadRecording
+from vision.strict_json import finite
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -43,6 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-baseline", action="store_true",
                    help="skip the second pass under the paper's condition")
     add_config_argument(p)
+    add_truncation_argument(p)
     p.set_defaults(func=run)
 
 
@@ -58,13 +60,17 @@ def run(args: argparse.Namespace) -> int:
                               baseline=not args.no_baseline)
     except (TimeoutError, OSError, ValueError) as exc:
         raise UserError(f"--teleop {args.teleop}: {exc}") from None
-    Path(args.report).write_text(json.dumps(session.report, indent=2) + "\n")
+    Path(args.report).write_text(
+        json.dumps(finite(session.report), indent=2, allow_nan=False) + "\n")
     if args.slave_log:
         from fydpad.export.slave_log import write_slave_log
 
         write_slave_log(session, args.slave_log)
     if args.plot:
-        session.plot(args.plot, title=rec.path.name)
+        from fydpad.plots import plot_teleop
+
+        mae = " / ".join(f"{session.report['mae_mm'][a]:.2f}" for a in "xyz")
+        plot_teleop(args.plot, *session.series(), title=f"{rec.path.name}: MAE x / y / z {mae} mm")
     # Where the error against the truth comes from first: the largest part is named.
     for line in breakdown_lines(session.report):
         print(line)

@@ -10,7 +10,7 @@ import signal
 import sys
 from pathlib import Path
 
-from fydpad.cli import add_config_argument
+from fydpad.cli import add_config_argument, add_truncation_argument
 from fydpad.commands.track import make_tracker
 from fydpad.config import load_config
 from fydpad.errors import UserError
@@ -20,6 +20,7 @@ from fydpad.station.station import SensorFeed, Station, StationFault, StationOpt
 from fydpad.texture.interpolation import METHODS
 from vision.indentation import IndentationEstimator
 from vision.stream import LiveIndentation, recording_estimator
+from vision.strict_json import finite
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -31,7 +32,11 @@ def register(sub: argparse._SubParsersAction) -> None:
             "rate, IR and force at the sensor rate, rendering at 1 kHz in a process of its "
             "own, tele-operation at the vision rate), handing each other the latest value. "
             "Ctrl-C, --duration or any fault stops it safely: vibration off, motors to rest, "
-            "robot told to hold, files closed. A second Ctrl-C forces the exit."
+            "robot told to hold, files closed. A second Ctrl-C forces the exit. "
+            "Operator hold: in the terminal, h or the space bar holds the robot still and "
+            "silences the vibration, the same key releases (the robot glides back to the "
+            "finger); also the web view's Hold button and the sensor board's pedal "
+            "(docs/station.md)."
         ),
     )
     src = p.add_mutually_exclusive_group(required=True)
@@ -101,6 +106,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-realtime", action="store_true",
                    help="do not ask for SCHED_FIFO and a core for the render process")
     add_config_argument(p)
+    add_truncation_argument(p)
     # -- web view --
     p.add_argument("--web", metavar="[HOST:]PORT",
                    help="serve the web view (live image, plots, setup, experiment runner); "
@@ -197,20 +203,29 @@ class _Interrupts:
 LINK_SILENT_S = 1.0
 
 
+def _num(value: object, spec: str, width: int = 0) -> str:
+    """``value`` formatted by ``spec``, or "-" (right-aligned to ``width``) when there is
+    none yet: no NaN where a user reads."""
+    if isinstance(value, int | float) and math.isfinite(value):
+        return format(value, spec)
+    return "-".rjust(width)
+
+
 def format_status(s: dict) -> str:
     """The live status line: rates and jitter, contact, indentation, force, requested and
-    measured stiffness, the link and the sensor board."""
-    contact = (f"contact x {s['x_mm']:+6.1f} y {s['y_mm']:+6.1f} mm"
+    measured stiffness, the link and the sensor board; "-" for a value not known yet."""
+    contact = (f"contact x {_num(s['x_mm'], '+6.1f', 6)} y {_num(s['y_mm'], '+6.1f', 6)} mm"
                if s["contact"] else "no contact" + " " * 20)
     r = s.get("render") or {}
     v = s.get("vision") or {}
-    line = (f"frames {s['frames']:6d}  {contact}  z {s['indentation_mm']:5.1f} mm  "
-            f"F {s['force_n']:5.2f} N  "
-            f"k {s['measured_n_per_mm']:.2f}/{s['requested_n_per_mm']:.2f} N/mm  "
-            f"vision {v.get('rate_hz', math.nan):4.1f} Hz  "
-            f"render {r.get('rate_hz', math.nan):6.1f} Hz "
-            f"{r.get('on_time_pct', math.nan):5.1f} % on time "
-            f"p99 {r.get('jitter_ms', {}).get('p99', math.nan):.2f} ms")
+    line = (f"frames {s['frames']:6d}  {contact}  z {_num(s['indentation_mm'], '5.1f', 5)} mm  "
+            f"F {_num(s['force_n'], '5.2f', 5)} N  "
+            f"k {_num(s['measured_n_per_mm'], '.2f')}/{_num(s['requested_n_per_mm'], '.2f')} "
+            f"N/mm  "
+            f"vision {_num(v.get('rate_hz'), '4.1f', 4)} Hz  "
+            f"render {_num(r.get('rate_hz'), '6.1f', 6)} Hz "
+            f"{_num(r.get('on_time_pct'), '5.1f', 5)} % on time "
+            f"p99 {_num(r.get('jitter_ms', {}).get('p99'), '.2f')} ms")
     link = s.get("link")
     if link is not None:
         age_s = link.get("answer_age_s", 0.0)
@@ -223,6 +238,8 @@ def format_status(s: dict) -> str:
         else:
             state = "ok"
         line += f"  link {state}"
+    if s.get("operator_hold"):
+        line += "  HOLD"
     board = s.get("sensors")
     if board is not None:
         line += f"  board {board['samples']} ok {board['bad_lines']} bad"
@@ -386,6 +403,7 @@ def run(args: argparse.Namespace) -> int:
         apply_link_arguments(args, config)
         link = open_link(args.teleop, config)
         options.teleop_hold = link.hold
+        options.operator_hold = link.set_operator_hold
     station = Station(source, tracker, meta, options, sensors=sensors, indentation=indentation,
                       force_full_scale_n=config.force.full_scale_n)
     if link is not None:
@@ -423,8 +441,15 @@ def run(args: argparse.Namespace) -> int:
     previous = signal.signal(signal.SIGINT, interrupts)
     # A service manager's SIGTERM stops the station the same safe way as Ctrl-C.
     previous_term = signal.signal(signal.SIGTERM, interrupts)
+    from fydpad.station.hold_keys import HoldKeys
+
+    keys = HoldKeys(lambda: station.toggle_operator_hold("key"))
     try:
-        stats = station.run()
+        with keys:
+            if keys.active:
+                print("press h or space to hold the robot (again to release)",
+                      file=sys.stderr, flush=True)
+            stats = station.run()
     except StationFault as exc:
         raise UserError(f"station stopped safely after a fault: {exc}") from None
     finally:
@@ -444,16 +469,17 @@ def run(args: argparse.Namespace) -> int:
         if options.status is not None:
             print(file=sys.stderr)
         if args.stats:
-            Path(args.stats).write_text(json.dumps(station.stats, indent=2) + "\n")
+            Path(args.stats).write_text(
+                json.dumps(finite(station.stats), indent=2, allow_nan=False) + "\n")
     r = stats.get("render", {})
     dropped = (f", {station.frames_dropped} dropped for --vision-hz"
                if station.frames_dropped else "")
     print(f"station ran {station.frames} frames ({station.contact_frames} with contact"
           f"{dropped}); "
           f"render {r.get('rate_hz', 0):.1f} Hz, {r.get('on_time_pct', 0):.2f} % on time, "
-          f"jitter p99 {r.get('jitter_ms', {}).get('p99', math.nan):.2f} ms, "
+          f"jitter p99 {_num(r.get('jitter_ms', {}).get('p99'), '.2f')} ms, "
           f"frame-to-command p99 "
-          f"{stats.get('frame_to_command_ms', {}).get('p99', math.nan):.1f} ms")
+          f"{_num(stats.get('frame_to_command_ms', {}).get('p99'), '.1f')} ms")
     if args.bag:
         from fydpad.commands.export import export_recording
 

@@ -4,7 +4,9 @@ MuJoCo (the Menagerie model, teleop/models/). ``teleop slave --robot ur --ur-hos
 What it copies of the real controller (ur-rtde's RTDEControlInterface and
 RTDEReceiveInterface, URScript's servoj/servol):
 - a 500 Hz control loop running on its own clock (here: stepped up to the caller's
-  wall-clock time at every call, 1 kHz physics, two steps per control period);
+  wall-clock time at every call, 1 kHz physics, two steps per control period; a caller
+  starved for up to MAX_CATCHUP_S finds the arm where the real one, which never waits
+  for its client, would be);
 - ``servoL(pose, speed, acceleration, time, lookahead_time, gain)``: the pose is solved to
   joint targets; the controller moves its joint reference towards them as a first-order
   lag of time constant ``lookahead_time`` ("smoothens the trajectory with this lookahead
@@ -48,7 +50,7 @@ JOINT_SPEED_RAD_S = math.pi  # UR5e data sheet: 180 deg/s on every joint
 GAIN_AT_MODEL_KP = 300.0  # ur-rtde's default servoL gain maps to the Menagerie's kp
 JOINT_ACCEL_RAD_S2 = 40.0  # the reference's acceleration bound (not published by UR: chosen)
 FOLLOWING_ERROR_RAD = 0.3  # a joint this far behind its reference: protective stop
-MAX_CATCHUP_S = 0.06  # a caller starved longer than this: the controller re-syncs
+MAX_CATCHUP_S = 0.5  # the controller runs on while its caller is starved, up to this
 LOOKAHEAD_RANGE_S = (0.03, 0.2)
 GAIN_RANGE = (100.0, 2000.0)
 SAFETY_NORMAL, SAFETY_PROTECTIVE_STOP = 1, 3
@@ -342,6 +344,11 @@ def unlock_protective_stop(controller: SimURController) -> None:
 def connect_sim(frequency_hz: float = CONTROL_HZ, clock: Callable[[], float] = time.monotonic
                 ) -> tuple[SimRTDEControl, SimRTDEReceive]:
     """Both interfaces on one new simulated controller (``--ur-host sim``)."""
+    try:
+        import mujoco  # noqa: F401
+    except ImportError:
+        # ValueError, not RuntimeError: no point retrying, nothing on the network to check.
+        raise ValueError("--ur-host sim needs MuJoCo: pip install 'fydpad[mujoco]'") from None
     if abs(frequency_hz - CONTROL_HZ) > 1e-6:
         raise RuntimeError(f"the simulated UR5e runs at {CONTROL_HZ:.0f} Hz (e-Series), "
                            f"asked for {frequency_hz:g} Hz")

@@ -22,7 +22,7 @@ import pytest
 
 from fydpad.cli import main
 from fydpad.motors import qb_protocol as qp
-from fydpad.motors.sim import characterise_plant
+from fydpad.motors.drive import characterise_plant
 from fydpad.softness import save_table
 from tests.chain.device_emulation import FORCE_N, EmulatedDevice
 

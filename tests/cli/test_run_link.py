@@ -62,3 +62,15 @@ def test_missing_keys_are_one_line_naming_the_command_that_makes_them(tmp_path):
     assert proc.returncode == 2
     assert err.count("\n") == 1 and "Traceback" not in err
     assert f"teleop keys generate {tmp_path / 'none'}" in err
+
+
+def test_the_status_line_shows_a_dash_for_values_not_known_yet():
+    from fydpad.commands.run import format_status
+
+    nan = float("nan")
+    line = format_status({"frames": 3, "contact": True, "x_mm": nan, "y_mm": 1.0,
+                          "indentation_mm": nan, "force_n": nan, "measured_n_per_mm": nan,
+                          "requested_n_per_mm": nan, "render": {"rate_hz": nan},
+                          "vision": {}})
+    assert "nan" not in line.lower()
+    assert "k -/- N/mm" in line and "z     - mm" in line and "y   +1.0 mm" in line

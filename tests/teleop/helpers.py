@@ -101,6 +101,7 @@ class Master:
         self.x_mm = x_mm
         self.operator_hold = False  # the samples' operator-hold flag, from now on
         self.paused = False  # True: send nothing, keep reading states
+        self.injected: list[bytes] = []  # sent once each on this socket, before the next sample
         self.period_s = 1.0 / rate_hz
         t0 = time.monotonic()
         self.offset_s = (-t0 if clock_from_zero else clock_offset_s)
@@ -120,6 +121,8 @@ class Master:
             t = self.clock()
             msg = P.encode_sample(P.Sample(self.seq, t, t, self.x_mm, 0.0, 1.0, 1.0, True,
                                            operator_hold=self.operator_hold))
+            while self.injected:
+                self.sock.send(self.injected.pop(0))
             if not self.paused:
                 self.seq += 1
                 self.sent.append(msg)

