@@ -276,11 +276,11 @@ def _plot_ir(path: str, d_mm: np.ndarray, cols: dict[str, np.ndarray],
                           f"(R$^2$ {fit.r2:.4f})")
         ax.plot(v, d_mm, ".", color=line.get_color(), ms=4)
         axr.plot(v, d_mm - np.polyval(fit.poly_cm, v) * 10, ".", color=line.get_color(), ms=4)
-    ax.set_ylabel("distance [mm]")
+    ax.set_ylabel("distance (mm)")
     ax.legend()
     axr.axhline(0, color="k", lw=0.8)
     axr.set_xlabel("voltage [V]")
-    axr.set_ylabel("residual [mm]")
+    axr.set_ylabel("residual (mm)")
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -409,7 +409,7 @@ def _plot_force(path: str, mass_g: np.ndarray, raw: np.ndarray, cal: ForceCalibr
     g = np.linspace(raw.min(), raw.max(), 2)
     ax.plot(g, cal.gain_n_per_count * (g - cal.offset_counts), "-",
             label=f"fit (R$^2$ {cal.r2:.5f})")
-    ax.set_ylabel("force [N]")
+    ax.set_ylabel("force (N)")
     ax.legend()
     axr.plot(raw, cal.residuals_n * 1000, ".")
     axr.axhline(0, color="k", lw=0.8)
