@@ -279,7 +279,7 @@ def _plot_ir(path: str, d_mm: np.ndarray, cols: dict[str, np.ndarray],
     ax.set_ylabel("distance (mm)")
     ax.legend()
     axr.axhline(0, color="k", lw=0.8)
-    axr.set_xlabel("voltage [V]")
+    axr.set_xlabel("voltage (V)")
     axr.set_ylabel("residual (mm)")
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -112,12 +112,20 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="serve the web view (live image, plots, setup, experiment runner); "
                    "loopback unless HOST is given, then with a token printed at start")
     p.add_argument("--web-results", metavar="DIR", default="experiment-results",
-                   help="with --web: the experiment results directory (default: %(default)s)")
+                   help="with --web: the experiment results directory, created when the "
+                   "first participant's session starts, its path printed then (default: "
+                   "%(default)s)")
     p.add_argument("--web-stimuli", metavar="FILE.json",
                    help="with --web: the experiment's stimuli (name, stiffness, texture model; "
                    "docs/experiment.md); default: the paper's SS1-SS4 with grating models")
     # -- end web view --
     p.set_defaults(func=run)
+
+
+def _model_cache() -> Path:
+    """Where derived texture models are written: $XDG_CACHE_HOME/fydpad (~/.cache/fydpad)."""
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "fydpad"
 
 
 def add_link_arguments(p: argparse.ArgumentParser) -> None:
@@ -427,7 +435,9 @@ def run(args: argparse.Namespace) -> int:
 
         try:
             web_host, web_port = parse_web_address(args.web)
-            stimuli = experiment_stimuli(args.web_stimuli, args.web_results)
+            # The grating models the stimuli render are derived files: they go to the
+            # user's cache, so --web-results is created only by the first result written.
+            stimuli = experiment_stimuli(args.web_stimuli, _model_cache())
             if args.motors != "none":  # every stimulus's texture, loaded by the render process
                 render.textures = tuple(dict.fromkeys(s.texture for s in stimuli if s.texture))
             web = start_web(station, config, args.config, web_host, web_port,
