@@ -10,6 +10,7 @@ add one, put its ``register(sub)`` in ``SUBCOMMANDS``.
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 import importlib
 import importlib.util
@@ -17,24 +18,16 @@ from collections.abc import Callable
 from dataclasses import replace
 from datetime import date
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from fydpad.errors import UserError
-from vision.config import ForceConfig, IRConfig
-from vision.force import ForceCalibration, ForceCalibrationError, calibrate_force
-from vision.indentation import (
-    IndentationEstimator,
-    IRCalibrationError,
-    IRFit,
-    PlaneCorrection,
-    fit_ir_polynomial,
-    indentation_at_frames,
-    rmse,
-)
-from vision.ir import PAPER_POLY_CM
-from vision.recording import PadRecording, read_csv_columns
+
+if TYPE_CHECKING:  # annotations only: the modules load inside the functions
+    import numpy as np
+
+    from vision.config import IRConfig
+    from vision.force import ForceCalibration
+    from vision.indentation import IRFit
 
 Register = Callable[[argparse._SubParsersAction], None]
 
@@ -202,6 +195,12 @@ def _toml(v: Any) -> str:
 
 
 def run_ir(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from vision.config import IRConfig
+    from vision.indentation import IRCalibrationError, fit_ir_polynomial
+    from vision.recording import read_csv_columns
+
     path = Path(args.data)
     cols = read_csv_columns(path, ("distance_mm",), optional=("v0", "v1", "v2"),
                             empty_ok=("v0", "v1", "v2"))
@@ -255,7 +254,10 @@ def run_ir(args: argparse.Namespace) -> int:
 
 def _plot_ir(path: str, d_mm: np.ndarray, cols: dict[str, np.ndarray],
              fits: dict[int, IRFit]) -> None:
+    import numpy as np
+
     from fydpad.plots import plt
+    from vision.ir import PAPER_POLY_CM
 
     fig, (ax, axr) = plt.subplots(2, 1, figsize=(8, 7), sharex=True,
                                   gridspec_kw={"height_ratios": (2, 1)}, constrained_layout=True)
@@ -281,6 +283,11 @@ def _plot_ir(path: str, d_mm: np.ndarray, cols: dict[str, np.ndarray],
 
 
 def _press_samples(path: str, ir_config: IRConfig) -> dict[str, np.ndarray]:
+    import numpy as np
+
+    from vision.indentation import IndentationEstimator, indentation_at_frames
+    from vision.recording import PadRecording
+
     rec = PadRecording(path)
     ir, truth = rec.read_ir(), rec.read_truth()
     for name, data in (("ir.csv", ir), ("truth.csv", truth)):
@@ -300,6 +307,11 @@ def _press_samples(path: str, ir_config: IRConfig) -> dict[str, np.ndarray]:
 
 
 def run_indentation(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from vision.config import IRConfig
+    from vision.indentation import PlaneCorrection, rmse
+
     config = _load_config(args)
     ir_config: IRConfig = getattr(config, "ir", None) or IRConfig()
     if args.xy_degree < 0 or args.depth_degree < 1:
@@ -344,6 +356,12 @@ def run_indentation(args: argparse.Namespace) -> int:
 
 
 def run_force(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from vision.config import ForceConfig
+    from vision.force import ForceCalibrationError, calibrate_force
+    from vision.recording import read_csv_columns
+
     path = Path(args.data)
     cols = read_csv_columns(path, ("mass_g", "raw"))
     lines = _line_numbers(path)
@@ -376,6 +394,8 @@ def run_force(args: argparse.Namespace) -> int:
 
 
 def _plot_force(path: str, mass_g: np.ndarray, raw: np.ndarray, cal: ForceCalibration) -> None:
+    import numpy as np
+
     from fydpad.plots import plt
     from vision.config import G_M_S2
 

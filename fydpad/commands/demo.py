@@ -2,16 +2,13 @@
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 import json
 import logging
 from pathlib import Path
 
-from fydpad.bundled import bundled_recording, recordings_dir
 from fydpad.cli import add_config_argument
-from fydpad.config import load_config
-from fydpad.teleop_run import format_report, recording_states, truth_rows
-from vision.recording import PadRecording
 
 DEMO_RECORDINGS = ("circle", "lissajous", "tapping")
 
@@ -22,6 +19,8 @@ DEVICE_CONFIG = "device.toml"
 
 def demo_config_path(given: str | None) -> Path | None:
     """The device configuration of the demo: the one given, else the bundled device's."""
+    from fydpad.bundled import recordings_dir
+
     if given is not None:
         return Path(given)
     path = recordings_dir() / DEVICE_CONFIG
@@ -54,7 +53,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from fydpad.bundled import bundled_recording
+    from fydpad.config import load_config
+    from fydpad.teleop_run import format_report, recording_states, truth_rows
     from teleop.master import run_local_sim
+    from vision.recording import PadRecording
 
     if not args.verbose:
         # The in-process slave holds between passes by design: not news in a demo.

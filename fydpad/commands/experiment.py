@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 import json
 from pathlib import Path
 
 from fydpad.errors import UserError
-from fydpad.web.experiment import ExperimentError, plot_confusion, report
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -31,6 +31,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_report(args: argparse.Namespace) -> int:
+    from fydpad.web.experiment import ExperimentError, plot_confusion, report
+
     try:
         conf, participants = report(args.results_dir)
     except ExperimentError as exc:

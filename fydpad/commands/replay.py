@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 import json
 from pathlib import Path
 
 from fydpad.cli import add_config_argument
-from fydpad.config import load_config
 from fydpad.errors import UserError
-from fydpad.teleop_run import format_report, recording_states, truth_rows
-from vision.recording import PadRecording
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -38,7 +36,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from fydpad.config import load_config
+    from fydpad.teleop_run import format_report, recording_states, truth_rows
     from teleop.master import run_session
+    from vision.recording import PadRecording
 
     config = load_config(args.config)
     rec = PadRecording(args.recdir)
