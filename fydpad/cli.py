@@ -26,6 +26,7 @@ COMMANDS = {
     "experiment": "the absolute identification experiment: report the results",
     "chain": "identify the actuator chain's transfer function, check compensation",
     "config": "show the effective device configuration",
+    "export": "export a recording into other tools' formats (a ROS 2 bag)",
 }
 ALL = "*"
 
@@ -35,6 +36,17 @@ def add_config_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--config", metavar="FILE", default=argparse.SUPPRESS,
         help="device configuration (TOML) overriding the paper's defaults",
+    )
+
+
+def add_truncation_argument(parser: argparse.ArgumentParser) -> None:
+    """``--allow-truncated`` on a command that reads recordings."""
+    parser.add_argument(
+        "--allow-truncated", action="store_true", default=argparse.SUPPRESS,
+        help="a recording's video that ends before its frames.csv, ir.csv, force.csv or "
+        "truth.csv (truncated, or a frame that does not decode) is an error naming the file "
+        "and the last good frame; with this option, a warning, and the frames before it "
+        "are used",
     )
 
 
@@ -80,8 +92,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(only=chosen_command(argv))
     args = parser.parse_args(argv)
+    from vision.recording import PadRecording  # OpenCV: not for --help, which exits above
+
     shown = warnings.formatwarning
     one_line_warnings(f"fydpad {args.command}")
+    PadRecording.allow_truncated = bool(getattr(args, "allow_truncated", False))
     try:
         return int(args.func(args) or 0)
     except FydpadError as exc:  # bad input or a device fault: one line, no traceback
@@ -92,6 +107,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     finally:
         warnings.formatwarning = shown  # a caller's own format (main called in-process)
+        PadRecording.allow_truncated = False
 
 
 if __name__ == "__main__":

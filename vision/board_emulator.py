@@ -40,6 +40,9 @@ class BoardEmulator(PtyEmulator):
     ):
         super().__init__(rate_hz, hello_on_start)
         self.sample_fn = sample_fn
+        #: A deadman pedal: True pressed, False released (both sent in every data line's
+        #: 7th field), None: the board has none (6 fields). Set it any time.
+        self.pedal: bool | None = None
         self.adc_bits = adc_bits
         self.vref_mv = vref_mv
         self.start_ms = start_ms
@@ -50,5 +53,5 @@ class BoardEmulator(PtyEmulator):
     def _line(self, k: int) -> bytes:
         v_raw, force_raw = self.sample_fn(k)
         t_ms = self.start_ms + round(k * 1000.0 / self.rate_hz)
-        return data_line(t_ms, v_raw, force_raw)
+        return data_line(t_ms, v_raw, force_raw, self.pedal)
 

@@ -152,10 +152,14 @@ class ReplayForce:
 
 PROTOCOL_VERSION = 1
 BOARD_NAME = "FYDPAD-BOARD"
-def data_line(t_ms: int, v_raw: Sequence[int], force_raw: int | None) -> bytes:
+def data_line(t_ms: int, v_raw: Sequence[int], force_raw: int | None,
+              pedal: bool | None = None) -> bytes:
+    """A data line; ``pedal`` (the deadman pedal: True pressed) adds the optional 7th
+    field, None leaves it out (a board without one)."""
     f = "" if force_raw is None else str(int(force_raw))
+    tail = "" if pedal is None else f",{int(bool(pedal))}"
     return frame_line(f"D,{int(t_ms) % 2**32},{int(v_raw[0])},{int(v_raw[1])},"
-                      f"{int(v_raw[2])},{f}")
+                      f"{int(v_raw[2])},{f}{tail}")
 
 
 def hello_line(rate_hz: float, adc_bits: int, vref_mv: int) -> bytes:
@@ -178,21 +182,30 @@ class DataLine:
     t_ms: int
     v_raw: tuple[int, int, int]
     force_raw: int | None
+    #: The deadman pedal: True pressed, False released, None no pedal (no 7th field).
+    pedal: bool | None = None
 
 
 def parse_line(line: bytes, adc_bits: int = 10) -> DataLine | BoardInfo:
     """One line (without the newline) -> DataLine or BoardInfo, or LineError."""
     fields = unframe_line(line)
     try:
-        if fields[0] == "D" and len(fields) == 6:
+        if fields[0] == "D" and len(fields) in (6, 7):
             v = (int(fields[2]), int(fields[3]), int(fields[4]))
             if not all(0 <= x < 2**adc_bits for x in v):
                 raise LineError(f"ADC value out of 0..{2**adc_bits - 1}")
             force = None if fields[5] == "" else int(fields[5])
-            return DataLine(int(fields[1]), v, force)  # type: ignore[arg-type]
+            pedal = None
+            if len(fields) == 7 and fields[6] != "":
+                if fields[6] not in ("0", "1"):
+                    raise LineError(f"pedal field {fields[6][:8]!r} is not 0 or 1")
+                pedal = fields[6] == "1"
+            return DataLine(int(fields[1]), v, force, pedal)  # type: ignore[arg-type]
         if fields[0] == "H" and len(fields) == 6:
             return BoardInfo(fields[1], int(fields[2]), float(fields[3]), int(fields[4]),
                              int(fields[5]) / 1000.0)
+    except LineError:
+        raise
     except ValueError:
         raise LineError("a field is not a number") from None
     raise LineError(f"unknown line type or field count ({fields[0][:8]!r}, {len(fields)})")
@@ -241,6 +254,8 @@ class SerialBoard:
         self.adc_bits = self.ir_config.adc_bits
         self.vref_v = self.ir_config.adc_vref_v
         self.info: BoardInfo | None = None
+        #: The deadman pedal as of the newest data line (None: the board has none).
+        self.pedal: bool | None = None
         self.stats = BoardStats()
         self._serial_errors: tuple[type[BaseException], ...] = (serial.SerialException, OSError)
         self._clock = DeviceClock(1000.0)
@@ -319,6 +334,7 @@ class SerialBoard:
             self.stats.hello += 1
             return False
         self.stats.lines_ok += 1
+        self.pedal = parsed.pedal
         t_s = self._clock.seconds(parsed.t_ms, 1000.0 / self.ir_config.rate_hz)
         self.stats.board_resets = self._clock.resets
         scale = self.vref_v / 2**self.adc_bits  # Arduino convention: V = raw * Vref / 2^bits

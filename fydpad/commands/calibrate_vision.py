@@ -10,7 +10,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from fydpad.cli import add_config_argument
+from fydpad.cli import add_config_argument, add_truncation_argument
 from fydpad.errors import UserError
 
 if TYPE_CHECKING:  # annotations only: the modules load inside the functions
@@ -72,6 +72,7 @@ def register_workspace(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", metavar="TOML", required=True,
                    help="configuration file to write (the --config file updated, or new)")
     add_config_argument(p)
+    add_truncation_argument(p)
     p.set_defaults(func=run_workspace)
 
 

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from fydpad.cli import add_config_argument
 from fydpad.errors import UserError
+from vision.strict_json import finite
 
 
 def _floats(text: str, what: str) -> list[float]:
@@ -197,7 +198,7 @@ def run_check(args: argparse.Namespace) -> int:
                                      progress=bar.update)
     finally:
         session.close()
-    text = json.dumps(res.figures, indent=2)
+    text = json.dumps(finite(res.figures), indent=2, allow_nan=False)
     print(text)
     if args.json:
         Path(args.json).write_text(text + "\n")

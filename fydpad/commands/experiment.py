@@ -32,6 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run_report(args: argparse.Namespace) -> int:
     from fydpad.web.experiment import ExperimentError, plot_confusion, report
+    from vision.strict_json import finite
 
     try:
         conf, participants = report(args.results_dir)
@@ -43,6 +44,6 @@ def run_report(args: argparse.Namespace) -> int:
     plot_confusion(conf, png)
     print(f"plot: {png}")
     if args.json:
-        Path(args.json).write_text(json.dumps({"participants": participants,
-                                               **conf.as_dict()}, indent=2) + "\n")
+        summary = finite({"participants": participants, **conf.as_dict()})
+        Path(args.json).write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
     return 0

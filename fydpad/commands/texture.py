@@ -21,15 +21,17 @@ from fydpad.texture.coverage import describe, inside, model_gaps
 from fydpad.texture.free_form import AUTO
 from fydpad.texture.interpolation import DEFAULT_METHOD, METHODS
 from vision.recording import CsvRowWriter, RecordingError
+from vision.strict_json import finite
 
 if TYPE_CHECKING:
     from fydpad.texture.evaluate import Comparison
     from fydpad.texture.scan_io import Scan
 
 #: The interpolation between modelled speeds (fydpad.texture.interpolation, docs/texture.md).
-INTERPOLATION_HELP = ("interpolation between modelled speeds: stretch (default: the nearest "
-                      "models' spectra stretched to the speed, and a two-part model's own "
-                      "spectrum), lsf, reflection, or linear (the paper's)")
+INTERPOLATION_HELP = ("interpolation between modelled speeds (default: the model file's "
+                      "own, which fit chose): nearest (the paper's per-speed fits), stretch "
+                      "(the spectra moved along frequency with speed), lsf, reflection, or "
+                      "linear")
 
 def _floats(text: str) -> list[float]:
     try:
@@ -74,16 +76,17 @@ def register(sub: argparse._SubParsersAction) -> None:
         "fit", help="fit a model file from scans of one surface",
         description=(
             "Fit one texture model file from one or more scans of the same surface. Each "
-            "scan's three axes are high-passed at --highpass-hz (hand motion, gravity), "
-            "reduced to one signal by DFT321, cut into runs whose speed stays within "
-            "--tolerance of each target speed, and an LPC model of --order is fitted per "
-            "speed up to Nyquist (autocorrelation/Levinson-Durbin or Burg). With two or "
-            "more speeds a speed-resolved spectrum is fitted too by default (--free-form "
-            "calibrated: the two-part S(f,v) of every 0.5 s chunk, corrected to the "
-            "recorded spectrum at each fitted speed), which the renderer follows between "
-            "the fitted speeds; --pooled keeps the per-speed LPC fit alone (the paper's "
-            "model). Every model's stability is "
-            "checked. The 165-220 Hz band of the paper is stored as the output drive "
+            "scan's three axes are high-passed at --highpass-hz (hand motion, gravity) and "
+            "reduced to one signal by DFT321. Two forms are validated on the scans "
+            "themselves: the paper's method read plainly (per speed, an LPC of --order on "
+            "the samples within --tolerance of it, rendered at the nearest fitted speed) "
+            "and the calibrated speed-resolved spectrum; a time block of each speed "
+            "plateau and each inner plateau whole are held out in turn, each form is "
+            "scored by its log-spectral distance there, the best wins (ties within the "
+            "noise to the paper's), is refitted on all the scans and the table printed "
+            "(docs/texture.md, 'How fit chooses'). Scans that cannot be validated (fewer "
+            "than two plateaus of 4.5 s) get the paper's method. Every model's stability "
+            "is checked. The 165-220 Hz band of the paper is stored as the output drive "
             "filter, not used for fitting."),
     )
     f.add_argument("scans", nargs="*", metavar="SCAN.csv", help="texture scan recordings")
@@ -137,6 +140,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "scans: a fixed tool/floor part and a surface part that moves with speed; "
                    "rendered at every speed by the 'stretch' method. Against the pooled fit: "
                    "better between speeds, R2 0.2 dB worse at 20 mm/s (docs/texture.md)")
+    f.add_argument("--form", choices=("auto", "paper", "calibrated"), default="auto",
+                   help="auto (default): validate every form on held-out blocks of the "
+                   "scans' speed plateaus and whole inner plateaus, keep the best (ties to "
+                   "the simpler), refit it on all the scans and print the table; 'paper': "
+                   "the paper's method read plainly (a 5 mm/s window LPC per speed, no "
+                   "interpolation); 'calibrated': the speed-resolved spectrum. The options "
+                   "below select the older forms")
     form = f.add_mutually_exclusive_group()
     form.add_argument("--free-form", nargs="?", const="calibrated", default=AUTO,
                       choices=("calibrated", "free", "surface"),
@@ -493,6 +503,8 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
         print(f"fydpad texture fit: warning: the scans are of {len(set(labels))} surfaces "
               f"(# surface=: {counts}), pooled into one model labelled {labels[0]}; fit "
               "each surface on its own, or name the mix with --surface", file=sys.stderr)
+    if _selects(args):
+        return _run_select(args, scans)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         model, reports = fit_texture(
@@ -563,6 +575,66 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
     return 0
 
 
+def _selects(args: argparse.Namespace) -> bool:
+    """No option of the older forms given: the validated choice (or --form's)."""
+    return (args.free_form == AUTO and not args.two_part and not args.speed_normalise
+            and args.method == "autocorrelation" and args.prewhiten_order == 8)
+
+
+def _run_select(args: argparse.Namespace, scans: list) -> int:
+    from fydpad.texture.model_file import save_model
+    from fydpad.texture.select import fit_candidate, select_model, selection_table
+
+    kw = dict(order=args.order, tolerance_mm_s=args.tolerance, highpass_hz=args.highpass_hz,
+              surface=args.surface, drive_band_hz=tuple(args.drive_band))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        if args.form == "auto":
+            model, sel = select_model(
+                scans, speeds_mm_s=args.speeds, **kw,
+                wrap=lambda it: progress(it, desc="validate", unit="fit"))
+            table = selection_table(sel)
+        else:
+            model = fit_candidate(args.form, scans, args.speeds, **kw)
+            table = [f"  form {args.form} as asked (--form): not validated"]
+    _print_warnings("fit", _scan_names(args.scans), caught)
+    save_model(model, args.out)
+    print(f"{args.out}: surface {model.surface}, order {model.order}, {model.fs_hz:g} Hz, "
+          f"form {model.provenance.get('form', 'calibrated')}, {len(model.speeds_mm_s)} "
+          f"models at {model.speeds_mm_s[0]:g}-{model.speeds_mm_s[-1]:g} mm/s, "
+          f"interpolation {model.interpolation}")
+    print("\n".join(table))
+    if args.plot:
+        _plot_selected(args, scans, model)
+    return 0
+
+
+def _plot_selected(args: argparse.Namespace, scans: list, model) -> None:
+    """Recorded spectrum at each target speed (its samples within the tolerance) against
+    the model rendered there (the all-pole part; a periodic surface's lines apart)."""
+    from fydpad.texture.dft321 import preprocess
+    from fydpad.texture.evaluate import welch_psd
+    from fydpad.texture.interpolation import SpeedInterpolator
+    from fydpad.texture.lpc import ar_psd
+    from fydpad.texture.plots import plot_spectra
+
+    interp = SpeedInterpolator(model)
+    pre = [preprocess(sc.acc, sc.fs_hz, model.highpass_hz) for sc in scans]
+    x = np.concatenate(pre)
+    v = np.concatenate([sc.speed_mm_s for sc in scans])
+    panels = []
+    for s in args.speeds:
+        mask = np.abs(v - s) <= args.tolerance
+        try:
+            f, pr = welch_psd(x, model.fs_hz, mask)
+        except ValueError:
+            continue  # too little near this speed for a spectrum
+        a, s2 = interp(float(s))
+        panels.append((f"{s:g} mm/s", f, pr, ar_psd(a, s2, f, model.fs_hz)))
+    plot_spectra(args.plot, panels, f"{model.surface}: recorded vs model "
+                 f"({model.provenance.get('form', 'calibrated')}, {model.interpolation})")
+
+
 def _check_fit_options(args: argparse.Namespace, fs_hz: float) -> None:
     """The fit's filters and targets against the scans' rate: each option that would
     fail in the fit (a traceback) or be written into the model (failing on reading)."""
@@ -615,7 +687,8 @@ def run_synth(args: argparse.Namespace) -> int:
         print(f"fydpad texture synth: warning: {args.model}: {w.message}", file=sys.stderr)
     _note_gap(model.provenance, args.model, args.speed_mm_s)
     with CsvRowWriter(args.out, ("t_s", "a"), comment=f"surface={model.surface} "
-                      f"speed_mm_s={args.speed_mm_s:g} method={args.method}") as wr:
+                      f"speed_mm_s={args.speed_mm_s:g} "
+                      f"method={args.method or model.interpolation}") as wr:
         for k, v in enumerate(a):
             wr.write(k / model.fs_hz, float(v))
     print(f"{args.out}: {n} samples, rms {float(np.sqrt(np.mean(a * a))):.4g} m/s^2")
@@ -791,7 +864,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
                             f"{args.scan[0]}'s; several scans need one rate")
     out = results[0].out if len(results) == 1 else _over_scans(args.model, results)
     if args.json:
-        Path(args.json).write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
+        Path(args.json).write_text(json.dumps(finite(out), indent=1, allow_nan=False) + "\n",
+                                   encoding="utf-8")
     if args.plot:
         _plot_evaluation(args.plot, results)
     return 0
@@ -1049,7 +1123,8 @@ def run_identify(args: argparse.Namespace) -> int:
                          model_names=args.models, seed=args.seed)
     print(f"identification rate {ident.rate:.1%} ({len(scans)} scans, {len(models)} models)")
     if args.json:
-        Path(args.json).write_text(json.dumps(ident.to_json(), indent=1) + "\n",
+        Path(args.json).write_text(json.dumps(finite(ident.to_json()), indent=1,
+                                              allow_nan=False) + "\n",
                                    encoding="utf-8")
     if args.plot:
         plot_confusion(args.plot, ident)
@@ -1076,8 +1151,9 @@ def _run_identify_family(args: argparse.Namespace, kinds: set[str]) -> int:
     print(f"{next(iter(kinds))}: identification rate {ident.rate:.1%} ({len(scans)} scans, "
           f"{len(fams)} models)")
     if args.json:
-        Path(args.json).write_text(json.dumps({"kind": next(iter(kinds)), **ident.to_json()},
-                                              indent=1) + "\n", encoding="utf-8")
+        ident_json = finite({"kind": next(iter(kinds)), **ident.to_json()})
+        Path(args.json).write_text(json.dumps(ident_json, indent=1, allow_nan=False) + "\n",
+                                   encoding="utf-8")
     if args.plot:
         plot_confusion(args.plot, ident, f"{next(iter(kinds))}: rate {ident.rate:.0%}")
     return 0
@@ -1130,7 +1206,8 @@ def run_compare(args: argparse.Namespace) -> int:
                                         ".png"),
                                    Identification(r["specimens"], conf, rate, []),
                                    f"{kind}, {key}: {rate:.0%}")
-    (out_dir / "compare.json").write_text(json.dumps(result, indent=1) + "\n",
+    (out_dir / "compare.json").write_text(json.dumps(finite(result), indent=1,
+                                                     allow_nan=False) + "\n",
                                           encoding="utf-8")
     print(f"{out_dir}: compare.json and confusion plots")
     return 0

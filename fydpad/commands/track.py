@@ -11,14 +11,13 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from fydpad.cli import add_config_argument
+from fydpad.cli import add_config_argument, add_truncation_argument
 from fydpad.errors import UserError
 
 if TYPE_CHECKING:  # annotations only: the modules load inside the functions
     from vision.contact import ContactTracker, TrackerConfig
     from vision.sources import CameraConfig, FrameSource
     from vision.stream import TrackedFrame
-
 
 #: vision.contact.METHODS, written out so that --help loads no OpenCV
 #: (tests/cli/test_fast_help.py keeps the two equal).
@@ -52,6 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="map a recording through the configuration's camera calibration "
                    "(always on for --camera when the configuration has one)")
     add_config_argument(p)
+    add_truncation_argument(p)
     p.set_defaults(func=run)
 
 
@@ -60,6 +60,7 @@ def run(args: argparse.Namespace) -> int:
     from fydpad.opening import open_source
     from vision.recording import read_track
     from vision.stream import finger_states, live_states
+    from vision.strict_json import finite
 
     config = load_config(args.config)
     tracker_config = config.tracker
@@ -96,7 +97,8 @@ def run(args: argparse.Namespace) -> int:
         _plot(Path(args.plot), cols, m.workspace_mm, truth, str(source))
     print(format_summary(summary))
     if args.json:
-        Path(args.json).write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+        Path(args.json).write_text(
+            json.dumps(finite(summary), indent=2, allow_nan=False) + "\n", encoding="utf-8")
     return 0
 
 

@@ -8,6 +8,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from fydpad.station.row_log import DEFAULT_BUFFER_S
+
 
 @dataclass
 class RenderSpec:
@@ -31,6 +33,8 @@ class RenderSpec:
     motor_options: dict = field(default_factory=dict)
     #: Write every tick's commands here (CSV), or None.
     commands_csv: str | None = None
+    #: Seconds of commands-log rows buffered against a stalled disk (at ``rate_hz``).
+    commands_buffer_s: float = DEFAULT_BUFFER_S
     #: Try SCHED_FIFO and a core of its own (needs the right to; falls back silently).
     realtime: bool = True
     #: A custom chain, "module:callable" taking the spec (labs' own actuators, tests).

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from vision.errors import UserError
+from vision.strict_json import finite
 
 #: CSV columns, one row per answer (docs/experiment.md).
 CSV_FIELDS = ("participant", "trial", "presented", "answer", "correct", "seed", "time_utc")
@@ -215,7 +216,7 @@ class SessionPlan:
     def to_json(self) -> str:
         d = asdict(self)
         d["format"] = "fydpad-experiment-1"
-        return json.dumps(d, indent=2) + "\n"
+        return json.dumps(finite(d), indent=2, allow_nan=False) + "\n"
 
     @classmethod
     def from_json(cls, text: str, where: str) -> SessionPlan:

@@ -20,6 +20,7 @@ from pathlib import Path
 
 from fydpad.errors import UserError, read_json
 from fydpad.web.experiment import PAPER_STIMULI, Stimulus
+from vision.strict_json import finite
 
 
 def grating_textures(stimuli: tuple[Stimulus, ...] | list[Stimulus], texture_dir: Path
@@ -33,7 +34,7 @@ def grating_textures(stimuli: tuple[Stimulus, ...] | list[Stimulus], texture_dir
         path = texture_dir / f"grating-{s.grating_mm:g}mm.json"
         model = fit_grating(wavelength_mm=s.grating_mm, profile="rect", ridge_fraction=0.9)
         # As fydpad.texture.families.save_model_json writes it.
-        _write_if_changed(path, json.dumps(model, indent=1) + "\n")
+        _write_if_changed(path, json.dumps(finite(model), indent=1, allow_nan=False) + "\n")
         out.append(replace(s, texture=f"grating:{path}"))
     return out
 
