@@ -432,7 +432,7 @@ def run(args: argparse.Namespace) -> int:
     # -- web view --
     web = None
     if getattr(args, "web", None):
-        from fydpad.web import parse_web_address, start_web
+        from fydpad.web.server import parse_web_address, start_web
         from fydpad.web.stimuli import experiment_stimuli
 
         try:
