@@ -69,7 +69,8 @@ def run_case(commands_csv: str | None, seconds: float, realtime: bool) -> dict:
     state = SharedFingerState()
     state.publish(FingerState(t_s=0.0, contact=True, x_mm=1.0, y_mm=2.0), 0.0, 0)
     control = SharedRecord(CONTROL_FIELDS)
-    control.write([1.0, math.nan, 1.0, time.perf_counter(), 0.0, math.nan])
+    values = [1.0, math.nan, 1.0, time.perf_counter(), 0.0, math.nan]
+    control.write(values + [0.0] * (len(CONTROL_FIELDS) - len(values)))  # any checkout
     stop, ready, results = ctx.Event(), ctx.Event(), ctx.Queue()
     spec = RenderSpec(realtime=realtime, commands_csv=commands_csv)
     p = ctx.Process(target=render_main, args=(spec, state, control, stop, results, ready))

@@ -30,7 +30,7 @@ def friction_model(path: Path) -> Path:
     path.write_text(json.dumps({
         "format": "fydpad-texture-model", "kind": "friction", "format_version": 1,
         "mu": list(0.5 + 0.2 * np.sin(np.linspace(0, 2 * np.pi, 200, endpoint=False))),
-        "dx_mm": 0.05, "x0_mm": 0.0}))
+        "dx_mm": 0.05, "x0_mm": 0.0}, allow_nan=False))
     return path
 
 

@@ -59,12 +59,16 @@ def main() -> None:
                       f"{axes(s.report['mae_mm'])}  lag {s.report['lag_ms']:5.1f} ms",
                       flush=True)
         return
-    print("MAE x / y / z mm; paper's condition = 10 Hz master, slave holds each sample")
+    print("MAE x / y / z mm; paper's condition = 10 Hz master, slave holds each sample; "
+          f"UR servoL lookahead {base.slave.ur_lookahead_s} s")
     for name in args.recordings:
         rec = PadRecording(bundled_recording(name))
         states = recording_states(rec, config)
-        for label, robot in (("PyBullet iiwa", "sim"), ("MuJoCo UR5e  ", "ur")):
-            s = run_local_sim(states, arm_config(base, robot), truth=truth_rows(rec))
+        ur_default = f"MuJoCo UR5e gain {base.slave.ur_gain:.0f}"
+        for label, robot, gain in (("PyBullet iiwa       ", "sim", None),
+                                   (ur_default, "ur", None),
+                                   ("MuJoCo UR5e gain 2000", "ur", 2000.0)):
+            s = run_local_sim(states, arm_config(base, robot, gain=gain), truth=truth_rows(rec))
             r = s.report
             print(f"{name:9s} {label}: {axes(r['mae_mm'])}   paper's condition "
                   f"{axes(r['baseline_mae_mm'])}   vs true finger {axes(r['truth_mae_mm'])}",

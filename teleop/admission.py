@@ -50,14 +50,21 @@ class MasterTrack:
     recent: deque[int] = field(default_factory=lambda: deque(maxlen=RECENT_SEQS))
     recent_set: set[int] = field(default_factory=set)
     logged: set[str] = field(default_factory=set)  # drop reasons already logged for it
+    _offset_s: float | None = None  # cached estimate; None after a new delay
 
     def __post_init__(self) -> None:
         self.d_s = deque(maxlen=self.window)
 
+    def add_delay(self, d_s: float) -> None:
+        self.d_s.append(d_s)
+        self._offset_s = None
+
     def offset_s(self) -> float:
         """Slave clock minus this master's clock (+ a short latency): module docstring."""
-        d = sorted(self.d_s)
-        return d[len(d) * CLOCK_PERCENTILE // 100]
+        if self._offset_s is None:
+            d = sorted(self.d_s)
+            self._offset_s = d[len(d) * CLOCK_PERCENTILE // 100]
+        return self._offset_s
 
     def remember(self, s: Sample) -> None:
         if len(self.recent) == self.recent.maxlen:
@@ -121,7 +128,7 @@ class Admission:
             return self._drop("nonfinite", self.tracks.get(ident), ident, s,
                               "times, z, and x, y in contact must be finite")
         track = self._track(ident)
-        track.d_s.append(now_s - s.t_send_s)
+        track.add_delay(now_s - s.t_send_s)
         if self.owner is not None and ident != self.owner:
             return self._drop("not_owner", track, ident, s,
                               f"master {peer_name(self.owner)} owns the arm until it is "
@@ -161,6 +168,7 @@ class Admission:
         owner, self.owner = self.owner, None
         for t in self.tracks.values():
             t.d_s.clear()
+            t._offset_s = None
             t.last_seq = None
             t.last_t_capture_s = -math.inf
             t.recent.clear()

@@ -8,6 +8,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+#: The sections of the one device file (`fydpad config show`) that belong to the other
+#: packages: `teleop slave --config` skips them by name, so the slave reads the same file
+#: as the station. Kept equal to the station's sections by a test, without teleop
+#: importing fydpad.
+OTHER_SECTIONS = ("camera", "tracker", "ir", "force", "softness", "motors", "pwm", "qb",
+                  "loops", "endpoints", "accel")
+
 
 @dataclass
 class LinkConfig:

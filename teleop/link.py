@@ -1,8 +1,10 @@
 """ZeroMQ sockets of the link, with CurveZMQ when the endpoint leaves the machine.
 
 Pattern (docs/protocol.md): the slave binds a ROUTER, the master connects a DEALER.
-One socket each way carries samples and states, several masters can reconnect, and
-the slave answers whoever sent the last sample. A stale sample never waits behind a
+One socket each way carries samples and states. Each master socket has its own random
+routing id, so a reconnect is the same master; one master owns the arm at a time
+(teleop/admission.py). Both sockets refuse messages over MAX_MSG_SIZE; the slave counts
+refused CurveZMQ handshakes from its socket monitor. A stale sample never waits behind a
 fresh one: the master's queue is in order, bounded (``send_hwm``) and refuses to queue
 for an absent peer (ZMQ_IMMEDIATE); the slave drains everything readable each tick, drops
 what aged past ``safety.max_age_s`` and acts on the newest sample only.
@@ -104,6 +106,11 @@ def wait_readable(sock: zmq.Socket, t_end_s: float, clock: Callable[[], float]) 
         if remaining <= 0:
             return False
         select.select([fd], [], [], remaining)
+
+
+def tcp_endpoint(endpoint: str) -> str:
+    """``HOST:PORT`` as ``tcp://HOST:PORT``; an endpoint with a transport is kept as is."""
+    return endpoint if "://" in endpoint else f"tcp://{endpoint}"
 
 
 def curve_enabled(cfg: LinkConfig, endpoint: str) -> bool:
@@ -230,6 +237,11 @@ class MasterSocket:
     def __init__(self, endpoint: str, cfg: LinkConfig | None = None,
                  ctx: zmq.Context | None = None) -> None:
         cfg = cfg or LinkConfig()
+        endpoint = tcp_endpoint(endpoint)
+        keys = None
+        if curve_enabled(cfg, endpoint):  # a missing key file fails before any socket
+            keys_dir = Path(cfg.keys_dir)
+            keys = client_keys(keys_dir), server_keys(keys_dir, public_only=True)[0]
         self.ctx = ctx or zmq.Context.instance()
         self.sock = self.ctx.socket(zmq.DEALER)
         self.sock.linger = 0
@@ -240,14 +252,17 @@ class MasterSocket:
         self.sock.setsockopt(zmq.IMMEDIATE, 1)  # never queue samples for a slave not there
         self.sock.setsockopt(zmq.RECONNECT_IVL, 50)
         self.sock.setsockopt(zmq.RECONNECT_IVL_MAX, 500)
-        if curve_enabled(cfg, endpoint):
-            keys_dir = Path(cfg.keys_dir)
-            pub, sec = client_keys(keys_dir)
-            server_pub, _ = server_keys(keys_dir, public_only=True)
+        self.curve = keys is not None
+        if keys is not None:
+            (pub, sec), server_pub = keys
             self.sock.curve_publickey = pub
             self.sock.curve_secretkey = sec
             self.sock.curve_serverkey = server_pub
-        self.sock.connect(endpoint)
+        try:
+            self.sock.connect(endpoint)
+        except zmq.ZMQError as e:
+            self.close()
+            raise OSError(f"master cannot connect to {endpoint}: {e}") from e
         self.endpoint = endpoint
 
     def send(self, data: bytes) -> bool:

@@ -211,21 +211,28 @@ class Session:
     main: StreamLog
     baseline: StreamLog | None
 
-    def plot(self, path: str, title: str = "") -> None:
-        """Fig. 11-like PNG: master vs slave per axis, with the paper condition if run."""
+    def series(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                              tuple[np.ndarray, np.ndarray] | None]:
+        """What the Fig. 11-like plot draws, time from the main pass's start (s): master
+        times and positions, slave times and positions, the paper condition's slave
+        (times, positions) or None."""
         t, m, _ = self.main.arrays()
         tl, sl = self.main.slave_log()
+        t0 = self.main.t0_s
         base = None
         if self.baseline is not None:
             tb, sb = self.baseline.slave_log()
-            base = (tb - self.baseline.t0_s + self.main.t0_s, sb)
-        t0 = self.main.t0_s
-        plot_tracking(path, t - t0, m, tl - t0,  sl,
-                      None if base is None else (base[0] - t0, base[1]), title)
+            base = (tb - self.baseline.t0_s, sb)
+        return t - t0, m, tl - t0, sl, base
+
+    def plot(self, path: str, title: str = "") -> None:
+        """Fig. 11-like PNG: master vs slave per axis, with the paper condition if run."""
+        plot_tracking(path, *self.series(), title)
 
 
 def run_session(states: Sequence[FingerState], endpoint: str, cfg: TeleopConfig | None = None,
-                *, truth: np.ndarray | None = None, baseline: bool = True) -> Session:
+                *, truth: np.ndarray | None = None, baseline: bool = True,
+                on_sample: Callable[[], None] | None = None) -> Session:
     """Stream a recording's states to the slave at ``endpoint`` and build the report.
 
     ``truth``: rows ``t_s, contact, x_mm, y_mm, z_mm`` on the recording's time base
@@ -237,13 +244,25 @@ def run_session(states: Sequence[FingerState], endpoint: str, cfg: TeleopConfig 
     pre = next((s for s in states if s.contact), None)
     with realtime_scheduling(cfg.link.rt_priority), MasterSocket(endpoint, cfg.link) as sock:
         _wait_for_slave(sock, endpoint)
-        main = stream(states, sock, preroll_state=pre)
+        main = stream(_counted(states, on_sample), sock, preroll_state=pre)
         base = None
         if baseline:
-            base = stream(states, sock, rate_hz=cfg.baseline_rate_hz, hold_mode=True,
+            base = stream(_counted(states, on_sample), sock, rate_hz=cfg.baseline_rate_hz,
+                          hold_mode=True,
                           first_seq=main.next_seq,
                           preroll_state=pre)
     return Session(build_report(main, base, truth), main, base)
+
+
+def _counted(states: Iterable[FingerState],
+             on_sample: Callable[[], None] | None) -> Iterable[FingerState]:
+    """``states``, calling ``on_sample`` as each is taken (a progress bar)."""
+    if on_sample is None:
+        yield from states
+        return
+    for fs in states:
+        yield fs
+        on_sample()
 
 
 def build_report(main: StreamLog, base: StreamLog | None,
@@ -288,7 +307,8 @@ def _wait_for_slave(sock: MasterSocket, endpoint: str, timeout_s: float = 5.0) -
 
 def run_local_sim(states: Sequence[FingerState], cfg: TeleopConfig | None = None, *,
                   truth: np.ndarray | None = None, plot_path: str | None = None,
-                  baseline: bool = True) -> Session:
+                  baseline: bool = True,
+                  on_sample: Callable[[], None] | None = None) -> Session:
     """The demo: a simulated slave in a thread of this process on a random loopback port,
     driven over a real socket by run_session; optionally the Fig. 11 plot."""
     from teleop.slave import SlaveThread
@@ -297,7 +317,8 @@ def run_local_sim(states: Sequence[FingerState], cfg: TeleopConfig | None = None
     # The slave's thread (and ZeroMQ's, if this makes the first socket) inherit it.
     with (realtime_scheduling(cfg.link.rt_priority),
           SlaveThread(cfg, bind="tcp://127.0.0.1:*") as slave):
-        session = run_session(states, slave.endpoint, cfg, truth=truth, baseline=baseline)
+        session = run_session(states, slave.endpoint, cfg, truth=truth, baseline=baseline,
+                              on_sample=on_sample)
     if plot_path is not None:
         session.plot(plot_path)
     return session

@@ -11,6 +11,8 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass
 
+from vision.errors import DeviceFault
+
 MAGIC = b"FYDT"
 VERSION = 2
 
@@ -48,8 +50,11 @@ SAMPLE_SIZE = _SAMPLE.size
 STATE_SIZE = _STATE.size
 
 
-class ProtocolError(ValueError):
+class ProtocolError(DeviceFault, ValueError):
     """A message that is not a valid FYDT message of this version."""
+
+    device = "link peer"
+    check = "that master and slave run the same protocol version (docs/protocol.md)"
 
 
 @dataclass(frozen=True, slots=True)
@@ -74,7 +79,7 @@ class State:
 
     status: int
     reason: int
-    echo_seq: int  # seq of the last sample received (0: none)
+    echo_seq: int  # acknowledgement: that sample's seq; periodic: the newest admitted (0: none)
     t_echo_send_s: float  # that sample's t_send_s, master clock
     t_echo_recv_s: float  # when the slave read it, slave clock
     t_slave_s: float  # when this state was sampled, slave clock

@@ -78,6 +78,9 @@ class RobustParams:
     #: than this (mm) are filled from around them (a grey closing) to look for a finger
     #: already on the fabric.
     bootstrap_fill_mm: float = 36.0
+    #: ... and a fingertip found there must be darkest within this many core radii of
+    #: its centroid (a dried drop, darkest on its rim, is not; nor a flat ink dot).
+    bootstrap_max_offcentre: float = 0.25
 
 
 @dataclass(frozen=True, slots=True)
@@ -236,9 +239,10 @@ class RobustTracker:
         finger may be: a grey closing over ``bootstrap_fill_mm`` (a local maximum, then
         a minimum) fills every dark feature narrower than that from the fabric around
         it; the frame is then looked at against that filled background with the
-        tracker's own checks, and where they find a fingertip, its dark region (grown by
-        ``bg_guard_mm``) takes the filled value. Marks and shadows that do not pass as a
-        fingertip stay in the background as they are."""
+        tracker's own checks, and where they find a fingertip that peaks in its middle,
+        its dark region (grown by ``bg_guard_mm``) takes the filled value. Marks and
+        shadows that do not pass as such a fingertip stay in the background as they
+        are."""
         p = self.params
         kw = 2 * round(p.bootstrap_fill_mm / self._cell_w_mm / 2) + 1
         kh = 2 * round(p.bootstrap_fill_mm / self._cell_h_mm / 2) + 1
@@ -248,7 +252,12 @@ class RobustTracker:
         found = self._detect(img)
         self.in_contact = False  # the first frame's answer is the next call's
         bg = img.copy()
-        if found is not None:
+        # A fingertip pressed on the fabric peaks in its middle (darkest near its
+        # centroid, little of its core near the peak: the test of a contact kept by
+        # hysteresis); a mark that passes the other checks does not (a dried drop is
+        # darkest on its rim, an ink dot is flat-topped): it stays in the background.
+        if (found is not None and self._best_offcentre <= p.bootstrap_max_offcentre
+                and found.flatness <= p.max_hold_flatness):
             x0, y0, bw, bh = self._best_box
             region = np.zeros(self._shape, np.uint8)
             region[y0 : y0 + bh, x0 : x0 + bw] = self._dark[y0 : y0 + bh, x0 : x0 + bw]
@@ -259,11 +268,15 @@ class RobustTracker:
     def _fit_gain(self, ratio: NDArray[np.float32]) -> NDArray[np.float32]:
         """A smooth gain field fitted to ``I / B`` over pixels that are not dark."""
         samples = ratio.ravel().take(self._grid_flat).astype(np.float64)
-        floor = _median(samples) * 0.85
-        for i in range(2):
-            # Least squares by the 6x6 normal equations over the samples above the floor
-            # (the rest weighted 0: cheaper than copying the kept rows out).
-            keep = (samples > floor).astype(np.float64)
+        # First a band around the median: a finger or a shadow is darker, a dark thing
+        # learned into the background that has gone (a palm resting at the start)
+        # brighter; then a band around the fit.
+        med = _median(samples)
+        lo, hi = med * 0.85, med * 1.15
+        for i in range(3):
+            # Least squares by the 6x6 normal equations over the samples kept (the rest
+            # weighted 0: cheaper than copying the kept rows out).
+            keep = ((samples > lo) & (samples < hi)).astype(np.float64)
             normal = self._normal
             normal[self._upper] = normal[self._lower] = self._outer_t @ keep
             normal += self._ridge
@@ -272,9 +285,13 @@ class RobustTracker:
             # its ~20 us of Python-side checks per call.
             _, coef = cv2.solve(normal, rhs[:, None], flags=cv2.DECOMP_LU)
             coef = coef.ravel()
-            if i == 0:
-                # Drop samples well below the fit (a finger, a shadow) and refit.
-                floor = (coef @ self._basis_grid_t) * 0.9
+            if i < 2:
+                # Drop samples well below the fit (a finger, a shadow) and well above it
+                # (a dark thing learned into the background that has gone: a palm that
+                # rested at the start), and refit.
+                fit = coef @ self._basis_grid_t
+                lo = fit * 0.9
+                hi = fit * 1.12
         gain = self._gain
         np.matmul(coef.astype(np.float32), self._basis_full, out=gain.reshape(-1))
         cv2.max(gain, 1e-3, dst=gain)
@@ -388,6 +405,9 @@ class RobustTracker:
                     flatness=flatness,
                 )
                 self._best_box = (x0, y0, bw, bh)
+                # Where its darkest cell lies from its centroid, in core radii.
+                self._best_offcentre = float(np.hypot(px - cu, py - cv_)) / max(
+                    np.sqrt(core_cells / np.pi), 1.0)
         self.in_contact = best is not None
         return best
 

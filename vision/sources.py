@@ -5,7 +5,6 @@ from __future__ import annotations
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Protocol, runtime_checkable
 
 import cv2
@@ -13,11 +12,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from vision.calibration import CameraIntrinsics, WorkspaceHomography
+from vision.errors import DeviceFault
 from vision.recording import PadRecording
 
 
-class SourceError(RuntimeError):
+class SourceError(DeviceFault, RuntimeError):
     """A frame source is missing, gives no frames, or failed; the message names the device."""
+
+    device = "camera"
+    check = "the camera index or path (`ls /dev/video*` lists video devices)"
 
 
 @dataclass(frozen=True, slots=True)
@@ -146,7 +149,3 @@ class CameraSource:
 
     def __str__(self) -> str:
         return f"camera {self.config.device!r}"
-
-
-def open_recording_source(recdir: str | Path) -> VideoSource:
-    return VideoSource(PadRecording(recdir))

@@ -14,12 +14,17 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from vision.errors import DeviceFault
+
 #: Column names of an accelerometer block.
 ACCEL_COLUMNS = ("t_s", "ax_m_s2", "ay_m_s2", "az_m_s2")
 
 
-class AccelError(RuntimeError):
+class AccelError(DeviceFault, RuntimeError):
     """An accelerometer fault; the message names the device and what to check."""
+
+    device = "accelerometer"
+    check = "its cable, its power and the [accel] section of the configuration"
 
 
 class Accelerometer(Protocol):

@@ -10,6 +10,7 @@ add one, put its ``register(sub)`` in ``SUBCOMMANDS``.
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 import importlib
 import importlib.util
@@ -17,24 +18,17 @@ from collections.abc import Callable
 from dataclasses import replace
 from datetime import date
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
+from fydpad.cli import add_truncation_argument
 from fydpad.errors import UserError
-from vision.config import ForceConfig, IRConfig
-from vision.force import ForceCalibration, ForceCalibrationError, calibrate_force
-from vision.indentation import (
-    IndentationEstimator,
-    IRCalibrationError,
-    IRFit,
-    PlaneCorrection,
-    fit_ir_polynomial,
-    indentation_at_frames,
-    rmse,
-)
-from vision.ir import PAPER_POLY_CM
-from vision.recording import PadRecording, read_csv_columns
+
+if TYPE_CHECKING:  # annotations only: the modules load inside the functions
+    import numpy as np
+
+    from vision.config import IRConfig
+    from vision.force import ForceCalibration
+    from vision.indentation import IRFit
 
 Register = Callable[[argparse._SubParsersAction], None]
 
@@ -52,7 +46,10 @@ def register_ir(sub: argparse._SubParsersAction) -> None:
             "voltages it was fitted on)."
         ),
     )
-    p.add_argument("data", metavar="DATA.csv", help="distance_mm,v0,v1,v2 pairs")
+    p.add_argument("data", metavar="DATA.csv", nargs="?", help="distance_mm,v0,v1,v2 pairs")
+    p.add_argument("--example", metavar="DIR",
+                   help="write a sample input (DIR/ir_pairs.csv: three sensors off the "
+                   "paper's curve by a few percent, with noise) and say how to fit it")
     p.add_argument("--out", metavar="TOML", help="configuration file to write (default: print)")
     p.add_argument("--plot", metavar="PNG", help="draw the data, the fits and the residuals")
     p.add_argument("--degree", type=int, default=5, help="polynomial degree (default: 5)")
@@ -71,7 +68,10 @@ def register_force(sub: argparse._SubParsersAction) -> None:
             "section."
         ),
     )
-    p.add_argument("data", metavar="DATA.csv", help="mass_g,raw readings")
+    p.add_argument("data", metavar="DATA.csv", nargs="?", help="mass_g,raw readings")
+    p.add_argument("--example", metavar="DIR",
+                   help="write a sample input (DIR/force_weights.csv: readings under six "
+                   "weights, with noise) and say how to fit it")
     p.add_argument("--out", metavar="TOML", help="configuration file to write (default: print)")
     p.add_argument("--plot", metavar="PNG", help="draw the readings, the fit and residuals")
     p.add_argument("--full-scale-g", type=float, default=780.0,
@@ -89,15 +89,22 @@ def register_indentation(sub: argparse._SubParsersAction) -> None:
             "indenter, or the synthetic pad). The truth's contact and centroid are used, so "
             "the fit concerns the indentation alone. Prints the plane's RMSE and the "
             "corrected one on held-out presses (two-fold, alternate presses), and writes "
-            "correction_coef into the [ir] section."
+            "correction_coef into the [ir] section. The correction weighs each sensor's "
+            "deflection by a polynomial of the contact's position, so a fit on presses "
+            "holds for strokes. --protocol prints the 2-minute session to record "
+            "(the web view's /guide/indentation walks through it)."
         ),
     )
-    p.add_argument("recdirs", nargs="+", metavar="RECDIR", help="recordings with truth.csv")
+    p.add_argument("recdirs", nargs="*", metavar="RECDIR", help="recordings with truth.csv")
+    p.add_argument("--protocol", action="store_true",
+                   help="print the calibration protocol (which presses, where, how deep) "
+                        "and exit")
     p.add_argument("--out", metavar="TOML", help="configuration file to write (default: print)")
-    p.add_argument("--xy-degree", type=int, default=4,
-                   help="degree in the centroid position (default: 4)")
+    p.add_argument("--xy-degree", type=int, default=3,
+                   help="degree in the centroid position (default: 3)")
     p.add_argument("--depth-degree", type=int, default=2,
-                   help="degree in the plane estimate (default: 2)")
+                   help="degree in the sensors' deflections (default: 2)")
+    add_truncation_argument(p)
     p.set_defaults(func=run_indentation)
 
 
@@ -201,7 +208,28 @@ def _toml(v: Any) -> str:
 # --------------------------------------------------------------------------- ir
 
 
+def _example(args: argparse.Namespace, command: str, write: Callable[[Path], Path]) -> bool:
+    """--example DIR: write the sample input and say what to run on it (True), or check a
+    data file was given (False)."""
+    if args.example:
+        path = write(Path(args.example))
+        print(f"wrote {path}: fit it with `fydpad calibrate {command} {path}`")
+        return True
+    if args.data is None:
+        raise UserError(f"calibrate {command}: give DATA.csv (or --example DIR for a sample)")
+    return False
+
+
 def run_ir(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from fydpad.calibration_examples import write_ir_example
+    from vision.config import IRConfig
+    from vision.indentation import IRCalibrationError, fit_ir_polynomial
+    from vision.recording import read_csv_columns
+
+    if _example(args, "ir", write_ir_example):
+        return 0
     path = Path(args.data)
     cols = read_csv_columns(path, ("distance_mm",), optional=("v0", "v1", "v2"),
                             empty_ok=("v0", "v1", "v2"))
@@ -255,7 +283,10 @@ def run_ir(args: argparse.Namespace) -> int:
 
 def _plot_ir(path: str, d_mm: np.ndarray, cols: dict[str, np.ndarray],
              fits: dict[int, IRFit]) -> None:
+    import numpy as np
+
     from fydpad.plots import plt
+    from vision.ir import PAPER_POLY_CM
 
     fig, (ax, axr) = plt.subplots(2, 1, figsize=(8, 7), sharex=True,
                                   gridspec_kw={"height_ratios": (2, 1)}, constrained_layout=True)
@@ -268,11 +299,11 @@ def _plot_ir(path: str, d_mm: np.ndarray, cols: dict[str, np.ndarray],
                           f"(R$^2$ {fit.r2:.4f})")
         ax.plot(v, d_mm, ".", color=line.get_color(), ms=4)
         axr.plot(v, d_mm - np.polyval(fit.poly_cm, v) * 10, ".", color=line.get_color(), ms=4)
-    ax.set_ylabel("distance [mm]")
+    ax.set_ylabel("distance (mm)")
     ax.legend()
     axr.axhline(0, color="k", lw=0.8)
-    axr.set_xlabel("voltage [V]")
-    axr.set_ylabel("residual [mm]")
+    axr.set_xlabel("voltage (V)")
+    axr.set_ylabel("residual (mm)")
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -281,6 +312,11 @@ def _plot_ir(path: str, d_mm: np.ndarray, cols: dict[str, np.ndarray],
 
 
 def _press_samples(path: str, ir_config: IRConfig) -> dict[str, np.ndarray]:
+    import numpy as np
+
+    from vision.indentation import IndentationEstimator, indentation_at_frames
+    from vision.recording import PadRecording
+
     rec = PadRecording(path)
     ir, truth = rec.read_ir(), rec.read_truth()
     for name, data in (("ir.csv", ir), ("truth.csv", truth)):
@@ -296,10 +332,25 @@ def _press_samples(path: str, ir_config: IRConfig) -> dict[str, np.ndarray]:
     # Number the presses (runs of contact) so held-out halves never share one.
     press = np.cumsum(np.diff(np.concatenate([[0], truth.contact.astype(int)])) == 1)  # type: ignore[union-attr]
     return {"plane": r.plane_mm[c], "x": truth.x_mm[c], "y": truth.y_mm[c],  # type: ignore[union-attr]
-            "depth": truth.indentation_mm[c], "press": press[c]}  # type: ignore[union-attr]
+            "depth": truth.indentation_mm[c], "press": press[c],  # type: ignore[union-attr]
+            "e": r.deflection_mm[c],  # type: ignore[index]
+            "sensors": np.asarray(m.ir_sensors_mm, np.float64)}
 
 
 def run_indentation(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from vision.config import IRConfig
+    from vision.indentation import PlaneCorrection, rmse
+
+    if args.protocol:
+        from fydpad.indentation_protocol import protocol_text
+
+        print(protocol_text())
+        return 0
+    if not args.recdirs:
+        raise UserError("give the calibration recordings (RECDIR...), or --protocol for how "
+                        "to record them")
     config = _load_config(args)
     ir_config: IRConfig = getattr(config, "ir", None) or IRConfig()
     if args.xy_degree < 0 or args.depth_degree < 1:
@@ -309,8 +360,13 @@ def run_indentation(args: argparse.Namespace) -> int:
     for part in parts:  # presses of different recordings are different presses
         part["press"] = part["press"] + offset
         offset = int(part["press"].max(initial=offset)) + 1
+    sensors = parts[0].pop("sensors")
+    for part in parts[1:]:
+        if not np.allclose(part.pop("sensors"), sensors):
+            raise UserError("the recordings state different IR sensor positions: calibrate "
+                            "one device at a time")
     data = {k: np.concatenate([part[k] for part in parts]) for k in parts[0]}
-    need = 3 * PlaneCorrection.n_coef(args.xy_degree, args.depth_degree)
+    need = 3 * PlaneCorrection.n_coef(args.xy_degree, args.depth_degree, per_sensor=True)
     n = int(data["depth"].size)
     names = ", ".join(args.recdirs)
     if n < need:
@@ -321,7 +377,8 @@ def run_indentation(args: argparse.Namespace) -> int:
     try:
         final, held_rmse, scores = PlaneCorrection.fit_cv(
             data["plane"], data["x"], data["y"], data["depth"], data["press"],
-            args.xy_degree, args.depth_degree)
+            args.xy_degree, args.depth_degree, ridges=(1e-4, 1e-3, 1e-2, 1e-1, 1.0),
+            e_mm=data["e"], sensors_mm=sensors)
     except ValueError as exc:
         raise UserError(f"{names}: {exc}") from None
     d = data["depth"]
@@ -335,6 +392,7 @@ def run_indentation(args: argparse.Namespace) -> int:
     for line in summary[1:]:
         print(line)
     _write_section(args, "ir", {"correction_coef": final.coef,
+                                "correction_per_sensor": True,
                                 "correction_xy_degree": final.xy_degree,
                                 "correction_depth_degree": final.depth_degree}, summary)
     return 0
@@ -344,6 +402,15 @@ def run_indentation(args: argparse.Namespace) -> int:
 
 
 def run_force(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from fydpad.calibration_examples import write_force_example
+    from vision.config import ForceConfig
+    from vision.force import ForceCalibrationError, calibrate_force
+    from vision.recording import read_csv_columns
+
+    if _example(args, "force", write_force_example):
+        return 0
     path = Path(args.data)
     cols = read_csv_columns(path, ("mass_g", "raw"))
     lines = _line_numbers(path)
@@ -376,6 +443,8 @@ def run_force(args: argparse.Namespace) -> int:
 
 
 def _plot_force(path: str, mass_g: np.ndarray, raw: np.ndarray, cal: ForceCalibration) -> None:
+    import numpy as np
+
     from fydpad.plots import plt
     from vision.config import G_M_S2
 
@@ -384,7 +453,7 @@ def _plot_force(path: str, mass_g: np.ndarray, raw: np.ndarray, cal: ForceCalibr
     g = np.linspace(raw.min(), raw.max(), 2)
     ax.plot(g, cal.gain_n_per_count * (g - cal.offset_counts), "-",
             label=f"fit (R$^2$ {cal.r2:.5f})")
-    ax.set_ylabel("force [N]")
+    ax.set_ylabel("force (N)")
     ax.legend()
     axr.plot(raw, cal.residuals_n * 1000, ".")
     axr.axhline(0, color="k", lw=0.8)

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 import json
 from pathlib import Path
 
 from fydpad.errors import UserError
-from fydpad.web.experiment import ExperimentError, plot_confusion, report
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -31,6 +31,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_report(args: argparse.Namespace) -> int:
+    from fydpad.web.experiment import ExperimentError, plot_confusion, report
+    from vision.strict_json import finite
+
     try:
         conf, participants = report(args.results_dir)
     except ExperimentError as exc:
@@ -41,6 +44,6 @@ def run_report(args: argparse.Namespace) -> int:
     plot_confusion(conf, png)
     print(f"plot: {png}")
     if args.json:
-        Path(args.json).write_text(json.dumps({"participants": participants,
-                                               **conf.as_dict()}, indent=2) + "\n")
+        summary = finite({"participants": participants, **conf.as_dict()})
+        Path(args.json).write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
     return 0

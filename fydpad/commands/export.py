@@ -42,8 +42,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--slave-log", metavar="CSV",
                    help="the slave's log (`fydpad replay --slave-log`); default RECDIR/slave.csv")
     b.add_argument("--no-video", action="store_true", help="leave the camera out")
-    b.add_argument("--compress", action="store_true",
-                   help="zstd-compress each message (smaller; every MCAP reader decodes it)")
     add_config_argument(b)
     b.set_defaults(func=run_bag)
 
@@ -95,6 +93,5 @@ def export_recording(recdir: str, out: str, config_path: str | None, **kw) -> st
 
 def run_bag(args: argparse.Namespace) -> int:
     print(export_recording(args.recdir, args.out, args.config, track=args.track,
-                           slave_log=args.slave_log, video=not args.no_video,
-                           compress=args.compress))
+                           slave_log=args.slave_log, video=not args.no_video))
     return 0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 import json
 import math
@@ -9,17 +10,17 @@ import os
 import signal
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from fydpad.cli import add_config_argument
-from fydpad.commands.track import make_tracker
-from fydpad.config import load_config
+from fydpad.cli import add_config_argument, add_truncation_argument
 from fydpad.errors import UserError
-from fydpad.opening import open_source
-from fydpad.station.render import RenderSpec
-from fydpad.station.station import SensorFeed, Station, StationFault, StationOptions
-from fydpad.texture.interpolation import METHODS
-from vision.indentation import IndentationEstimator
-from vision.stream import LiveIndentation, recording_estimator
+
+if TYPE_CHECKING:  # annotations only: the station loads inside the command
+    from fydpad.station.station import Station
+
+#: fydpad.texture.interpolation.METHODS, written out so that --help loads no texture code
+#: (tests/cli/test_fast_help.py keeps the two equal).
+TEXTURE_METHODS = ("nearest", "stretch", "lsf", "reflection", "linear")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -31,7 +32,11 @@ def register(sub: argparse._SubParsersAction) -> None:
             "rate, IR and force at the sensor rate, rendering at 1 kHz in a process of its "
             "own, tele-operation at the vision rate), handing each other the latest value. "
             "Ctrl-C, --duration or any fault stops it safely: vibration off, motors to rest, "
-            "robot told to hold, files closed. A second Ctrl-C forces the exit."
+            "robot told to hold, files closed. A second Ctrl-C forces the exit. "
+            "Operator hold: in the terminal, h or the space bar holds the robot still and "
+            "silences the vibration, the same key releases (the robot glides back to the "
+            "finger); also the web view's Hold button and the sensor board's pedal "
+            "(docs/station.md)."
         ),
     )
     src = p.add_mutually_exclusive_group(required=True)
@@ -40,7 +45,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     src.add_argument("--synthetic", metavar="TRAJECTORY", nargs="?", const="walk",
                      help="the simulated pad, rendered live (a trajectory of `fydpad synth`: "
                      "circle, lissajous, tapping, walk (default), fast, hover)")
-    p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    p.add_argument("--duration", type=float, metavar="S",
+                   help="stop after S seconds; a --replay shorter than that holds on its last "
+                   "frame (the robot holding still) until then, or with --loop starts again")
+    p.add_argument("--loop", action="store_true",
+                   help="with --replay and --duration: restart the recording (frames, IR and "
+                   "force) at its end until --duration")
     p.add_argument("--sensors", metavar="serial:PORT[@BAUD]",
                    help="read IR and force from the serial sensor board "
                    "(docs/sensor_board_protocol.md) instead of the source's own; default: "
@@ -77,10 +87,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "family has it); ',fs=X' sets the full scale of WAV and card (default 1). "
                    "Stop or fault silences the card (docs/channels.md)")
     p.add_argument("--teleop", metavar="ENDPOINT",
-                   help="stream the finger to a slave robot (`teleop slave`) at this endpoint")
+                   help="stream the finger to a slave robot (`teleop slave`) at this endpoint "
+                   "(tcp://HOST:PORT or HOST:PORT). A slave that never answers or goes "
+                   "silent leaves the station running (the robot holds by its watchdog); the "
+                   "run then ends with a line saying so and exit status 3")
+    add_link_arguments(p)
     p.add_argument("--vibration-gain", type=float, default=1.0,
                    help="texture vibration gain (the paper: 1)")
-    p.add_argument("--texture-method", choices=METHODS, default=None,
+    p.add_argument("--texture-method", choices=TEXTURE_METHODS, default=None,
                    help="an LPC model's interpolation between its fitted speeds: stretch "
                    "(default; the one `fydpad texture evaluate` scores), lsf, reflection, or "
                    "linear (the paper's coefficient interpolation) (docs/texture.md)")
@@ -97,17 +111,153 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-realtime", action="store_true",
                    help="do not ask for SCHED_FIFO and a core for the render process")
     add_config_argument(p)
+    add_truncation_argument(p)
     # -- web view --
     p.add_argument("--web", metavar="[HOST:]PORT",
                    help="serve the web view (live image, plots, setup, experiment runner); "
                    "loopback unless HOST is given, then with a token printed at start")
     p.add_argument("--web-results", metavar="DIR", default="experiment-results",
-                   help="with --web: the experiment results directory (default: %(default)s)")
+                   help="with --web: the experiment results directory, created when the "
+                   "first participant's session starts, its path printed then (default: "
+                   "%(default)s)")
     p.add_argument("--web-stimuli", metavar="FILE.json",
                    help="with --web: the experiment's stimuli (name, stiffness, texture model; "
                    "docs/experiment.md); default: the paper's SS1-SS4 with grating models")
     # -- end web view --
     p.set_defaults(func=run)
+
+
+def _model_cache() -> Path:
+    """Where derived texture models are written: $XDG_CACHE_HOME/fydpad (~/.cache/fydpad)."""
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "fydpad"
+
+
+class ExtendedReplay:
+    """A replay's frames, then (``loop``) the recording again, shifted in time, or its last
+    frame repeated at the recording's rate, until ``duration_s``: the station and its web
+    view stay up for the whole --duration."""
+
+    def __init__(self, source, period_s: float, duration_s: float | None, loop: bool):
+        self.source = source
+        self.period_s = period_s
+        self.duration_s = duration_s
+        self.loop = loop
+
+    def __getattr__(self, name: str):
+        return getattr(self.source, name)
+
+    def frames(self):
+        from vision.sources import Frame
+
+        offset_s, k, last = 0.0, 0, None
+        while True:
+            for frame in self.source.frames():
+                last = frame
+                yield Frame(k, offset_s + frame.t_s, frame.image)
+                k += 1
+            if last is None or self.duration_s is None:
+                return
+            end_s = offset_s + last.t_s + self.period_s
+            if self.loop and end_s < self.duration_s:
+                offset_s = end_s
+                continue
+            t_s = end_s
+            while t_s <= self.duration_s:  # hold on the last frame
+                yield Frame(k, t_s, last.image)
+                k += 1
+                t_s += self.period_s
+            return
+
+
+def _tiled(samples, period_s: float, times: int):
+    """(t_s, values) repeated ``times`` times, each copy ``period_s`` later."""
+    if samples is None:
+        return None
+    import numpy as np
+
+    t, v = samples
+    return (np.concatenate([t + i * period_s for i in range(times)]),
+            np.concatenate([v] * times))
+
+
+def _extended_replay(args: argparse.Namespace, rec, source):
+    """The replay's source and sensor feed for --duration and --loop."""
+    from fydpad.station.station import SensorFeed  # loaded when the command runs
+
+    if args.loop and args.duration is None:
+        raise UserError("--loop needs --duration S (how long to keep replaying)")
+    period_s = 1.0 / rec.fps
+    length_s = rec.frame_count * period_s
+    sensors = SensorFeed(rec.read_ir(), rec.read_force())
+    if args.loop:
+        times = max(1, math.ceil(args.duration / length_s) + 1)
+        sensors = SensorFeed(_tiled(rec.read_ir(), length_s, times),
+                             _tiled(rec.read_force(), length_s, times))
+    return ExtendedReplay(source, period_s, args.duration, args.loop), sensors
+
+
+def add_link_arguments(p: argparse.ArgumentParser) -> None:
+    """The master's side of the link's security: --curve and --keys (docs/getting_started.md)."""
+    p.add_argument("--curve", choices=("auto", "on", "off"),
+                   help="CurveZMQ on the tele-operation link: auto = on unless the endpoint is "
+                   "loopback (default: [teleop.link] curve of the config, auto)")
+    p.add_argument("--keys", metavar="DIR",
+                   help="CurveZMQ key directory holding server.key, client.key and "
+                   "client.key_secret from the slave's `teleop keys generate DIR` (default: "
+                   "[teleop.link] keys_dir of the config, teleop_keys)")
+
+
+def apply_link_arguments(args: argparse.Namespace, config) -> None:
+    """--curve and --keys over the config's [teleop.link]."""
+    if args.curve:
+        config.teleop.link.curve = args.curve
+    if args.keys:
+        config.teleop.link.keys_dir = args.keys
+
+
+def open_link(endpoint: str, config):
+    """The station's link; a missing key file or a bad endpoint is one line."""
+    from fydpad.station.link import StationLink
+
+    try:
+        return StationLink(endpoint, config.teleop)
+    except (OSError, ValueError) as exc:
+        raise UserError(f"--teleop {endpoint}: {exc}") from None
+
+
+class LinkWatch:
+    """What the run tells at its end about the link: whether the slave ever answered, and
+    how often and how long it went silent (LINK_SILENT_S without an answer) after that."""
+
+    def __init__(self) -> None:
+        self.outages = 0
+        self.longest_silence_s = 0.0
+        self._silent = False
+
+    def update(self, answered: bool, age_s: float) -> None:
+        if not answered:
+            return
+        if age_s > LINK_SILENT_S:
+            self.longest_silence_s = max(self.longest_silence_s, age_s)
+            if not self._silent:
+                self.outages += 1
+                self._silent = True
+        else:
+            self._silent = False
+
+    def summary(self, endpoint: str, answered: bool, sent: int, failed: int) -> str | None:
+        """None for a link that held; else the line that says what went wrong."""
+        if not answered:
+            return (f"tele-operation link {endpoint}: no slave ever answered ({sent} samples "
+                    f"sent, {failed} refused for want of a connection): is `teleop slave` "
+                    "running there, its port open, and are the CurveZMQ settings and keys the "
+                    "same on both sides?")
+        if self.outages:
+            return (f"tele-operation link {endpoint}: the slave went silent {self.outages} "
+                    f"time(s), the longest {self.longest_silence_s:.1f} s; the robot held "
+                    "meanwhile (its watchdog)")
+        return None
 
 
 class _Interrupts:
@@ -130,20 +280,29 @@ class _Interrupts:
 LINK_SILENT_S = 1.0
 
 
+def _num(value: object, spec: str, width: int = 0) -> str:
+    """``value`` formatted by ``spec``, or "-" (right-aligned to ``width``) when there is
+    none yet: no NaN where a user reads."""
+    if isinstance(value, int | float) and math.isfinite(value):
+        return format(value, spec)
+    return "-".rjust(width)
+
+
 def format_status(s: dict) -> str:
     """The live status line: rates and jitter, contact, indentation, force, requested and
-    measured stiffness, the link and the sensor board."""
-    contact = (f"contact x {s['x_mm']:+6.1f} y {s['y_mm']:+6.1f} mm"
+    measured stiffness, the link and the sensor board; "-" for a value not known yet."""
+    contact = (f"contact x {_num(s['x_mm'], '+6.1f', 6)} y {_num(s['y_mm'], '+6.1f', 6)} mm"
                if s["contact"] else "no contact" + " " * 20)
     r = s.get("render") or {}
     v = s.get("vision") or {}
-    line = (f"frames {s['frames']:6d}  {contact}  z {s['indentation_mm']:5.1f} mm  "
-            f"F {s['force_n']:5.2f} N  "
-            f"k {s['measured_n_per_mm']:.2f}/{s['requested_n_per_mm']:.2f} N/mm  "
-            f"vision {v.get('rate_hz', math.nan):4.1f} Hz  "
-            f"render {r.get('rate_hz', math.nan):6.1f} Hz "
-            f"{r.get('on_time_pct', math.nan):5.1f} % on time "
-            f"p99 {r.get('jitter_ms', {}).get('p99', math.nan):.2f} ms")
+    line = (f"frames {s['frames']:6d}  {contact}  z {_num(s['indentation_mm'], '5.1f', 5)} mm  "
+            f"F {_num(s['force_n'], '5.2f', 5)} N  "
+            f"k {_num(s['measured_n_per_mm'], '.2f')}/{_num(s['requested_n_per_mm'], '.2f')} "
+            f"N/mm  "
+            f"vision {_num(v.get('rate_hz'), '4.1f', 4)} Hz  "
+            f"render {_num(r.get('rate_hz'), '6.1f', 6)} Hz "
+            f"{_num(r.get('on_time_pct'), '5.1f', 5)} % on time "
+            f"p99 {_num(r.get('jitter_ms', {}).get('p99'), '.2f')} ms")
     link = s.get("link")
     if link is not None:
         age_s = link.get("answer_age_s", 0.0)
@@ -156,6 +315,8 @@ def format_status(s: dict) -> str:
         else:
             state = "ok"
         line += f"  link {state}"
+    if s.get("operator_hold"):
+        line += "  HOLD"
     board = s.get("sensors")
     if board is not None:
         line += f"  board {board['samples']} ok {board['bad_lines']} bad"
@@ -174,6 +335,7 @@ def _status_printer():
 
 def _synthetic(args: argparse.Namespace, config):
     """The synthetic pad as the station's camera, IR board and load cell."""
+    from fydpad.station.station import SensorFeed
     from fydpad.synth import SynthConfig, SyntheticPad
     from fydpad.synth.sources import SynthFrameSource
 
@@ -242,6 +404,15 @@ def _check_channels(args: argparse.Namespace, render_hz: float) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from fydpad.commands.track import make_tracker
+    from fydpad.config import load_config
+    from fydpad.opening import open_source
+    from fydpad.station.render import RenderSpec
+    from fydpad.station.station import SensorFeed, Station, StationFault, StationOptions
+    from vision.indentation import IndentationEstimator
+    from vision.stream import LiveIndentation, recording_estimator
+    from vision.strict_json import finite
+
     config = load_config(args.config)
     camera = None
     indentation = None
@@ -252,6 +423,8 @@ def run(args: argparse.Namespace) -> int:
         opened = open_source(config, args.replay, args.camera)
         source, meta, rec, camera = opened.source, opened.meta, opened.recording, opened.camera
         sensors = SensorFeed(rec.read_ir(), rec.read_force()) if rec is not None else None
+        if rec is not None:
+            source, sensors = _extended_replay(args, rec, source)
         if rec is not None and rec.has("ir.csv"):
             indentation = LiveIndentation(recording_estimator(rec, config.ir))
     tracker = make_tracker(config.tracker, meta.roi_px, meta.workspace_mm, meta.image_flip,
@@ -274,6 +447,10 @@ def run(args: argparse.Namespace) -> int:
         require_rosbags()
     if args.record:
         Path(args.record).mkdir(parents=True, exist_ok=True)
+    if args.loop and args.replay is None:
+        raise UserError("--loop applies to --replay")
+    if args.teleop is None and (args.curve or args.keys):
+        raise UserError("--curve and --keys apply to the tele-operation link: give --teleop")
     if args.texture:  # a bad model file fails here, in one line, not in the render process
         from fydpad.station.texture_source import check_family_rate
         from fydpad.texture.families import load_family
@@ -312,16 +489,18 @@ def run(args: argparse.Namespace) -> int:
         status=_status_printer(),
     )
     link = None
+    watch = LinkWatch()
     if args.teleop:
-        from fydpad.station.link import StationLink
-
-        link = StationLink(args.teleop, config.teleop)
+        apply_link_arguments(args, config)
+        link = open_link(args.teleop, config)
         options.teleop_hold = link.hold
+        options.operator_hold = link.set_operator_hold
     station = Station(source, tracker, meta, options, sensors=sensors, indentation=indentation,
                       force_full_scale_n=config.force.full_scale_n)
     if link is not None:
         def send(state, link=link, station=station) -> None:
             link.send(state)
+            watch.update(link.slave is not None, link.answer_age_s())
             # For the web view and the status: the robot's tracking error, as it is now.
             station.live_stats["link"] = {
                 "endpoint": link.endpoint, "sent": link.sent, "send_failed": link.send_failed,
@@ -334,12 +513,14 @@ def run(args: argparse.Namespace) -> int:
     # -- web view --
     web = None
     if getattr(args, "web", None):
-        from fydpad.web import parse_web_address, start_web
+        from fydpad.web.server import parse_web_address, start_web
         from fydpad.web.stimuli import experiment_stimuli
 
         try:
             web_host, web_port = parse_web_address(args.web)
-            stimuli = experiment_stimuli(args.web_stimuli, args.web_results)
+            # The grating models the stimuli render are derived files: they go to the
+            # user's cache, so --web-results is created only by the first result written.
+            stimuli = experiment_stimuli(args.web_stimuli, _model_cache())
             if args.motors != "none":  # every stimulus's texture, loaded by the render process
                 render.textures = tuple(dict.fromkeys(s.texture for s in stimuli if s.texture))
             web = start_web(station, config, args.config, web_host, web_port,
@@ -353,8 +534,15 @@ def run(args: argparse.Namespace) -> int:
     previous = signal.signal(signal.SIGINT, interrupts)
     # A service manager's SIGTERM stops the station the same safe way as Ctrl-C.
     previous_term = signal.signal(signal.SIGTERM, interrupts)
+    from fydpad.station.hold_keys import HoldKeys
+
+    keys = HoldKeys(lambda: station.toggle_operator_hold("key"))
     try:
-        stats = station.run()
+        with keys:
+            if keys.active:
+                print("press h or space to hold the robot (again to release)",
+                      file=sys.stderr, flush=True)
+            stats = station.run()
     except StationFault as exc:
         raise UserError(f"station stopped safely after a fault: {exc}") from None
     finally:
@@ -362,25 +550,34 @@ def run(args: argparse.Namespace) -> int:
         signal.signal(signal.SIGTERM, previous_term)
         if web is not None:  # web view
             web.stop()
+        link_summary = None
         if link is not None:
+            link_summary = watch.summary(link.endpoint, link.slave is not None, link.sent,
+                                         link.send_failed)
             station.stats["link"] = {"sent": link.sent, "send_failed": link.send_failed,
-                                     "slave_answered": link.slave is not None}
+                                     "slave_answered": link.slave is not None,
+                                     "outages": watch.outages,
+                                     "longest_silence_s": round(watch.longest_silence_s, 3)}
             link.close()
         if options.status is not None:
             print(file=sys.stderr)
         if args.stats:
-            Path(args.stats).write_text(json.dumps(station.stats, indent=2) + "\n")
+            Path(args.stats).write_text(
+                json.dumps(finite(station.stats), indent=2, allow_nan=False) + "\n")
     r = stats.get("render", {})
     dropped = (f", {station.frames_dropped} dropped for --vision-hz"
                if station.frames_dropped else "")
     print(f"station ran {station.frames} frames ({station.contact_frames} with contact"
           f"{dropped}); "
           f"render {r.get('rate_hz', 0):.1f} Hz, {r.get('on_time_pct', 0):.2f} % on time, "
-          f"jitter p99 {r.get('jitter_ms', {}).get('p99', math.nan):.2f} ms, "
+          f"jitter p99 {_num(r.get('jitter_ms', {}).get('p99'), '.2f')} ms, "
           f"frame-to-command p99 "
-          f"{stats.get('frame_to_command_ms', {}).get('p99', math.nan):.1f} ms")
+          f"{_num(stats.get('frame_to_command_ms', {}).get('p99'), '.1f')} ms")
     if args.bag:
         from fydpad.commands.export import export_recording
 
         print(export_recording(args.record, args.bag, args.config, video=not args.no_video))
+    if link_summary is not None:
+        print(f"fydpad run: {link_summary}", file=sys.stderr)
+        return 3
     return 0

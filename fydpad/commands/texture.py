@@ -21,6 +21,7 @@ from fydpad.texture.coverage import describe, inside, model_gaps
 from fydpad.texture.free_form import AUTO
 from fydpad.texture.interpolation import DEFAULT_METHOD, METHODS
 from vision.recording import CsvRowWriter, RecordingError
+from vision.strict_json import finite
 
 if TYPE_CHECKING:
     from fydpad.texture.evaluate import Comparison
@@ -871,7 +872,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
                             f"{args.scan[0]}'s; several scans need one rate")
     out = results[0].out if len(results) == 1 else _over_scans(args.model, results)
     if args.json:
-        Path(args.json).write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
+        Path(args.json).write_text(json.dumps(finite(out), indent=1, allow_nan=False) + "\n",
+                                   encoding="utf-8")
     if args.plot:
         _plot_evaluation(args.plot, results)
     return 0
@@ -1129,7 +1131,8 @@ def run_identify(args: argparse.Namespace) -> int:
                          model_names=args.models, seed=args.seed)
     print(f"identification rate {ident.rate:.1%} ({len(scans)} scans, {len(models)} models)")
     if args.json:
-        Path(args.json).write_text(json.dumps(ident.to_json(), indent=1) + "\n",
+        Path(args.json).write_text(json.dumps(finite(ident.to_json()), indent=1,
+                                              allow_nan=False) + "\n",
                                    encoding="utf-8")
     if args.plot:
         plot_confusion(args.plot, ident)
@@ -1156,8 +1159,9 @@ def _run_identify_family(args: argparse.Namespace, kinds: set[str]) -> int:
     print(f"{next(iter(kinds))}: identification rate {ident.rate:.1%} ({len(scans)} scans, "
           f"{len(fams)} models)")
     if args.json:
-        Path(args.json).write_text(json.dumps({"kind": next(iter(kinds)), **ident.to_json()},
-                                              indent=1) + "\n", encoding="utf-8")
+        ident_json = finite({"kind": next(iter(kinds)), **ident.to_json()})
+        Path(args.json).write_text(json.dumps(ident_json, indent=1, allow_nan=False) + "\n",
+                                   encoding="utf-8")
     if args.plot:
         plot_confusion(args.plot, ident, f"{next(iter(kinds))}: rate {ident.rate:.0%}")
     return 0
@@ -1210,7 +1214,8 @@ def run_compare(args: argparse.Namespace) -> int:
                                         ".png"),
                                    Identification(r["specimens"], conf, rate, []),
                                    f"{kind}, {key}: {rate:.0%}")
-    (out_dir / "compare.json").write_text(json.dumps(result, indent=1) + "\n",
+    (out_dir / "compare.json").write_text(json.dumps(finite(result), indent=1,
+                                                     allow_nan=False) + "\n",
                                           encoding="utf-8")
     print(f"{out_dir}: compare.json and confusion plots")
     return 0

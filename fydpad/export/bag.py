@@ -119,16 +119,14 @@ def _quat_from_matrix(m: NDArray[np.float64]) -> tuple[float, float, float, floa
 class _Bag:
     """A rosbags Writer with one connection per topic and a message count per topic."""
 
-    def __init__(self, path: Path, compress: bool) -> None:
+    def __init__(self, path: Path) -> None:
         from rosbags.rosbag2 import StoragePlugin, Writer
         from rosbags.typesys import Stores, get_typestore
 
         self.ts = get_typestore(Stores.ROS2_HUMBLE)
+        # Uncompressed: rosbag2's message compression wraps each payload in zstd, which
+        # only rosbag2 itself undoes (Foxglove, Rerun and the mcap readers cannot decode it).
         self.writer = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
-        if compress:
-            from rosbags.rosbag2 import CompressionFormat, CompressionMode
-
-            self.writer.set_compression(CompressionMode.MESSAGE, CompressionFormat.ZSTD)
         self.conns: dict[str, Any] = {}
         self.counts: dict[str, int] = {}
         self.before_start = 0
@@ -256,7 +254,7 @@ def _frames(recdir: Path) -> Iterator[tuple[float, NDArray[np.uint8]]]:
 
 def export_bag(recdir: str | Path, out: str | Path, config: StationConfig | None = None, *,
                track: str | Path | None = None, slave_log: str | Path | None = None,
-               video: bool = True, compress: bool = False,
+               video: bool = True,
                track_video: Callable[[], dict[str, NDArray[np.float64]]] | None = None,
                ) -> BagSummary:
     """Write the recording at ``recdir`` as a rosbag2 (MCAP) directory ``out``.
@@ -277,7 +275,7 @@ def export_bag(recdir: str | Path, out: str | Path, config: StationConfig | None
         finger = _finger_rows(files, config, track_video)
     except RecordingError as exc:
         raise UserError(str(exc)) from None
-    bag = _Bag(out, compress)
+    bag = _Bag(out)
     tfs = _write_tf(bag, config) + _ir_transforms(bag, meta.ir_sensors_mm,
                                                  meta.base_to_fabric_mm)
     events: list[tuple[float, int, str, Any]] = []  # every file read before the bag opens

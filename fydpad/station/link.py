@@ -5,6 +5,7 @@ way out (paper III-C; docs/protocol.md)."""
 from __future__ import annotations
 
 import math
+import threading
 import time
 
 import zmq
@@ -17,7 +18,9 @@ from vision.state import FingerState
 
 class StationLink:
     """Sends each finger state as it is made; never waits (a full queue drops the sample:
-    the slave acts on the newest one anyway)."""
+    the slave acts on the newest one anyway). Thread-safe: the vision loop sends while a
+    key, web or pedal handler sets the operator hold from its own thread (a ZeroMQ socket
+    is used under one lock)."""
 
     def __init__(self, endpoint: str, cfg: TeleopConfig | None = None):
         self.cfg = cfg or TeleopConfig()
@@ -31,6 +34,7 @@ class StationLink:
         self._answered_at = math.nan  # monotonic time of the slave's newest state
         self._operator_hold = False
         self._last_state: FingerState | None = None
+        self._lock = threading.RLock()
 
     @property
     def operator_hold(self) -> bool:
@@ -42,12 +46,13 @@ class StationLink:
         flag; one is sent now (the last finger state again, or "no contact" before any), so
         the slave stands still without waiting for the next frame. On release the slave
         glides back to the finger at ``safety.resume_speed_mm_s``."""
-        on = bool(on)
-        if on == self._operator_hold:
-            return
-        self._operator_hold = on
-        last = self._last_state
-        self.send(last if last is not None else FingerState.no_contact(time.monotonic()))
+        with self._lock:
+            on = bool(on)
+            if on == self._operator_hold:
+                return
+            self._operator_hold = on
+            last = self._last_state
+            self.send(last if last is not None else FingerState.no_contact(time.monotonic()))
 
     def answer_age_s(self) -> float:
         """Seconds since the slave last answered (inf before it ever has): a slave that
@@ -56,6 +61,10 @@ class StationLink:
             time.monotonic() - self._answered_at)
 
     def send(self, state: FingerState) -> None:
+        with self._lock:
+            self._send(state)
+
+    def _send(self, state: FingerState) -> None:
         self._last_state = state
         now = time.monotonic()
         if state.contact:
@@ -97,7 +106,9 @@ class StationLink:
         """Tell the robot to hold: the finger lifted (the slave's clutch holds x and y)."""
         self.send(FingerState.no_contact(time.monotonic()))
         time.sleep(0.05)
-        self._drain()
+        with self._lock:
+            self._drain()
 
     def close(self) -> None:
-        self._sock.close()
+        with self._lock:
+            self._sock.close()

@@ -19,27 +19,28 @@ drops rows, counted in the stats (``commands_log.dropped``), never a tick.
 
 from __future__ import annotations
 
-import math
 import multiprocessing as mp
 import os
 import sys
 import time
 import traceback
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Protocol
 
 from fydpad.errors import one_line_warnings
 from fydpad.pacing import LatencyHistogram, LoopTimer
-from fydpad.station.row_log import DEFAULT_BUFFER_S, RingRowLog
+from fydpad.station.chains import build_render_chain
+from fydpad.station.row_log import RingRowLog
 from fydpad.station.shared import SharedFingerState, SharedRecord
+from fydpad.station.spec import RenderSpec
 from teleop.realtime import request_realtime
 
 #: Control values the station may change while the render process runs. ``texture_index``
 #: selects the texture model among ``[RenderSpec.texture, *RenderSpec.textures]`` (-1: none;
-#: the experiment's stimuli); ``friction_b_v`` sets a friction model's b (NaN: the file's).
+#: the experiment's stimuli); ``friction_b_v`` sets a friction model's b (NaN: the file's);
+#: ``operator_hold`` (1: held) silences the vibration whatever ``vibration_enabled`` says.
 CONTROL_FIELDS = ("vibration_gain", "stiffness_n_per_mm", "vibration_enabled", "epoch_s",
-                  "texture_index", "friction_b_v")
+                  "texture_index", "friction_b_v", "operator_hold")
 
 
 class RenderChain(Protocol):
@@ -54,44 +55,6 @@ class RenderChain(Protocol):
 
     def safe_stop(self) -> None:
         """Vibration off, motors to rest. Must not raise."""
-
-
-@dataclass
-class RenderSpec:
-    """Everything the render process needs to build its chain (picklable)."""
-
-    rate_hz: float = 1000.0
-    #: A texture model file (None: no vibration).
-    texture: str | None = None
-    #: More texture models, all loaded at start and selected live by the control record's
-    #: ``texture_index`` (1, 2, ...; 0 is ``texture``): no file I/O in the 1 kHz loop.
-    textures: tuple[str, ...] = ()
-    vibration_gain: float = 1.0
-    #: LPC models' interpolation between fitted speeds (None: the default, "stretch").
-    texture_method: str | None = None
-    #: Band-pass LPC models' vibration through the model file's drive band (paper III-B:
-    #: 165-220 Hz, where the fabric's actuator chain responds).
-    drive_filter: bool = False
-    stiffness_n_per_mm: float = math.nan
-    #: "sim" (the simulated fabric and motor plant) or "qb" (the QB board) or "none".
-    motors: str = "none"
-    motor_options: dict = field(default_factory=dict)
-    #: Write every tick's commands here (CSV), or None.
-    commands_csv: str | None = None
-    #: Seconds of commands-log rows buffered against a stalled disk (at ``rate_hz``).
-    commands_buffer_s: float = DEFAULT_BUFFER_S
-    #: Try SCHED_FIFO and a core of its own (needs the right to; falls back silently).
-    realtime: bool = True
-    #: A custom chain, "module:callable" taking the spec (labs' own actuators, tests).
-    chain: str | None = None
-    #: The device configuration (motor, PWM, board and softness sections are used).
-    config: Any = None
-    #: A TF file of ``fydpad chain identify``: its inverse pre-compensates the vibration.
-    compensate: str | None = None
-    #: Output channels, ``[SIGNAL=]TARGET[,fs=X]`` each (fydpad.station.outputs).
-    channels: tuple[str, ...] = ()
-    #: Ticks per block handed to the channels (10: 10 ms).
-    channel_block_ticks: int = 10
 
 
 class NullChain:
@@ -116,8 +79,6 @@ def build_chain(spec: RenderSpec) -> RenderChain:
         return getattr(importlib.import_module(module), name)(spec)
     if spec.motors == "none" and spec.texture is None and not spec.textures:
         return NullChain()
-    from fydpad.station.chains import build_render_chain
-
     return build_render_chain(spec)
 
 
@@ -168,7 +129,7 @@ def render_main(
                 if apply_control is not None:
                     apply_control(ctl[4], ctl[5])
             t0 = ctl[3]  # the station's epoch: t_s = 0 at its first frame
-            gain = ctl[0] if ctl[2] > 0.5 else 0.0
+            gain = ctl[0] if ctl[2] > 0.5 and not ctl[6] > 0.5 else 0.0
             if seq and ctl_seq:
                 out = chain.tick(tick_time - t0, v[1] > 0.5, v[2], v[3], v[5], v[6], gain,
                                  ctl[1])

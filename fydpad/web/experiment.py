@@ -19,12 +19,16 @@ import io
 import json
 import os
 import re
+import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from vision.errors import UserError
+from vision.strict_json import finite
 
 #: CSV columns, one row per answer (docs/experiment.md).
 CSV_FIELDS = ("participant", "trial", "presented", "answer", "correct", "seed", "time_utc")
@@ -56,7 +60,7 @@ PAPER_REPEATS = 3
 _PARTICIPANT_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 
 
-class ExperimentError(ValueError):
+class ExperimentError(UserError, ValueError):
     """A bad experiment setting, answer or results file."""
 
 
@@ -213,7 +217,7 @@ class SessionPlan:
     def to_json(self) -> str:
         d = asdict(self)
         d["format"] = "fydpad-experiment-1"
-        return json.dumps(d, indent=2) + "\n"
+        return json.dumps(finite(d), indent=2, allow_nan=False) + "\n"
 
     @classmethod
     def from_json(cls, text: str, where: str) -> SessionPlan:
@@ -299,7 +303,9 @@ class ExperimentSession:
         """Start a participant's session, or resume it if its files exist."""
         check_participant(participant)
         results_dir = Path(results_dir)
-        results_dir.mkdir(parents=True, exist_ok=True)
+        if not results_dir.is_dir():  # made by the first result, and said so
+            results_dir.mkdir(parents=True, exist_ok=True)
+            print(f"experiment results: {results_dir.resolve()}", file=sys.stderr, flush=True)
         plan_path = results_dir / f"{participant}.json"
         csv_path = results_dir / f"{participant}.csv"
         if plan_path.exists():

@@ -2,7 +2,8 @@
 
 By default each stimulus renders a rectangular grating model (Ito 2019 4.2, the
 FYD-pad's specimens: 90 % ridge, the default 8:2 vibrotactile/friction ratio) of its
-period, written to ``RESULTS/textures/grating-<period>mm.json`` so the plan and the
+period, written to ``<cache>/textures/grating-<period>mm.json`` (``fydpad run``: the
+user's cache, ~/.cache/fydpad) so the plan and the
 render process name a real file (rewritten, atomically, whenever its content would
 differ: a file of an older fit or a torn write is never used). ``--web-stimuli
 FILE.json`` replaces them: a JSON list of ``{"name", "stiffness_n_per_mm",
@@ -20,6 +21,7 @@ from pathlib import Path
 
 from fydpad.errors import UserError, read_json
 from fydpad.web.experiment import PAPER_STIMULI, Stimulus
+from vision.strict_json import finite
 
 
 def grating_textures(stimuli: tuple[Stimulus, ...] | list[Stimulus], texture_dir: Path
@@ -33,7 +35,7 @@ def grating_textures(stimuli: tuple[Stimulus, ...] | list[Stimulus], texture_dir
         path = texture_dir / f"grating-{s.grating_mm:g}mm.json"
         model = fit_grating(wavelength_mm=s.grating_mm, profile="rect", ridge_fraction=0.9)
         # As fydpad.texture.families.save_model_json writes it.
-        _write_if_changed(path, json.dumps(model, indent=1) + "\n")
+        _write_if_changed(path, json.dumps(finite(model), indent=1, allow_nan=False) + "\n")
         out.append(replace(s, texture=f"grating:{path}"))
     return out
 
@@ -99,9 +101,10 @@ def load_stimuli(path: str | Path) -> list[Stimulus]:
     return out
 
 
-def experiment_stimuli(stimuli_file: str | Path | None, results_dir: str | Path
+def experiment_stimuli(stimuli_file: str | Path | None, model_dir: str | Path
                        ) -> list[Stimulus]:
-    """The stimuli of ``--web-stimuli``, else the paper's four with grating models."""
+    """The stimuli of ``--web-stimuli``, else the paper's four with grating models
+    written under ``model_dir``/textures."""
     if stimuli_file is not None:
         return load_stimuli(stimuli_file)
-    return grating_textures(PAPER_STIMULI, Path(results_dir) / "textures")
+    return grating_textures(PAPER_STIMULI, Path(model_dir) / "textures")

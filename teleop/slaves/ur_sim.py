@@ -4,7 +4,9 @@ MuJoCo (the Menagerie model, teleop/models/). ``teleop slave --robot ur --ur-hos
 What it copies of the real controller (ur-rtde's RTDEControlInterface and
 RTDEReceiveInterface, URScript's servoj/servol):
 - a 500 Hz control loop running on its own clock (here: stepped up to the caller's
-  wall-clock time at every call, 1 kHz physics, two steps per control period);
+  wall-clock time at every call, 1 kHz physics, two steps per control period; a caller
+  starved for up to MAX_CATCHUP_S finds the arm where the real one, which never waits
+  for its client, would be);
 - ``servoL(pose, speed, acceleration, time, lookahead_time, gain)``: the pose is solved to
   joint targets; the controller moves its joint reference towards them as a first-order
   lag of time constant ``lookahead_time`` ("smoothens the trajectory with this lookahead
@@ -48,7 +50,7 @@ JOINT_SPEED_RAD_S = math.pi  # UR5e data sheet: 180 deg/s on every joint
 GAIN_AT_MODEL_KP = 300.0  # ur-rtde's default servoL gain maps to the Menagerie's kp
 JOINT_ACCEL_RAD_S2 = 40.0  # the reference's acceleration bound (not published by UR: chosen)
 FOLLOWING_ERROR_RAD = 0.3  # a joint this far behind its reference: protective stop
-MAX_CATCHUP_S = 0.06  # a caller starved longer than this: the controller re-syncs
+MAX_CATCHUP_S = 0.5  # the controller runs on while its caller is starved, up to this
 LOOKAHEAD_RANGE_S = (0.03, 0.2)
 GAIN_RANGE = (100.0, 2000.0)
 SAFETY_NORMAL, SAFETY_PROTECTIVE_STOP = 1, 3
@@ -71,6 +73,9 @@ class SimURController:
         self._kin = mujoco.MjData(self.model)  # for inverse kinematics, never stepped
         mujoco.mj_resetDataKeyframe(self.model, self.data, 0)
         self._site = self.model.site("tcp").id
+        self._jac = np.zeros((6, self.model.nv))
+        self._err = np.zeros(6)
+        self._damping = 1e-6 * np.eye(6)
         # Powered on at rest in the ready pose: the tool down over the default workspace
         # centre, reached from the Menagerie's home posture (elbow up).
         self.data.qpos[:] = self.ik(READY_POSE, self.data.qpos, iters=100)
@@ -128,7 +133,7 @@ class SimURController:
         v = np.clip(v, self._v_ref - dv, self._v_ref + dv)
         self._v_ref = v
         nxt = self.q_ref + v * dt_s
-        if np.any(nxt < self.q_lo) or np.any(nxt > self.q_hi):
+        if not ((nxt >= self.q_lo).all() and (nxt <= self.q_hi).all()):
             self._pstop("joint limit")
             return
         self.q_ref = nxt
@@ -174,27 +179,28 @@ class SimURController:
 
     def ik_matrix(self, p_goal: np.ndarray, r_goal: np.ndarray, seed: np.ndarray,
                   iters: int = 8) -> np.ndarray:
-        """Joint positions putting the flange at ``pose`` (damped least squares, 6-D;
-        seeded with the previous solution it converges in one or two iterations)."""
+        """Joint positions putting the flange at ``p_goal``, ``r_goal`` by damped least
+        squares, dq = J^T (J J^T + 1e-6 I)^-1 e (6-D error: position, and the rotation
+        error 0.5 vee(R_goal R^T - R R_goal^T)). Streaming calls take one step from the
+        previous solution (each tick corrects the whole remaining error)."""
         mj = self._mj
         d = self._kin
         q = np.array(seed, float)
-        jp = np.zeros((3, self.model.nv))
-        jr = np.zeros((3, self.model.nv))
-        for _ in range(iters):
+        jac = self._jac
+        err = self._err
+        for k in range(iters):
             d.qpos[:] = q
             mj.mj_kinematics(self.model, d)
             mj.mj_comPos(self.model, d)
-            e_p = p_goal - d.site_xpos[self._site]
-            r_now = d.site_xmat[self._site].reshape(3, 3)
-            # Orientation error of two frames: half the sum of their axes' cross products.
-            e_r = 0.5 * _cross_sum(r_now, r_goal)
-            if float(e_p @ e_p) < 1e-14 and float(e_r @ e_r) < 1e-12:
+            err[:3] = p_goal - d.site_xpos[self._site]
+            s = r_goal @ d.site_xmat[self._site].reshape(3, 3).T
+            err[3] = 0.5 * (s[2, 1] - s[1, 2])
+            err[4] = 0.5 * (s[0, 2] - s[2, 0])
+            err[5] = 0.5 * (s[1, 0] - s[0, 1])
+            if k and float(err @ err) < 1e-14:
                 break
-            mj.mj_jacSite(self.model, d, jp, jr, self._site)
-            jac = np.vstack([jp, jr])
-            err = np.concatenate([e_p, e_r])
-            q = q + jac.T @ np.linalg.solve(jac @ jac.T + 1e-6 * np.eye(6), err)
+            mj.mj_jacSite(self.model, d, jac[:3], jac[3:], self._site)
+            q += jac.T @ np.linalg.solve(jac @ jac.T + self._damping, err)
         return q
 
     # -- commands -------------------------------------------------------------------------
@@ -206,7 +212,7 @@ class SimURController:
         if not self.ok():
             return False
         seed = self.q_target if self.q_target is not None else self.q_ref
-        self.q_target = self.ik(pose, seed)
+        self.q_target = self.ik(pose, seed, iters=1)
         self.lookahead_s = lookahead_s
         if gain != self.gain:
             self._set_gain(gain)
@@ -248,15 +254,6 @@ class SimURController:
             self.step()
         self._offset_s = self.clock() - self.t_sim_s  # the move took its time; now live
         return self.ok()
-
-
-def _cross_sum(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Sum over columns k of a[:, k] x b[:, k] (without np.cross's per-call overhead)."""
-    return np.array([
-        float(a[1] @ b[2] - a[2] @ b[1]),
-        float(a[2] @ b[0] - a[0] @ b[2]),
-        float(a[0] @ b[1] - a[1] @ b[0]),
-    ])
 
 
 def _rotvec_matrix(rv: np.ndarray) -> np.ndarray:
@@ -347,6 +344,11 @@ def unlock_protective_stop(controller: SimURController) -> None:
 def connect_sim(frequency_hz: float = CONTROL_HZ, clock: Callable[[], float] = time.monotonic
                 ) -> tuple[SimRTDEControl, SimRTDEReceive]:
     """Both interfaces on one new simulated controller (``--ur-host sim``)."""
+    try:
+        import mujoco  # noqa: F401
+    except ImportError:
+        # ValueError, not RuntimeError: no point retrying, nothing on the network to check.
+        raise ValueError("--ur-host sim needs MuJoCo: pip install 'fydpad[mujoco]'") from None
     if abs(frequency_hz - CONTROL_HZ) > 1e-6:
         raise RuntimeError(f"the simulated UR5e runs at {CONTROL_HZ:.0f} Hz (e-Series), "
                            f"asked for {frequency_hz:g} Hz")

@@ -121,7 +121,7 @@ def _run_render(spec, seconds: float, reader: StalledReader, stall_s: float) -> 
     state = SharedFingerState()
     state.publish(FingerState(t_s=0.0, contact=False), arrival_s=0.0, frame=0)
     control = SharedRecord(CONTROL_FIELDS)
-    control.write([1.0, math.nan, 1.0, time.perf_counter(), 0.0, math.nan])
+    control.write([1.0, math.nan, 1.0, time.perf_counter(), 0.0, math.nan, 0.0])
     stop, ready, results = ctx.Event(), ctx.Event(), ctx.Queue()
     p = ctx.Process(target=render_main, args=(spec, state, control, stop, results, ready),
                     daemon=True)

@@ -99,6 +99,9 @@ class Master:
         self.sock.setsockopt(zmq.ROUTING_ID, self.routing_id)
         self.sock.connect(endpoint)
         self.x_mm = x_mm
+        self.operator_hold = False  # the samples' operator-hold flag, from now on
+        self.paused = False  # True: send nothing, keep reading states
+        self.injected: list[bytes] = []  # sent once each on this socket, before the next sample
         self.period_s = 1.0 / rate_hz
         t0 = time.monotonic()
         self.offset_s = (-t0 if clock_from_zero else clock_offset_s)
@@ -116,10 +119,14 @@ class Master:
         t_next = time.monotonic()
         while not self._stop.is_set():
             t = self.clock()
-            msg = P.encode_sample(P.Sample(self.seq, t, t, self.x_mm, 0.0, 1.0, 1.0, True))
-            self.seq += 1
-            self.sent.append(msg)
-            self.sock.send(msg)
+            msg = P.encode_sample(P.Sample(self.seq, t, t, self.x_mm, 0.0, 1.0, 1.0, True,
+                                           operator_hold=self.operator_hold))
+            while self.injected:
+                self.sock.send(self.injected.pop(0))
+            if not self.paused:
+                self.seq += 1
+                self.sent.append(msg)
+                self.sock.send(msg)
             t_next += self.period_s
             while True:
                 wait_ms = max(0, int((t_next - time.monotonic()) * 1e3))

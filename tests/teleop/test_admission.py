@@ -99,3 +99,12 @@ def test_a_flood_of_new_peers_is_bounded():
     for k in range(500):
         assert g.judge(b"P" + k.to_bytes(4, "little"), smp(1, 0.05), 0.051) == "not_owner"
     assert len(g.tracks) <= MAX_MASTERS and A in g.tracks
+
+
+def test_a_master_clock_jumping_ahead_costs_six_samples():
+    """docs/protocol.md: the estimate is the 7th smallest of 64 delays, so after a jump of
+    the master clock by 1 s, 6 samples are future and the 7th is admitted."""
+    g = Admission(SafetyConfig())
+    assert stream(g, A, 1, 0.0, 64, 10.0) == [None] * 64
+    r = stream(g, A, 65, 0.64 + 1.0, 10, 9.0)  # master clock +1 s, slave clock continues
+    assert r == ["future"] * 6 + [None] * 4

@@ -136,3 +136,28 @@ def test_a_reconnect_with_the_same_routing_id_stays_the_owner(slave):
         a2.stop()
     rep = finish(proc, rep_path)
     assert rep["takeovers"] >= 1 and "not_owner" not in rep["dropped"]
+
+
+def test_samples_from_the_future_on_the_owners_connection_do_not_freeze_the_link(slave):
+    """Mid-stream, on the owner's own connection: a sample with seq 2^64-1, one stamped
+    t = 1e12 (capture and send), one captured 1000 s ahead. Each is dropped as future, and
+    the valid samples after them are admitted: the link never freezes."""
+    proc, ep, rep_path = slave
+    a = Master(ep, x_mm=8.0)
+    try:
+        assert wait_for(lambda: at(a, 8.0), 20.0)
+        t = a.clock()
+        a.injected += [
+            P.encode_sample(P.Sample(2**64 - 1, t, t, 8.0, 0.0, 1.0, 1.0, True)),
+            P.encode_sample(P.Sample(a.seq + 1, 1e12, 1e12, 8.0, 0.0, 1.0, 1.0, True)),
+            P.encode_sample(P.Sample(a.seq + 2, t + 1000.0, t, 8.0, 0.0, 1.0, 1.0, True)),
+        ]
+        assert wait_for(lambda: len(a.acks(P.REASON_REFUSED)) == 3, 10.0)
+        n = len(a.acks(P.REASON_ACK))
+        assert wait_for(lambda: len(a.acks(P.REASON_ACK)) > n + 50, 10.0)
+        assert tracking(a)
+        stop(proc)  # while the master streams
+    finally:
+        a.stop()
+    rep = json.loads(rep_path.read_text())
+    assert rep["dropped"] == {"future": 3}
