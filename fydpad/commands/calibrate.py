@@ -10,6 +10,7 @@ add one, put its ``register(sub)`` in ``SUBCOMMANDS``.
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 import importlib
 import importlib.util
@@ -17,25 +18,17 @@ from collections.abc import Callable
 from dataclasses import replace
 from datetime import date
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from fydpad.cli import add_truncation_argument
 from fydpad.errors import UserError
-from vision.config import ForceConfig, IRConfig
-from vision.force import ForceCalibration, ForceCalibrationError, calibrate_force
-from vision.indentation import (
-    IndentationEstimator,
-    IRCalibrationError,
-    IRFit,
-    PlaneCorrection,
-    fit_ir_polynomial,
-    indentation_at_frames,
-    rmse,
-)
-from vision.ir import PAPER_POLY_CM
-from vision.recording import PadRecording, read_csv_columns
+
+if TYPE_CHECKING:  # annotations only: the modules load inside the functions
+    import numpy as np
+
+    from vision.config import IRConfig
+    from vision.force import ForceCalibration
+    from vision.indentation import IRFit
 
 Register = Callable[[argparse._SubParsersAction], None]
 
@@ -228,7 +221,12 @@ def _example(args: argparse.Namespace, command: str, write: Callable[[Path], Pat
 
 
 def run_ir(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from fydpad.calibration_examples import write_ir_example
+    from vision.config import IRConfig
+    from vision.indentation import IRCalibrationError, fit_ir_polynomial
+    from vision.recording import read_csv_columns
 
     if _example(args, "ir", write_ir_example):
         return 0
@@ -285,7 +283,10 @@ def run_ir(args: argparse.Namespace) -> int:
 
 def _plot_ir(path: str, d_mm: np.ndarray, cols: dict[str, np.ndarray],
              fits: dict[int, IRFit]) -> None:
+    import numpy as np
+
     from fydpad.plots import plt
+    from vision.ir import PAPER_POLY_CM
 
     fig, (ax, axr) = plt.subplots(2, 1, figsize=(8, 7), sharex=True,
                                   gridspec_kw={"height_ratios": (2, 1)}, constrained_layout=True)
@@ -311,6 +312,11 @@ def _plot_ir(path: str, d_mm: np.ndarray, cols: dict[str, np.ndarray],
 
 
 def _press_samples(path: str, ir_config: IRConfig) -> dict[str, np.ndarray]:
+    import numpy as np
+
+    from vision.indentation import IndentationEstimator, indentation_at_frames
+    from vision.recording import PadRecording
+
     rec = PadRecording(path)
     ir, truth = rec.read_ir(), rec.read_truth()
     for name, data in (("ir.csv", ir), ("truth.csv", truth)):
@@ -332,6 +338,11 @@ def _press_samples(path: str, ir_config: IRConfig) -> dict[str, np.ndarray]:
 
 
 def run_indentation(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from vision.config import IRConfig
+    from vision.indentation import PlaneCorrection, rmse
+
     if args.protocol:
         from fydpad.indentation_protocol import protocol_text
 
@@ -391,7 +402,12 @@ def run_indentation(args: argparse.Namespace) -> int:
 
 
 def run_force(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from fydpad.calibration_examples import write_force_example
+    from vision.config import ForceConfig
+    from vision.force import ForceCalibrationError, calibrate_force
+    from vision.recording import read_csv_columns
 
     if _example(args, "force", write_force_example):
         return 0
@@ -427,6 +443,8 @@ def run_force(args: argparse.Namespace) -> int:
 
 
 def _plot_force(path: str, mass_g: np.ndarray, raw: np.ndarray, cal: ForceCalibration) -> None:
+    import numpy as np
+
     from fydpad.plots import plt
     from vision.config import G_M_S2
 

@@ -3,29 +3,22 @@ the image-to-workspace homography, saved into the device configuration."""
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
-
-import cv2
-import numpy as np
+from typing import TYPE_CHECKING
 
 from fydpad.cli import add_config_argument, add_truncation_argument
-from fydpad.config import StationConfig, load_config, save_config
 from fydpad.errors import UserError
-from fydpad.opening import open_source
-from fydpad.progress import progress
-from vision.calibration import (
-    CalibrationError,
-    CharucoBoardSpec,
-    calibrate_charuco,
-    default_targets_mm,
-    homography_from_presses,
-    press_centroids,
-)
-from vision.contact import ContactTracker
-from vision.sources import CameraSource, FrameSource, SourceError
+
+if TYPE_CHECKING:  # annotations only: the modules load inside the functions
+    import numpy as np
+
+    from fydpad.config import StationConfig
+    from vision.calibration import CharucoBoardSpec
+    from vision.sources import FrameSource
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 
@@ -87,6 +80,8 @@ def register_workspace(sub: argparse._SubParsersAction) -> None:
 
 
 def _board_spec(args: argparse.Namespace) -> CharucoBoardSpec:
+    from vision.calibration import CharucoBoardSpec
+
     try:
         cols, rows = (int(v) for v in args.board.lower().split("x"))
     except ValueError:
@@ -97,6 +92,10 @@ def _board_spec(args: argparse.Namespace) -> CharucoBoardSpec:
 
 
 def _calibration_images(source: Path, every: int) -> Iterator[np.ndarray]:
+    import cv2
+
+    from fydpad.progress import progress
+
     if source.is_dir():
         files = sorted(p for p in source.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
         if not files:
@@ -126,6 +125,9 @@ def _calibration_images(source: Path, every: int) -> Iterator[np.ndarray]:
 
 
 def run_camera(args: argparse.Namespace) -> int:
+    from fydpad.config import load_config, save_config
+    from vision.calibration import CalibrationError, calibrate_charuco
+
     config = load_config(args.config)
     spec = _board_spec(args)
     try:
@@ -148,6 +150,10 @@ def run_camera(args: argparse.Namespace) -> int:
 
 
 def run_workspace(args: argparse.Namespace) -> int:
+    from fydpad.config import load_config, save_config
+    from fydpad.opening import open_source
+    from vision.calibration import CalibrationError, default_targets_mm
+
     config = load_config(args.config)
     opened = open_source(config, args.recdir, args.camera)
     m = opened.meta
@@ -212,6 +218,13 @@ def fit_from_presses(
     total: int | None = None,
 ):
     """Track the presses in ``source`` and fit the homography to ``targets`` (in order)."""
+    import numpy as np
+
+    from fydpad.progress import progress
+    from vision.calibration import CalibrationError, homography_from_presses, press_centroids
+    from vision.contact import ContactTracker
+    from vision.sources import CameraSource, SourceError
+
     tracker = ContactTracker(roi_px=camera.roi_px, workspace_mm=camera.workspace_mm,
                              image_flip=camera.image_flip, method=config.tracker.method,
                              robust=config.tracker.robust)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 import json
 import math
@@ -9,18 +10,17 @@ import os
 import signal
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fydpad.cli import add_config_argument, add_truncation_argument
-from fydpad.commands.track import make_tracker
-from fydpad.config import load_config
 from fydpad.errors import UserError
-from fydpad.opening import open_source
-from fydpad.station.render import RenderSpec
-from fydpad.station.station import SensorFeed, Station, StationFault, StationOptions
-from fydpad.texture.interpolation import METHODS
-from vision.indentation import IndentationEstimator
-from vision.stream import LiveIndentation, recording_estimator
-from vision.strict_json import finite
+
+if TYPE_CHECKING:  # annotations only: the station loads inside the command
+    from fydpad.station.station import Station
+
+#: fydpad.texture.interpolation.METHODS, written out so that --help loads no texture code
+#: (tests/cli/test_fast_help.py keeps the two equal).
+TEXTURE_METHODS = ("nearest", "stretch", "lsf", "reflection", "linear")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -94,7 +94,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_link_arguments(p)
     p.add_argument("--vibration-gain", type=float, default=1.0,
                    help="texture vibration gain (the paper: 1)")
-    p.add_argument("--texture-method", choices=METHODS, default=None,
+    p.add_argument("--texture-method", choices=TEXTURE_METHODS, default=None,
                    help="an LPC model's interpolation between its fitted speeds: stretch "
                    "(default; the one `fydpad texture evaluate` scores), lsf, reflection, or "
                    "linear (the paper's coefficient interpolation) (docs/texture.md)")
@@ -333,6 +333,7 @@ def _status_printer():
 
 def _synthetic(args: argparse.Namespace, config):
     """The synthetic pad as the station's camera, IR board and load cell."""
+    from fydpad.station.station import SensorFeed
     from fydpad.synth import SynthConfig, SyntheticPad
     from fydpad.synth.sources import SynthFrameSource
 
@@ -401,6 +402,15 @@ def _check_channels(args: argparse.Namespace, render_hz: float) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from fydpad.commands.track import make_tracker
+    from fydpad.config import load_config
+    from fydpad.opening import open_source
+    from fydpad.station.render import RenderSpec
+    from fydpad.station.station import SensorFeed, Station, StationFault, StationOptions
+    from vision.indentation import IndentationEstimator
+    from vision.stream import LiveIndentation, recording_estimator
+    from vision.strict_json import finite
+
     config = load_config(args.config)
     camera = None
     indentation = None
@@ -501,7 +511,7 @@ def run(args: argparse.Namespace) -> int:
     # -- web view --
     web = None
     if getattr(args, "web", None):
-        from fydpad.web import parse_web_address, start_web
+        from fydpad.web.server import parse_web_address, start_web
         from fydpad.web.stimuli import experiment_stimuli
 
         try:
