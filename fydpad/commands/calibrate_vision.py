@@ -189,6 +189,8 @@ def match_presses(t, c, u, v, x, y, targets: np.ndarray,
     pressed in several rounds gets the median of its presses. So a session of any length
     serves, in any order, as long as it presses every point; otherwise the error names
     the points no press matched."""
+    from vision.calibration import press_centroids
+
     uv = press_centroids(t, c, u, v, min_hold_s)
     xy = np.asarray(press_centroids(t, c, x, y, min_hold_s), float).reshape(-1, 2)
     gaps = np.hypot(*(targets[:, None, :] - targets[None, :, :]).transpose(2, 0, 1))
