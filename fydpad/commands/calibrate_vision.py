@@ -189,7 +189,7 @@ def match_presses(t, c, u, v, x, y, targets: np.ndarray,
     pressed in several rounds gets the median of its presses. So a session of any length
     serves, in any order, as long as it presses every point; otherwise the error names
     the points no press matched."""
-    import numpy as np  # the command's library, loaded when it runs (fast --help)
+    import numpy as np  # loaded when the command runs (fast --help)
 
     from vision.calibration import press_centroids
 

@@ -183,7 +183,7 @@ def _tiled(samples, period_s: float, times: int):
 
 def _extended_replay(args: argparse.Namespace, rec, source):
     """The replay's source and sensor feed for --duration and --loop."""
-    from fydpad.station.station import SensorFeed  # loaded when the command runs
+    from fydpad.station.station import SensorFeed
 
     if args.loop and args.duration is None:
         raise UserError("--loop needs --duration S (how long to keep replaying)")
