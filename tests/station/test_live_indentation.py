@@ -131,7 +131,7 @@ def test_station_counts_an_ir_buffer_overflow_and_carries_on(tmp_path: Path):
     pos = [None] * 4 + [(20 * np.cos(k / 8), 15 * np.sin(k / 8)) for k in range(40)] + [None] * 4
     write_blob_recording(recdir, pos, fps=30.0)
     w = CsvRowWriter(recdir / "ir.csv", ("t_s", "v0", "v1", "v2"))  # the board at 100 Hz
-    for k in range(180):
+    for k in range(170):  # to 1.69 s, within the video's end (1.6 s) + a frame + 5 %
         w.write(k / 100.0, 1.31, 1.31, 1.31)
     w.close()
     rec = PadRecording(recdir)

@@ -28,7 +28,7 @@ def rec(tmp_path_factory) -> Path:
     write_blob_recording(rec, pos, fps=30.0)
     # The IR sensors at their own rate, each sample distinct, some after the last frame.
     w = CsvRowWriter(rec / "ir.csv", ("t_s", "v0", "v1", "v2"))
-    for k in range(int(1.8 * IR_HZ)):
+    for k in range(int(1.7 * IR_HZ)):
         w.write(k / IR_HZ, 1.2 + 0.001 * k, 1.3 + 0.001 * k, 1.4 - 0.001 * k)
     w.close()
     return rec
