@@ -160,8 +160,8 @@ def plot_fabric(path: str | Path, theta_rad, indentation_mm, force_n,
         ax.scatter(d[sel], f[sel], s=8, color=color, alpha=0.6)
         ax.plot([0, dmax], [0, k * dmax], color=color, lw=1.8,
                 label=f"θ = {t:.2f} rad: k = {k:.3f} N/mm, R² = {r2:.3f}")
-    ax.set_xlabel("indentation δ [mm]")
-    ax.set_ylabel("force F [N]")
+    ax.set_xlabel("indentation δ (mm)")
+    ax.set_ylabel("force F (N)")
     ax.set_title("force-indentation at each motor position (F = k δ)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
@@ -196,8 +196,8 @@ def plot_specimen(path: str | Path, indentation_mm, force_n, name: str,
     for level, style in ((0.88, "--"), (0.39, ":")):
         ax.plot([0, dmax], [0, level * dmax], style, color="0.5", lw=1,
                 label=f"paper: {level} N/mm")
-    ax.set_xlabel("indentation δ [mm]")
-    ax.set_ylabel("force F [N]")
+    ax.set_xlabel("indentation δ (mm)")
+    ax.set_ylabel("force F (N)")
     ax.set_title(f"specimen {name}: F = λ δ")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)

@@ -576,17 +576,21 @@ def _run_fit_lpc(args: argparse.Namespace) -> int:
 
 
 def _selects(args: argparse.Namespace) -> bool:
-    """No option of the older forms given: the validated choice (or --form's)."""
-    return (args.free_form == AUTO and not args.two_part and not args.speed_normalise
-            and args.method == "autocorrelation" and args.prewhiten_order == 8)
+    """The validated choice or --form paper; --form calibrated and the older forms'
+    options take the per-speed fit path with its full report."""
+    return (args.form in ("auto", "paper") and args.free_form == AUTO and not args.two_part
+            and not args.speed_normalise and args.method == "autocorrelation"
+            and args.prewhiten_order == 8)
 
 
 def _run_select(args: argparse.Namespace, scans: list) -> int:
+    from fydpad.texture.fit import lines_option
     from fydpad.texture.model_file import save_model
     from fydpad.texture.select import fit_candidate, select_model, selection_table
 
     kw = dict(order=args.order, tolerance_mm_s=args.tolerance, highpass_hz=args.highpass_hz,
-              surface=args.surface, drive_band_hz=tuple(args.drive_band))
+              surface=args.surface, drive_band_hz=tuple(args.drive_band),
+              lines=lines_option(args.lines, "--lines"))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         if args.form == "auto":
@@ -603,6 +607,10 @@ def _run_select(args: argparse.Namespace, scans: list) -> int:
           f"form {model.provenance.get('form', 'calibrated')}, {len(model.speeds_mm_s)} "
           f"models at {model.speeds_mm_s[0]:g}-{model.speeds_mm_s[-1]:g} mm/s, "
           f"interpolation {model.interpolation}")
+    lines = model.provenance.get("lines")
+    if lines is not None:
+        print(f"  lines: {lines['note']}" + ("; the LPC models are fitted on what they leave"
+                                             if model.lines is not None else ""))
     print("\n".join(table))
     if args.plot:
         _plot_selected(args, scans, model)
