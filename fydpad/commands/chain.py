@@ -3,6 +3,7 @@ compensation (Felicetti 2022 sections 3.2-4.1; docs/chain.md)."""
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 import json
 import math
@@ -13,7 +14,6 @@ from pathlib import Path
 
 from fydpad.cli import add_config_argument
 from fydpad.errors import UserError
-from vision.strict_json import finite
 
 
 def _floats(text: str, what: str) -> list[float]:
@@ -194,6 +194,7 @@ def run_check(args: argparse.Namespace) -> int:
     from fydpad.chain.plots import plot_check
     from fydpad.chain.tf_file import load_tf_set
     from fydpad.config import load_config
+    from vision.strict_json import finite
 
     config = load_config(args.config)
     rate_hz = config.motors.rate_hz

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 import time
 from pathlib import Path
 
 from fydpad.cli import add_config_argument
-from fydpad.config import load_config
 from fydpad.errors import UserError
 
 
@@ -77,6 +77,7 @@ def track_columns(recdir: Path, config) -> dict:
 
 def export_recording(recdir: str, out: str, config_path: str | None, **kw) -> str:
     """Export and return the one-line summary (shared with ``fydpad run --bag``)."""
+    from fydpad.config import load_config
     from fydpad.export.bag import export_bag
 
     require_rosbags()
