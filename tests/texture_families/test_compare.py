@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 import pytest
 
-from fydpad.texture.families_compare import (
+from fydpad.texture.compare import (
     by_surface,
     compare_families,
     shape_distance_db,
@@ -119,7 +119,7 @@ def test_the_same_seed_gives_the_same_confusion_another_seed_other_draws(scans):
     runs agree to the digit (before, each run drew its own: mlp_lsf's identification in
     docs/texture_mlp.md read 83 % in one run and 88 % in the next), and another seed
     gives other distances (the seed reaches the synthesis)."""
-    from fydpad.texture.families_compare import fit_per_surface, identify_families
+    from fydpad.texture.compare import fit_per_surface, identify_families
 
     train, test = scans
     with warnings.catch_warnings():

@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from fydpad.texture.staircase import Staircase
+from fydpad.web.staircase import Staircase
 from tests.conftest import REPO
 
 

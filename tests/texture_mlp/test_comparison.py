@@ -3,15 +3,15 @@
 Both model the z acceleration of the same strokes (felt; the generator's own force
 column, ``friction=True``). The network is the
 batch variant (weights in [-0.5, 0.5]) to keep the test fast; docs/texture_mlp.md has
-the thesis settings on four textures (``python -m fydpad.texture.mlp_eval``).
+the thesis settings on four textures (``python -m fydpad.texture.families.mlp.evaluate``).
 """
 
 from __future__ import annotations
 
 import pytest
 
-from fydpad.texture.mlp_eval import thesis_vs_lpc
-from fydpad.texture.mlp_train import TrainConfig
+from fydpad.texture.families.mlp.evaluate import thesis_vs_lpc
+from fydpad.texture.families.mlp.train import TrainConfig
 
 
 @pytest.fixture(scope="module")

@@ -8,9 +8,7 @@ import numpy as np
 import pytest
 
 from fydpad.errors import UserError
-from fydpad.texture.lpc import is_stable
-from fydpad.texture.lsf import lsf_is_valid, lsf_to_poly, poly_to_lsf
-from fydpad.texture.mlp_lsf import (
+from fydpad.texture.families.mlp.lsf import (
     SpectrumNet,
     SpectrumTrainConfig,
     WindowFits,
@@ -19,6 +17,8 @@ from fydpad.texture.mlp_lsf import (
     save_spectrum_net,
     train_spectrum,
 )
+from fydpad.texture.lpc import is_stable
+from fydpad.texture.lsf import lsf_is_valid, lsf_to_poly, poly_to_lsf
 
 FS = 1000.0
 
@@ -131,7 +131,7 @@ def test_model_file_round_trip_registry_and_bad_files(law, tmp_path):
 
 @pytest.fixture(scope="module")
 def r1_between():
-    from fydpad.texture.mlp_eval import spectrum_vs_lpc
+    from fydpad.texture.families.mlp.evaluate import spectrum_vs_lpc
 
     return spectrum_vs_lpc("R1", held_speeds=(25.0,))[0]
 

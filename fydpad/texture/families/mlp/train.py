@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.mlp import (
+from fydpad.texture.families.mlp.model import (
     BAND_HZ,
     DF_TAU_S,
     MlpModel,

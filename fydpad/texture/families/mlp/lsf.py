@@ -272,7 +272,7 @@ def save_spectrum_net(net: SpectrumNet, path: str | Path) -> Path:
 
 def parse_spectrum_net(data: Any, where: str = "model") -> SpectrumNet:
     """Check and convert a parsed network; errors name the file and the key."""
-    from fydpad.texture.mlp import _key, _vector
+    from fydpad.texture.families.mlp.model import _key, _vector
 
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise UserError(f"{where}: not a fydpad texture model (key 'format' must be '{FORMAT}')")

@@ -1,7 +1,7 @@
 """Figures of docs/texture_mlp.md: the networks against the LPC family on held-out data.
 
-``python -m fydpad.texture.mlp_eval`` prints both tables (about 3 minutes);
-``python -m fydpad.texture.mlp_eval --plot DIR`` draws the spectra of docs/texture_mlp.md;
+``python -m fydpad.texture.families.mlp.evaluate`` prints both tables (about 3 minutes);
+``... --plot DIR`` draws the spectra of docs/texture_mlp.md;
 ``--identify`` gives the networks' identification rates (``families_compare``).
 
 1. the thesis network (fit_mlp) against the LPC family on the test thirds of the same
@@ -30,10 +30,10 @@ from numpy.typing import NDArray
 
 from fydpad.errors import UserError
 from fydpad.texture.evaluate import compare, compare_recordings, evaluate_scan, evaluation_mask
+from fydpad.texture.families.mlp.lsf import SpectrumTrainConfig, fit_spectrum_net
+from fydpad.texture.families.mlp.render import MlpTexture
+from fydpad.texture.families.mlp.train import TrainConfig, fit_mlp, scan_features, thirds
 from fydpad.texture.fit import fit_texture
-from fydpad.texture.mlp_family import MlpTexture
-from fydpad.texture.mlp_lsf import SpectrumTrainConfig, fit_spectrum_net
-from fydpad.texture.mlp_train import TrainConfig, fit_mlp, scan_features, thirds
 from fydpad.texture.scan_generator import DX_MM, TEXTURES, generate_scan, surface_profile
 from fydpad.texture.scan_io import Scan
 
@@ -241,7 +241,7 @@ def identification() -> list[tuple[str, dict, float]]:
     """docs/texture_families.md's comparison (same surfaces, strokes and identifier:
     ``families_compare``) for the networks: one 6 s training stroke at 20 mm/s per
     surface (seed 1), three test strokes each (seeds 101-103)."""
-    from fydpad.texture.families_compare import by_surface, fit_per_surface, identify_families
+    from fydpad.texture.compare import by_surface, fit_per_surface, identify_families
 
     train = [generate_scan(n, 20.0, 6.0, seed=1, friction=True) for n in IDENTIFY_SURFACES]
     test = [generate_scan(n, 20.0, 6.0, seed=s, friction=True) for n in IDENTIFY_SURFACES

@@ -30,16 +30,17 @@ from typing import Any
 import numpy as np
 
 from fydpad.errors import UserError
-from fydpad.texture.families import (
+from fydpad.texture.family import (
+    Array,
+    FamilyBase,
+    FingerBlock,
     Kind,
-    _check_channel,
-    register_kind,
+    TickPosition,
     require,
     require_version,
 )
-from fydpad.texture.family import Array, FingerBlock, TickPosition
 
-KIND = "grating"
+NAME = "grating"
 FORMAT_VERSION = 1
 PROFILES = ("sine", "rect")
 RATIOS = tuple((v, 10 - v) for v in range(11))  # 0:10 ... 10:0
@@ -88,11 +89,12 @@ def profile_scalar(x_mm: float, wavelength_mm: float, ridge_fraction: float,
     return 2.0 * (step(ph) - step(ph - d) - ridge_fraction)
 
 
-class GratingFamily:
+class GratingFamily(FamilyBase):
     """A grating rendered by position at a vibrotactile:friction ratio."""
 
-    kind = KIND
+    kind = NAME
     tick_channels = ("vibration", "tension")
+    needs = frozenset({"x_mm"})
 
     def __init__(self, wavelength_mm: float, *, profile: str = "sine",
                  ridge_fraction: float = 0.9, ratio: tuple[int, int] | None = None,
@@ -101,6 +103,7 @@ class GratingFamily:
                  mu: float = 0.5, load_n: float = 0.5, k_n_per_v2: float = 2e-6,
                  vibration_gain_m_s2: float = 2.0, tension_gain: float = 1.0,
                  edge_mm: float = 0.1, audio_hz: float = 48_000.0, surface: str = ""):
+        super().__init__()
         if not wavelength_mm > 0:
             raise ValueError("wavelength must be positive")
         if profile not in PROFILES:
@@ -156,7 +159,7 @@ class GratingFamily:
 
     # ------------------------------------------------------------------ interface
     def render(self, finger: FingerBlock, channel: str) -> Array:
-        _check_channel(self, channel)
+        self.check_channel(channel)
         c = finger.contact
         x = np.where(c, finger.x_mm, 0.0)
         if channel == "vibration":
@@ -256,6 +259,8 @@ def fit_grating(scans: list | None = None, *, wavelength_mm: float | None = None
                 surface: str | None = None, **extra: Any) -> dict[str, Any]:
     """A grating model file (JSON dict): parametric, lambda given or estimated from scans."""
     how = "given"
+    if wavelength_mm is not None and not (wavelength_mm > 0 and math.isfinite(wavelength_mm)):
+        raise UserError("--wavelength-mm must be positive")
     if wavelength_mm is None:
         if not scans:
             raise UserError("fit --kind grating: give --wavelength-mm or scans to estimate it")
@@ -265,7 +270,7 @@ def fit_grating(scans: list | None = None, *, wavelength_mm: float | None = None
                         ratio=ratio, vib_levels_n=vib_levels_n,
                         friction_levels_n=friction_levels_n)
     return {
-        "format": "fydpad-texture-model", "kind": KIND, "format_version": FORMAT_VERSION,
+        "format": "fydpad-texture-model", "kind": NAME, "format_version": FORMAT_VERSION,
         "surface": surface or (scans[0].surface if scans else f"grating_{wavelength_mm:g}mm"),
         "wavelength_mm": float(wavelength_mm), "profile": profile,
         "ridge_fraction": ridge_fraction, "ratio": list(fam.ratio),
@@ -287,7 +292,7 @@ def _pair(d: dict, key: str, where: str) -> tuple[float, float]:
 
 def parse_grating(data: dict[str, Any], where: str) -> GratingFamily:
     """Check a grating model file; errors name the file and the key."""
-    require_version(data, where, KIND, FORMAT_VERSION)
+    require_version(data, where, NAME, FORMAT_VERSION)
     lam = float(require(data, "wavelength_mm", where))
     if not lam > 0 or not math.isfinite(lam):
         raise UserError(f"{where}: key 'wavelength_mm' must be positive")
@@ -313,5 +318,12 @@ def parse_grating(data: dict[str, Any], where: str) -> GratingFamily:
         tension_gain=float(pad.get("tension_gain", 1.0)), surface=str(data.get("surface", "")))
 
 
-register_kind(Kind(KIND, parse_grating, fit_grating,
-                   "vibrotactile/friction grating at a ratio, paper 002 4.2"))
+def describe_fit(data: dict[str, Any], where: str) -> list[str]:
+    return [f"grating {data['profile']} lambda {data['wavelength_mm']:.3f} mm "
+            f"({data['provenance']['wavelength']}), ratio {data['ratio'][0]}:{data['ratio'][1]}"]
+
+
+KIND = Kind(NAME, parse_grating, fit_grating,
+            "vibrotactile/friction grating at a ratio, Ito 2019 4.2",
+            fit_options=("wavelength_mm", "profile", "ratio", "surface"),
+            describe=describe_fit)
