@@ -21,11 +21,11 @@ import numpy as np
 from timing import best
 
 from fydpad.texture.families import constant_stroke
-from fydpad.texture.fit import fit_texture
+from fydpad.texture.families.mlp.lsf import fit_spectrum_net
 from fydpad.texture.families.mlp.model import thesis_model
 from fydpad.texture.families.mlp.render import MlpTexture
-from fydpad.texture.families.mlp.lsf import fit_spectrum_net
 from fydpad.texture.families.mlp.train import TrainConfig, _batch_epoch, _online_epoch, init_net
+from fydpad.texture.fit import fit_texture
 from fydpad.texture.scan_generator import generate_scan
 
 

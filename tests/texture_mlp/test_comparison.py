@@ -3,14 +3,14 @@
 Both model the z acceleration of the same strokes (felt; the generator's own force
 column, ``friction=True``). The network is the
 batch variant (weights in [-0.5, 0.5]) to keep the test fast; docs/texture_mlp.md has
-the thesis settings on four textures (``python -m fydpad.texture.families.mlp.evaluate``).
+the thesis settings on four textures (``python -m benchmarks.bench_mlp_accuracy``).
 """
 
 from __future__ import annotations
 
 import pytest
 
-from fydpad.texture.families.mlp.evaluate import thesis_vs_lpc
+from benchmarks.bench_mlp_accuracy import thesis_vs_lpc
 from fydpad.texture.families.mlp.train import TrainConfig
 
 

@@ -131,7 +131,7 @@ def test_model_file_round_trip_registry_and_bad_files(law, tmp_path):
 
 @pytest.fixture(scope="module")
 def r1_between():
-    from fydpad.texture.families.mlp.evaluate import spectrum_vs_lpc
+    from benchmarks.bench_mlp_accuracy import spectrum_vs_lpc
 
     return spectrum_vs_lpc("R1", held_speeds=(25.0,))[0]
 

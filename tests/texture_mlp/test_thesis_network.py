@@ -184,7 +184,7 @@ def test_validation_stop_keeps_the_best_validation_weights():
 
 @pytest.fixture(scope="module")
 def fitted(tmp_path_factory):
-    from fydpad.texture.families.mlp.evaluate import stroke
+    from benchmarks.bench_mlp_accuracy import stroke
 
     scans = [stroke("felt", s, 3.0, seed=1) for s in (10.0, 30.0)]
     model, rep, _ = fit_mlp(scans, TrainConfig(mode="batch", init_range=0.5, max_epochs=50))
