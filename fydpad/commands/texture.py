@@ -401,6 +401,7 @@ def run_fit(args: argparse.Namespace) -> int:
                "wrap_iterations": lambda it: progress(it, desc="spectral model", unit="it")}
     fitted = ops.fit_model(args.kind, args.scans, options, args.out, args.plot,
                            extra=_set_options(args.set))
+    _warn("fit", fitted.notes)
     _warn("fit", fitted.warnings, _scan_names(args.scans))
     for line in fitted.lines:
         print(line)

@@ -99,8 +99,9 @@ class DriveChain:
         out = None
         tex = self.texture
         if tex is not None:
-            self.speed.sample(t_s, x_mm, y_mm, contact)
-            speed_mm_s = self.speed.tick(self.dt_s)
+            if tex.needs_speed:  # a family that reads no speed is spared the estimate
+                self.speed.sample(t_s, x_mm, y_mm, contact)
+                speed_mm_s = self.speed.tick(self.dt_s)
             out = tex.family.tick(t_s, contact, x_mm, y_mm, speed_mm_s, force_n)
             if tex.vib_i >= 0:
                 vib = out[tex.vib_i]
@@ -161,6 +162,7 @@ class _TickModel:
         self.family = open_texture(spec, rate_hz, method=method, drive_filter=drive_filter,
                                    lenient=lenient)
         ch = self.family.tick_channels
+        self.needs_speed = "speed_mm_s" in self.family.needs
         # Where the family's tick puts each 1 kHz channel (-1: not rendered).
         self.vib_i = ch.index("vibration") if "vibration" in ch else -1
         self.ten_i = ch.index("tension") if "tension" in ch else -1

@@ -125,9 +125,10 @@ class Kind:
     fit_options: tuple[str, ...] = ()
     #: ``describe(data, where)``: the lines ``fydpad texture fit`` prints about a fit.
     describe: Callable[[dict[str, Any], str], list[str]] | None = None
-    #: ``fit_command(scan_paths, options, out, plot)`` -> (JSON, lines): a fit with its
-    #: own report (the LPC fit's per-speed figures and plot); else ``fit`` + ``describe``.
-    fit_command: Callable[..., tuple[dict[str, Any], list[str]]] | None = None
+    #: ``fit_command(scan_paths, options, out, plot)`` -> (JSON, lines, warnings): a fit
+    #: with its own report (the LPC fit's per-speed figures and plot); else ``fit`` and
+    #: ``describe``.
+    fit_command: Callable[..., tuple[dict[str, Any], list[str], list[str]]] | None = None
     #: ``identify``'s default distance: "shape" (levels and tilt removed: families whose
     #: level is a gain) or "bands" (third-octave levels: models of recorded accelerations).
     distance: str = "shape"

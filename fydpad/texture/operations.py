@@ -73,7 +73,9 @@ def caught_messages(caught: list) -> list[str]:
 class Fitted:
     data: dict[str, Any]
     lines: list[str]
+    #: Warnings raised while fitting (about the scans named), and about the fit as a whole.
     warnings: list[str]
+    notes: list[str]
 
 
 def fit_model(kind: str, scan_paths: list[str], options: dict[str, Any], out: str,
@@ -92,8 +94,9 @@ def fit_model(kind: str, scan_paths: list[str], options: dict[str, Any], out: st
         opts.update(extra)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
+        notes: list[str] = []
         if k.fit_command is not None:
-            data, lines = k.fit_command(scan_paths, opts, out, plot)
+            data, lines, notes = k.fit_command(scan_paths, opts, out, plot)
         else:
             try:
                 data = k.fit(read_scans(scan_paths), **opts)
@@ -101,7 +104,7 @@ def fit_model(kind: str, scan_paths: list[str], options: dict[str, Any], out: st
                 raise UserError(f"fit --kind {kind}: {exc}") from None
             lines = k.describe(data, out) if k.describe is not None else [f"{kind} model"]
     save_model_json(data, out)
-    return Fitted(data, [f"{out}: {lines[0]}", *lines[1:]], caught_messages(caught))
+    return Fitted(data, [f"{out}: {lines[0]}", *lines[1:]], caught_messages(caught), notes)
 
 
 # ------------------------------------------------------------------ synth

@@ -13,7 +13,6 @@ filter (counted in ``counters()["limiter_resets"]``) and is clipped.
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Iterable
 from typing import Any
 
@@ -193,20 +192,22 @@ def check_fit_options(opts: dict[str, Any], fs_hz: float) -> None:
 
 
 def fit_command(scan_paths: list[str], opts: dict[str, Any], out: str,
-                plot: str | None) -> tuple[dict[str, Any], list[str]]:
+                plot: str | None) -> tuple[dict[str, Any], list[str], list[str]]:
     """``fydpad texture fit`` (kind lpc): the model, the lines describing it (form,
-    lines, speed coverage, each speed's fit) and with ``plot`` the recorded against
+    lines, speed coverage, each speed's fit), warnings about the scans as a whole, and
+    with ``plot`` the recorded against
     the model spectra per speed (Bianchi 2015 Fig. 10)."""
     if not scan_paths:
         raise UserError("fit: give at least one SCAN.csv")
     scans = [read_scan_or_fail(p) for p in scan_paths]
     check_fit_options(opts, scans[0].fs_hz)
     labels = [sc.meta.get("surface") for sc in scans]
+    notes = []
     if opts["surface"] is None and None not in labels and len(set(labels)) > 1:
         counts = ", ".join(f"{s} ({labels.count(s)})" for s in dict.fromkeys(labels))
-        warnings.warn(f"the scans are of {len(set(labels))} surfaces (# surface=: {counts}), "
-                      f"pooled into one model labelled {labels[0]}; fit each surface on its "
-                      "own, or name the mix with --surface", stacklevel=2)
+        notes.append(f"the scans are of {len(set(labels))} surfaces (# surface=: {counts}), "
+                     f"pooled into one model labelled {labels[0]}; fit each surface on its "
+                     "own, or name the mix with --surface")
     wrap = opts.get("wrap", _no_wrap)
     model, reports = fit_texture(
         scans, order=opts["order"], speeds_mm_s=opts["speeds"],
@@ -238,7 +239,7 @@ def fit_command(scan_paths: list[str], opts: dict[str, Any], out: str,
             f"prediction gain {10 * math.log10(r.signal_var / r.sigma2):.1f} dB, stable")
     if plot:
         plot_fit(plot, model, scans, opts, gaps, out)
-    return model_to_json(model), out_lines
+    return model_to_json(model), out_lines, notes
 
 
 def plot_fit(path: str, model: TextureModel, scans: list[Scan], opts: dict[str, Any],
