@@ -87,7 +87,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="texture family (default lpc). friction: mu(x) = F_f/F_n from scans "
                    "with force_n, friction_n, x_mm (Jiao 2018 IV-B; docs/texture_friction.md)."
                    " grating: a parametric grating at a vibrotactile:friction ratio (Ito 2019 "
-                   "002 4.2; --wavelength-mm, else estimated from the scans; "
+                   "4.2; --wavelength-mm, else estimated from the scans; "
                    "docs/texture_grating.md). mlp: the 3-10-1 network of Lin 2016 "
                    "(docs/texture_mlp.md)")
     f.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -294,7 +294,7 @@ def register(sub: argparse._SubParsersAction) -> None:
             "virtual one (v: b down); the result is the mean b at the four reversals after "
             "the first two. Answers are read from stdin one per line (pipe them to script "
             "it; q stops), appended to --log as they come (trial,b,answer,reversal), and "
-            "an existing log is replayed first, so a stopped session resumes. With --model "
+            "an existing log is replayed first, so a stopped staircase resumes. With --model "
             "(a friction model) the result is written into it as electrostatic.b_v."),
     )
     st.add_argument("--log", required=True, metavar="LOG.csv", help="answers log (resumable)")

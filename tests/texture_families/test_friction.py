@@ -1,4 +1,4 @@
-"""Friction playback (paper 001 IV-B): mu(x) fitted from physically generated scans and
+"""Friction playback (Jiao 2018 IV-B): mu(x) fitted from physically generated scans and
 played back by position at any speed, against the generator's ground truth."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Gratings at a vibrotactile/friction ratio (paper 002 4.2): the rendered spatial period
+"""Gratings at a vibrotactile/friction ratio (Ito 2019 4.2): the rendered spatial period
 is lambda at any speed, and the energy split follows the ratio's levels."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The thesis' network (003, section 3.2): shipped weights, features, training, model files."""
+"""The thesis' network (Lin 2016, section 3.2): shipped weights, features, training, model files."""
 
 from __future__ import annotations
 

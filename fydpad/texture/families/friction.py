@@ -1,4 +1,4 @@
-"""Position-indexed friction playback (paper 001, section IV-B).
+"""Position-indexed friction playback (Jiao 2018, section IV-B).
 
 Fit: mu(x) = F_f(x) / F_n(x) (eq. 1) from scans with ``force_n``, ``friction_n`` and a
 position, resampled onto a uniform position grid and low-passed. The paper low-passes
@@ -41,14 +41,14 @@ from fydpad.texture.family import (
 
 NAME = "friction"
 FORMAT_VERSION = 1
-CARRIER_HZ = 240.0  # the most sensitive frequency (001 IV-B)
-B_DEFAULT = 400.0  # V per unit mu, before the staircase (001 IV-B)
+CARRIER_HZ = 240.0  # the most sensitive frequency (Jiao 2018 IV-B)
+B_DEFAULT = 400.0  # V per unit mu, before the staircase (Jiao 2018 IV-B)
 LOWPASS_HZ = 100.0
 
 
 def friction_coefficient(friction_n: Array, force_n: Array, min_force_n: float = 0.05
                          ) -> Array:
-    """mu = F_f / F_n (001 eq. 1); NaN where the normal force is below ``min_force_n``."""
+    """mu = F_f / F_n (Jiao 2018 eq. 1); NaN where the normal force is below ``min_force_n``."""
     fn = np.asarray(force_n, float)
     ff = np.asarray(friction_n, float)
     return np.where(fn >= min_force_n, np.abs(ff) / np.where(fn > 0, fn, 1.0), np.nan)
@@ -141,7 +141,7 @@ def fit_friction(scans: list, *, dx_mm: float = 0.01, lowpass_hz: float = LOWPAS
                     "reference_speed_mm_s": v_ref, "cutoff_cycles_per_mm": cutoff},
         "electrostatic": {"b_v": b, "carrier_hz": CARRIER_HZ, "carrier": "square 0/1"},
         "fydpad": {"vibration_gain_m_s2": 2.0, "tension_gain": 1.0, "still_mm_s": 2.0},
-        "provenance": {"scans": [str(s.path) for s in scans], "method": "001 IV-B eq. 1"},
+        "provenance": {"scans": [str(s.path) for s in scans], "method": "Jiao 2018 IV-B eq. 1"},
     }
 
 
@@ -202,7 +202,7 @@ class FrictionFamily(FamilyBase):
         return self.vibration_gain_m_s2 * (mu - self.mu_mean) / self.mu_mean * fade
 
     def carrier(self, t_s: Array) -> Array:
-        """Y(t) of 001 eq. 2: 1 in the first half of each 1/f0 period, else 0."""
+        """Y(t) of Jiao 2018 eq. 2: 1 in the first half of each 1/f0 period, else 0."""
         return (np.mod(np.asarray(t_s) * self.carrier_hz, 1.0) < 0.5).astype(float)
 
     # ------------------------------------------------------------------ interface

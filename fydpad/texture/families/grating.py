@@ -1,4 +1,4 @@
-"""Vibrotactile/friction gratings at a composition ratio (paper 002, section 4.2).
+"""Vibrotactile/friction gratings at a composition ratio (Ito 2019, section 4.2).
 
     F_v = A sin(2 pi x / lambda)                       (eq. 1, voice coil, normal)
     V_e = B cos(2 pi x / (2 lambda))                   (eq. 2, electrostatic voltage)
@@ -6,15 +6,15 @@
 
 A ratio v:f (0:10 ... 10:0) picks level v of the vibrotactile stimulus and level f of
 the friction one. Levels are linear in force between level 1 (just perceivable) and
-level 10 (realistic alone); level 0 is off (002 4.2.3): A_L = A_1 + (L-1)(A_10-A_1)/9,
+level 10 (realistic alone); level 0 is off (Ito 2019 4.2.3): A_L = A_1 + (L-1)(A_10-A_1)/9,
 and the friction modulation mu k B_L^2 / 2 likewise, so B_L = sqrt(2 F_L / (mu k)).
-8:2 is the default for lambda >= 1 mm (002 Fig. 5: most chosen at 1.0-3.0 mm); below,
+8:2 is the default for lambda >= 1 mm (Ito 2019 Fig. 5: most chosen at 1.0-3.0 mm); below,
 6:4 (the most chosen at 0.5 mm, not significantly).
 
 Rectangular profile (the FYD-pad specimens R1 3.90 mm and R2 2.15 mm, ridge 90 %):
 the sine is replaced by p(x) = 2 (r(x) - d), r the 0/1 ridge indicator (raised-cosine
 edges ``edge_mm`` wide), d the ridge fraction: the same peak-to-peak 2 as the sine, zero
-mean. The friction follows the sine's quarter-period lead (002 4.2.2: friction goes with
+mean. The friction follows the sine's quarter-period lead (Ito 2019 4.2.2: friction goes with
 the gradient): V_e^2 = B^2 (1 + p(x + lambda/4)) / 2.
 
 Channels: ``vibration`` (FYD-pad, 1 kHz) = g_v F_v / A_10 in m/s^2; ``tension`` (FYD-pad)
@@ -51,7 +51,7 @@ def default_ratio(wavelength_mm: float) -> tuple[int, int]:
 
 
 def level_value(level: int, at_1: float, at_10: float) -> float:
-    """Linear in force between level 1 and level 10; level 0 is off (002 4.2.3)."""
+    """Linear in force between level 1 and level 10; level 0 is off (Ito 2019 4.2.3)."""
     if not 0 <= level <= 10:
         raise ValueError(f"level must be 0..10, got {level}")
     return 0.0 if level == 0 else at_1 + (level - 1) * (at_10 - at_1) / 9.0

@@ -1,4 +1,4 @@
-"""The neural-network texture model of thesis 003 (section 3.2, Tables 3.1-3.4).
+"""The neural-network texture model of Lin 2016 (section 3.2, Tables 3.1-3.4).
 
 A 3-10-1 network maps the finger's velocity and force change to the normal
 acceleration of the texture:
@@ -40,7 +40,7 @@ FORMAT_VERSION = 1
 BAND_HZ = (5.0, 500.0)  # thesis 3.2: hand jitter below 5 Hz, insensitivity above 500 Hz
 DF_TAU_S = 0.05
 INPUTS = ("vx_mm_s", "vy_mm_s", "df_n")
-THESIS_MODEL = Path(__file__).with_name("data") / "thesis_mlp.json"
+THESIS_MODEL = Path(__file__).resolve().parents[2] / "data" / "thesis_mlp.json"
 
 
 # ------------------------------------------------------------------ features
