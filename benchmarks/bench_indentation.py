@@ -12,7 +12,7 @@ The correction is fitted on one half of the presses (or recordings) and scored o
 other half, then the other way round; the figure is the held-out RMSE.
 
 Usage: python benchmarks/bench_indentation.py [--presses N] [--recordings RECDIR ...]
-Target (issue 4): RMSE <= 3 mm over 0-50 mm (paper: 2.88 mm).
+Target: RMSE <= 3 mm over 0-50 mm (paper: 2.88 mm).
 """
 
 from __future__ import annotations

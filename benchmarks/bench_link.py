@@ -1,4 +1,4 @@
-"""Link benchmark (issue 5): one-way latency p50/p99 and lost samples at 1 kHz on loopback.
+"""Link benchmark: one-way latency p50/p99 and lost samples at 1 kHz on loopback.
 
 Runs `teleop slave --robot sim` in its own process on a random loopback port and streams a
 40 mm/s circle sampled at --rate Hz for --duration s through the master API; prints the

@@ -3,7 +3,7 @@
 Prints, for each way of running the render loop, the share of ticks on time, jitter
 p50/p99 and skipped ticks, with the thread (the baseline) beside it.
 Usage: python benchmarks/bench_render_loop.py [--seconds S]
-Target (issue 6): >= 99.5 % on time and p99 jitter <= 0.5 ms.
+Target: >= 99.5 % on time and p99 jitter <= 0.5 ms.
 """
 
 from __future__ import annotations

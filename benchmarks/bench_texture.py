@@ -1,4 +1,4 @@
-"""Texture benchmarks (issue 7 targets), run on demand: ``python benchmarks/bench_texture.py``.
+"""Texture benchmarks, run on demand: ``python benchmarks/bench_texture.py``.
 
 Each figure is printed beside a baseline measured in the same run:
 - block synthesis of 1 s at order 200 (target <= 1 ms, i.e. >= 1000x real time) against
@@ -181,7 +181,7 @@ def lines_benchmark(best) -> None:
 
 
 def quality(textures: list[str] | None = None) -> None:
-    """Held-out figures of the issue's targets for every texture (minutes; --quality)."""
+    """Held-out figures against the texture targets for every texture (minutes; --quality)."""
     from fydpad.texture.evaluate import compare_recordings, evaluate_scan, evaluation_mask
     from fydpad.texture.fit import fit_texture
     from fydpad.texture.identify import identify

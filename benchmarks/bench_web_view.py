@@ -1,4 +1,4 @@
-"""The web view never slows the render loop (issue 10): the station replays a recording
+"""The web view never slows the render loop: the station replays a recording
 for 15 s with ``--web`` and ``--stats`` three times: no browser; 4 clients fetching the
 state and the image as fast as they can; 50 stalled clients that ask for images and never
 read them. Prints the render loop's figures from ``--stats`` for each.

@@ -9,13 +9,13 @@ import warnings
 from collections.abc import Sequence
 
 from fydpad import __version__
-from fydpad.errors import UserError, one_line_warnings
-from vision.recording import RecordingError
+from fydpad.errors import FydpadError, one_line_warnings
+from vision.recording import PadRecording
 
 #: Subcommand modules, in the order ``--help`` lists them.
 COMMANDS = (
     "demo", "track", "run", "replay", "synth", "calibrate", "softness", "texture", "experiment",
-    "chain", "config",
+    "chain", "config", "export",
 )
 
 
@@ -24,6 +24,17 @@ def add_config_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--config", metavar="FILE", default=argparse.SUPPRESS,
         help="device configuration (TOML) overriding the paper's defaults",
+    )
+
+
+def add_truncation_argument(parser: argparse.ArgumentParser) -> None:
+    """``--allow-truncated`` on a command that reads recordings."""
+    parser.add_argument(
+        "--allow-truncated", action="store_true", default=argparse.SUPPRESS,
+        help="a recording's video that ends before its frames.csv, ir.csv, force.csv or "
+        "truth.csv (truncated, or a frame that does not decode) is an error naming the file "
+        "and the last good frame; with this option, a warning, and the frames before it "
+        "are used",
     )
 
 
@@ -52,9 +63,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     shown = warnings.formatwarning
     one_line_warnings(f"fydpad {args.command}")
+    PadRecording.allow_truncated = bool(getattr(args, "allow_truncated", False))
     try:
         return int(args.func(args) or 0)
-    except (UserError, RecordingError) as exc:
+    except FydpadError as exc:  # bad input or a device fault: one line, no traceback
         print(f"fydpad {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
@@ -62,6 +74,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     finally:
         warnings.formatwarning = shown  # a caller's own format (main called in-process)
+        PadRecording.allow_truncated = False
 
 
 if __name__ == "__main__":

@@ -1,4 +1,5 @@
-"""Errors the command line reports as one line, without a traceback."""
+"""Errors the command line reports as one line, without a traceback: the tree of
+:mod:`vision.errors`, re-exported here, and helpers that raise it."""
 
 from __future__ import annotations
 
@@ -7,9 +8,9 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+from vision.errors import DeviceFault, FydpadError, UserError
 
-class UserError(Exception):
-    """Bad input or a missing device: the message names the file, key, line or device."""
+__all__ = ["DeviceFault", "FydpadError", "UserError", "one_line_warnings", "read_json"]
 
 
 def read_json(path: str | Path, what: str = "JSON") -> Any:

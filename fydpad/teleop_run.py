@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from fydpad.commands.track import make_tracker
@@ -13,12 +15,20 @@ from vision.state import FingerState
 from vision.stream import finger_states
 
 
-def recording_states(rec: PadRecording, config: StationConfig) -> list[FingerState]:
-    """The finger state of every frame (tracked first, so streaming is paced exactly)."""
+def recording_states(rec: PadRecording, config: StationConfig,
+                     on_frame: Callable[[], None] | None = None) -> list[FingerState]:
+    """The finger state of every frame (tracked first, so streaming is paced exactly);
+    ``on_frame`` is called after each (a caller's own progress bar), else a bar of its own."""
     m = rec.meta
     tracker = make_tracker(config.tracker, m.roi_px, m.workspace_mm, m.image_flip)
-    return [tf.state for tf in progress(finger_states(rec, tracker, config.ir),
-                                        total=rec.frame_count, desc="tracking")]
+    frames = finger_states(rec, tracker, config.ir)
+    if on_frame is None:
+        return [tf.state for tf in progress(frames, total=rec.frame_count, desc="tracking")]
+    states = []
+    for tf in frames:
+        states.append(tf.state)
+        on_frame()
+    return states
 
 
 def truth_rows(rec: PadRecording) -> np.ndarray | None:

@@ -40,7 +40,7 @@ RECORDINGS: dict[str, SynthConfig] = {
     "circle": replace(_BUNDLED, trajectory="circle", seconds=10.0, seed=11),
     "lissajous": replace(_BUNDLED, trajectory="lissajous", seconds=10.0, seed=12),
     "tapping": replace(_BUNDLED, trajectory="tapping", seconds=10.0, seed=17),
-    # Several real-footage conditions at once (issue 4): uneven light, room light dips and
+    # Several real-footage conditions at once: uneven light, room light dips and
     # flicker, auto-exposure, daylight gradient, stains, the hand's shadow, fast strokes.
     "hard": replace(_BUNDLED, trajectory="walk", seconds=4.5, seed=14,
                     effects=Effects(uneven_light=True, room_light=True, auto_exposure=True,

@@ -12,14 +12,18 @@ import threading
 import tomllib
 from pathlib import Path
 
-from teleop.config import TeleopConfig, check_rt_priority
+from teleop.config import OTHER_SECTIONS, TeleopConfig, check_rt_priority
+from vision.errors import FydpadError
+from vision.strict_json import finite
 
 log = logging.getLogger("teleop")
 
 
 def load_config(path: str | None) -> TeleopConfig:
-    """TeleopConfig from a TOML file: sections [link] [safety] [mapping] [prediction]
-    [slave] at the top level or under [teleop]. Unknown keys are refused by name."""
+    """TeleopConfig from a TOML file: the device file of `fydpad config show` (tables
+    [teleop.link] [teleop.safety] [teleop.mapping] [teleop.prediction] [teleop.slave], the
+    other packages' sections skipped by name) or a file of its own with those tables at the
+    top level. An unknown section or key is refused by name."""
     cfg = TeleopConfig()
     if path is None:
         return cfg
@@ -28,18 +32,25 @@ def load_config(path: str | None) -> TeleopConfig:
             data = tomllib.load(f)
     except (OSError, tomllib.TOMLDecodeError) as e:
         raise SystemExit(f"teleop: cannot read config {path}: {e}") from e
-    data = data.get("teleop", data)
+    prefix = ""
+    if "teleop" in data:
+        for section in data:
+            if section not in OTHER_SECTIONS and section != "teleop":
+                raise SystemExit(f"teleop: {path}: unknown section [{section}]")
+        data, prefix = data["teleop"], "teleop."
+    else:
+        data = {k: v for k, v in data.items() if k not in OTHER_SECTIONS}
     for section, value in data.items():
         if not hasattr(cfg, section) or not isinstance(value, dict):
             if section == "baseline_rate_hz":
                 cfg.baseline_rate_hz = float(value)
                 continue
-            raise SystemExit(f"teleop: {path}: unknown section [{section}]")
+            raise SystemExit(f"teleop: {path}: unknown section [{prefix}{section}]")
         sub = getattr(cfg, section)
         names = {f.name: f for f in dataclasses.fields(sub)}
         for k, v in value.items():
             if k not in names:
-                raise SystemExit(f"teleop: {path}: unknown key {section}.{k} "
+                raise SystemExit(f"teleop: {path}: unknown key {prefix}{section}.{k} "
                                  f"(known: {', '.join(names)})")
             setattr(sub, k, tuple(v) if isinstance(v, list) else v)
     try:
@@ -76,7 +87,6 @@ def _run_slave(args: argparse.Namespace, cfg: TeleopConfig, scheduling: str) -> 
     from teleop.link import SlaveSocket
     from teleop.mapping import Mapping
     from teleop.slave import SlaveLoop, make_arm
-    from teleop.slaves import ArmFault
 
     stop = threading.Event()
 
@@ -100,11 +110,17 @@ def _run_slave(args: argparse.Namespace, cfg: TeleopConfig, scheduling: str) -> 
                 rep = loop.report()
                 rep["scheduling"] = scheduling
                 if args.report:
-                    Path(args.report).write_text(json.dumps(rep, indent=2) + "\n")
-                print(json.dumps(rep), flush=True)
-    except (OSError, FileNotFoundError, ArmFault, ValueError) as e:
+                    Path(args.report).write_text(
+                        json.dumps(finite(rep), indent=2, allow_nan=False) + "\n")
+                print(json.dumps(finite(rep), allow_nan=False), flush=True)
+    except (OSError, FydpadError, ValueError) as e:  # ArmFault is a FydpadError
         print(f"teleop slave: {e}", file=sys.stderr)
         return 2
+    except Exception as e:  # a fault in the loop or the link: the robot is stopped (finally)
+        log.exception("slave loop fault")
+        print(f"teleop slave: stopped the robot on a fault: {type(e).__name__}: {e}",
+              file=sys.stderr)
+        return 1
     finally:
         arm.close()
         signal.signal(signal.SIGTERM, old_handlers[0])
@@ -138,14 +154,18 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Bind ENDPOINT, follow the master's samples with the robot; "
                                    "Ctrl-C stops the robot and writes the report.")
     s.add_argument("--robot", choices=("sim", "ur"), default="sim",
-                   help="sim: PyBullet KUKA iiwa (default); ur: Universal Robots via ur-rtde")
+                   help="sim: PyBullet KUKA iiwa (default); ur: Universal Robots via ur-rtde "
+                        "(with --ur-host sim: a UR5e in MuJoCo behind the same ur-rtde calls, "
+                        "the mujoco extra; docs/teleop.md)")
     s.add_argument("--bind", required=True,
                    help="ZeroMQ endpoint, e.g. tcp://0.0.0.0:5555 or tcp://127.0.0.1:* "
                         "(random port, printed)")
     s.add_argument("--report", metavar="FILE", help="write the slave's counts as JSON here")
-    s.add_argument("--config", metavar="FILE", help="TOML with [link] [safety] [mapping] "
-                                                    "[prediction] [slave] sections")
-    s.add_argument("--ur-host", help="UR controller address (with --robot ur)")
+    s.add_argument("--config", metavar="FILE",
+                   help="the device file (`fydpad config show`): its [teleop.*] tables; the "
+                        "other sections are the station's and are skipped")
+    s.add_argument("--ur-host", help="UR controller address (with --robot ur); 'sim': the "
+                                     "simulated UR5e controller (MuJoCo)")
     s.add_argument("--curve", choices=("auto", "on", "off"),
                    help="CurveZMQ: auto = on unless the endpoint is loopback")
     s.add_argument("--keys", metavar="DIR", help="CurveZMQ key directory")

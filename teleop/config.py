@@ -8,6 +8,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+#: The sections of the one device file (`fydpad config show`) that belong to the other
+#: packages: `teleop slave --config` skips them by name, so the slave reads the same file
+#: as the station. Kept equal to the station's sections by a test, without teleop
+#: importing fydpad.
+OTHER_SECTIONS = ("camera", "tracker", "ir", "force", "softness", "motors", "pwm", "qb",
+                  "loops", "endpoints", "accel")
+
 
 @dataclass
 class LinkConfig:
@@ -49,7 +56,15 @@ class SafetyConfig:
     # 1-6 mm of x, y MAE, 150 mm/s 0.15-2.5 mm more than 300; docs/teleop.md)
     reengage_speed_mm_s: float = 300.0
     max_age_s: float = 0.2  # samples older than this (capture to arrival) are dropped
-    watchdog_s: float = 0.25  # no valid sample this long -> hold
+    watchdog_s: float = 0.25  # no valid sample this long -> hold; the arm is free to take
+    # A capture time further ahead of the slave's estimate of the master's clock than this
+    # is dropped as "future" (docs/protocol.md); so is a seq more than max_seq_step ahead.
+    future_tolerance_s: float = 0.05
+    max_seq_step: int = 10_000  # 10 s at 1 kHz: far more than a watchdog period's samples
+    clock_window: int = 64  # samples per master in its clock-offset estimate
+    # An operator hold longer than this stops the robot (UR: servoStop, stopScript); the
+    # slave keeps answering with status "stopped" until restarted. 0: never.
+    operator_hold_stop_s: float = 30.0
 
 
 @dataclass

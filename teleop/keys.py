@@ -33,10 +33,18 @@ def generate(keys_dir: Path) -> list[Path]:
     return out
 
 
-def _load(path: Path, public_only: bool) -> tuple[bytes, bytes]:
+class KeyFileMissing(FileNotFoundError):
+    """A CurveZMQ key file is not where the link looks; the message says which command
+    makes it and where it goes."""
+
+
+#: The files the master needs, copied from the slave's key directory.
+MASTER_FILES = ("server.key", "client.key", "client.key_secret")
+
+
+def _load(path: Path, public_only: bool, hint: str) -> tuple[bytes, bytes]:
     if not path.exists():
-        raise FileNotFoundError(f"CurveZMQ key file {path} not found: run "
-                                f"`teleop keys generate {path.parent}` or set link.keys_dir")
+        raise KeyFileMissing(f"CurveZMQ key file {path} not found: {hint}")
     pub, sec = zmq.auth.load_certificate(path)
     if not public_only and sec is None:
         raise ValueError(f"{path} has no secret key")
@@ -44,9 +52,19 @@ def _load(path: Path, public_only: bool) -> tuple[bytes, bytes]:
 
 
 def server_keys(keys_dir: Path, public_only: bool = False) -> tuple[bytes, bytes]:
+    """The slave's pair (its secret key stays on the slave), or only its public key."""
     name = "server.key" if public_only else "server.key_secret"
-    return _load(Path(keys_dir) / name, public_only)
+    hint = (_master_hint(keys_dir) if public_only else
+            f"run `teleop keys generate {keys_dir}` on the slave (or give --keys DIR)")
+    return _load(Path(keys_dir) / name, public_only, hint)
 
 
 def client_keys(keys_dir: Path) -> tuple[bytes, bytes]:
-    return _load(Path(keys_dir) / "client.key_secret", False)
+    """The master's pair."""
+    return _load(Path(keys_dir) / "client.key_secret", False, _master_hint(keys_dir))
+
+
+def _master_hint(keys_dir: Path) -> str:
+    return (f"make the keys on the slave with `teleop keys generate {keys_dir}` and copy "
+            f"{', '.join(MASTER_FILES)} into {keys_dir}/ on the master (or give --keys DIR, "
+            "or --curve off on a trusted network)")

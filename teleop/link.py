@@ -1,8 +1,10 @@
 """ZeroMQ sockets of the link, with CurveZMQ when the endpoint leaves the machine.
 
 Pattern (docs/protocol.md): the slave binds a ROUTER, the master connects a DEALER.
-One socket each way carries samples and states, several masters can reconnect, and
-the slave answers whoever sent the last sample. A stale sample never waits behind a
+One socket each way carries samples and states. Each master socket has its own random
+routing id, so a reconnect is the same master; one master owns the arm at a time
+(teleop/admission.py). Both sockets refuse messages over MAX_MSG_SIZE; the slave counts
+refused CurveZMQ handshakes from its socket monitor. A stale sample never waits behind a
 fresh one: the master's queue is in order, bounded (``send_hwm``) and refuses to queue
 for an absent peer (ZMQ_IMMEDIATE); the slave drains everything readable each tick, drops
 what aged past ``safety.max_age_s`` and acts on the newest sample only.
@@ -12,8 +14,11 @@ from __future__ import annotations
 
 import ipaddress
 import logging
+import math
+import os
 import select
 import time
+from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 from urllib.parse import urlparse
@@ -21,11 +26,54 @@ from urllib.parse import urlparse
 import zmq
 import zmq.auth
 from zmq.auth.thread import ThreadAuthenticator
+from zmq.utils.monitor import recv_monitor_message
 
 from teleop.config import LinkConfig
 from teleop.keys import client_keys, server_keys
 
 log = logging.getLogger(__name__)
+
+# ZMQ_MAXMSGSIZE on both sockets (docs/protocol.md): the largest message is a state (96
+# bytes), CURVE's handshake commands stay under 400; a peer sending more is disconnected by
+# libzmq from the length in the frame header, before any of it is read into memory.
+MAX_MSG_SIZE = 4096
+
+# Socket-monitor events of a refused handshake. ZAP (the authenticator) sees only clients
+# that completed the CURVE exchange; these see every refusal.
+_HANDSHAKE_EVENTS = (zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL | zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL
+                     | zmq.EVENT_HANDSHAKE_FAILED_AUTH)
+HANDSHAKE_HINTS = {
+    "no_keys": "a client without CurveZMQ keys (or with keys, to a slave without)",
+    "wrong_server_key": "a client holding the wrong server.key",
+    "unknown_client_key": "a client key not in authorized_clients/",
+    "protocol_error": "a peer speaking another protocol",
+    "no_detail": "the connection failed during the handshake",
+}
+HANDSHAKE_LOG_EVERY_S = 10.0  # one line per kind at most this often, with the running count
+
+
+def handshake_failure_kind(event: int, value: int) -> str:
+    """The name a refused handshake is counted under (HANDSHAKE_HINTS)."""
+    if event == zmq.EVENT_HANDSHAKE_FAILED_AUTH:
+        return "unknown_client_key"
+    if event == zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL:
+        if value == zmq.PROTOCOL_ERROR_ZMTP_MECHANISM_MISMATCH:
+            return "no_keys"
+        if value == zmq.PROTOCOL_ERROR_ZMTP_CRYPTOGRAPHIC:
+            return "wrong_server_key"
+        return "protocol_error"
+    return "no_detail"
+
+
+# The monitor's value for a protocol failure, by name (for auth it is the ZAP status, 400).
+_PROTOCOL_ERRORS = {getattr(zmq, n): n for n in dir(zmq) if n.startswith("PROTOCOL_ERROR_")}
+
+
+def master_routing_id() -> bytes:
+    """A routing id unique to this master socket, random at its creation: a TCP reconnect
+    keeps it, so the slave sees the same master; a new process is a new master. 16 bytes,
+    the first never 0 (libzmq reserves ids starting with a zero byte)."""
+    return b"M" + os.urandom(15)
 
 
 def is_loopback(endpoint: str) -> bool:
@@ -58,6 +106,11 @@ def wait_readable(sock: zmq.Socket, t_end_s: float, clock: Callable[[], float]) 
         if remaining <= 0:
             return False
         select.select([fd], [], [], remaining)
+
+
+def tcp_endpoint(endpoint: str) -> str:
+    """``HOST:PORT`` as ``tcp://HOST:PORT``; an endpoint with a transport is kept as is."""
+    return endpoint if "://" in endpoint else f"tcp://{endpoint}"
 
 
 def curve_enabled(cfg: LinkConfig, endpoint: str) -> bool:
@@ -113,6 +166,13 @@ class SlaveSocket:
         self.sock = self.ctx.socket(zmq.ROUTER)
         self.sock.linger = 0
         self.sock.setsockopt(zmq.RCVHWM, 1000)
+        self.sock.setsockopt(zmq.MAXMSGSIZE, MAX_MSG_SIZE)
+        # A master reconnecting with its routing id takes it over at once (the old TCP
+        # connection may not be seen dead yet); without this libzmq drops the new one.
+        self.sock.setsockopt(zmq.ROUTER_HANDOVER, 1)
+        self.handshakes_failed: Counter[str] = Counter()
+        self._handshake_logged_s: dict[str, float] = {}
+        self.monitor = self.sock.get_monitor_socket(_HANDSHAKE_EVENTS)
         self.curve = curve_enabled(cfg, endpoint)
         if self.curve:
             keys_dir = Path(cfg.keys_dir)
@@ -130,7 +190,35 @@ class SlaveSocket:
             raise OSError(f"slave cannot bind {endpoint}: {e}") from e
         self.endpoint = self.sock.getsockopt_string(zmq.LAST_ENDPOINT)
 
+    def poll_monitor(self) -> int:
+        """Count and log every refused handshake the socket monitor reported (non-blocking;
+        the slave calls it each tick). Refusals that never reach ZAP (a client without keys,
+        or with the wrong server key) are seen only here. Returns how many were read."""
+        n = 0
+        while True:
+            try:
+                ev = recv_monitor_message(self.monitor, zmq.NOBLOCK)
+            except zmq.ZMQError:  # Again: none waiting; or the monitor is closed
+                return n
+            if not int(ev["event"]) & _HANDSHAKE_EVENTS:
+                continue
+            n += 1
+            value = int(ev["value"])
+            kind = handshake_failure_kind(int(ev["event"]), value)
+            self.handshakes_failed[kind] += 1
+            now = time.monotonic()
+            if now - self._handshake_logged_s.get(kind, -math.inf) >= HANDSHAKE_LOG_EVERY_S:
+                self._handshake_logged_s[kind] = now
+                log.warning("refused a CurveZMQ handshake on %s: %s (%s, code %s; %d refused "
+                            "so far)", self.endpoint, HANDSHAKE_HINTS[kind], kind,
+                            _PROTOCOL_ERRORS.get(value, value), self.handshakes_failed[kind])
+
     def close(self) -> None:
+        try:
+            self.sock.disable_monitor()
+        except zmq.ZMQError:
+            pass
+        self.monitor.close(linger=0)
         self.sock.close(linger=0)
         if self.auth is not None:
             self.auth.stop()
@@ -149,21 +237,32 @@ class MasterSocket:
     def __init__(self, endpoint: str, cfg: LinkConfig | None = None,
                  ctx: zmq.Context | None = None) -> None:
         cfg = cfg or LinkConfig()
+        endpoint = tcp_endpoint(endpoint)
+        keys = None
+        if curve_enabled(cfg, endpoint):  # a missing key file fails before any socket
+            keys_dir = Path(cfg.keys_dir)
+            keys = client_keys(keys_dir), server_keys(keys_dir, public_only=True)[0]
         self.ctx = ctx or zmq.Context.instance()
         self.sock = self.ctx.socket(zmq.DEALER)
         self.sock.linger = 0
+        self.routing_id = master_routing_id()
+        self.sock.setsockopt(zmq.ROUTING_ID, self.routing_id)
+        self.sock.setsockopt(zmq.MAXMSGSIZE, MAX_MSG_SIZE)
         self.sock.sndhwm = cfg.send_hwm
         self.sock.setsockopt(zmq.IMMEDIATE, 1)  # never queue samples for a slave not there
         self.sock.setsockopt(zmq.RECONNECT_IVL, 50)
         self.sock.setsockopt(zmq.RECONNECT_IVL_MAX, 500)
-        if curve_enabled(cfg, endpoint):
-            keys_dir = Path(cfg.keys_dir)
-            pub, sec = client_keys(keys_dir)
-            server_pub, _ = server_keys(keys_dir, public_only=True)
+        self.curve = keys is not None
+        if keys is not None:
+            (pub, sec), server_pub = keys
             self.sock.curve_publickey = pub
             self.sock.curve_secretkey = sec
             self.sock.curve_serverkey = server_pub
-        self.sock.connect(endpoint)
+        try:
+            self.sock.connect(endpoint)
+        except zmq.ZMQError as e:
+            self.close()
+            raise OSError(f"master cannot connect to {endpoint}: {e}") from e
         self.endpoint = endpoint
 
     def send(self, data: bytes) -> bool:

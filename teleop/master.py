@@ -1,5 +1,5 @@
 """Master side: stream FingerState samples to a slave at their real rate, collect its state,
-and build the report of RECORDING_FORMAT.md (paper IV-B, eq. 6).
+and build the report of docs/recording_format.md (paper IV-B, eq. 6).
 
     from teleop.master import run_session
     session = run_session(states, "tcp://127.0.0.1:5555", truth=truth_rows)
@@ -21,7 +21,14 @@ from teleop import protocol as P
 from teleop.config import TeleopConfig
 from teleop.link import MasterSocket, wait_readable
 from teleop.realtime import realtime_scheduling
-from teleop.report import axes_dict, best_lag_s, latency_ms, mae_per_axis, plot_tracking
+from teleop.report import (
+    axes_dict,
+    best_lag_s,
+    latency_ms,
+    mae_per_axis,
+    plot_tracking,
+    truth_breakdown,
+)
 from vision.state import FingerState
 
 
@@ -85,12 +92,15 @@ def _position(fs: FingerState) -> tuple[float, float, float]:
 def stream(states: Iterable[FingerState], sock: MasterSocket, *, rate_hz: float | None = None,
            hold_mode: bool = False, preroll_s: float = 0.5, tail_s: float = 0.3,
            first_seq: int = 1, preroll_state: FingerState | None = None,
+           operator_hold: Callable[[float], bool] | None = None,
            clock: Callable[[], float] = time.monotonic) -> StreamLog:
     """Send ``states`` at the times their ``t_s`` say, collecting slave states meanwhile.
 
     ``rate_hz`` decimates (the paper's 10 Hz master); every input sample is still logged
     as the master position to score against. ``preroll_s`` of ``preroll_state`` (default:
     the first sample) brings the arm to the start first (not scored).
+    ``operator_hold(t_s)``: whether the operator holds the robot at recording time ``t_s``
+    (the samples then carry the operator-hold flag).
     """
     log = StreamLog()
     seq = first_seq
@@ -113,7 +123,8 @@ def stream(states: Iterable[FingerState], sock: MasterSocket, *, rate_hz: float 
         nonlocal seq
         x, y, z = _position(fs)
         force = fs.force_n if math.isfinite(fs.force_n) else math.nan
-        msg = P.Sample(seq, t_cap, clock(), x, y, z, force, fs.contact, hold_mode)
+        held = operator_hold is not None and operator_hold(fs.t_s)
+        msg = P.Sample(seq, t_cap, clock(), x, y, z, force, fs.contact, hold_mode, held)
         seq += 1
         if sock.send(P.encode_sample(msg)):
             log.sent += 1
@@ -173,12 +184,22 @@ def _chain(first: FingerState, rest: Iterable[FingerState]) -> Iterable[FingerSt
 
 
 def _dropped(log: StreamLog) -> int:
-    """Samples the slave refused during this pass, plus those never sent."""
-    acks = [st for _, st in log.states]
-    if not acks:
+    """Samples the slave refused during this pass, plus those never sent or lost.
+
+    A slave's counters are its process's: a restarted slave counts from 0 again (seen as
+    ``received`` or ``dropped`` going down), so the pass is split there and each slave's
+    counters are differenced on their own."""
+    states = [st for _, st in log.states]
+    if not states:
         return log.sent + log.send_failed
-    delivered = acks[-1].received - acks[0].received + 1
-    refused = acks[-1].dropped - acks[0].dropped
+    delivered = refused = 0
+    first = prev = states[0]
+    for st in [*states[1:], None]:
+        if st is None or st.received < prev.received or st.dropped < prev.dropped:
+            delivered += prev.received - first.received + 1
+            refused += prev.dropped - first.dropped
+            first = st
+        prev = st if st is not None else prev
     return log.send_failed + max(0, log.sent - delivered) + refused
 
 
@@ -190,21 +211,28 @@ class Session:
     main: StreamLog
     baseline: StreamLog | None
 
-    def plot(self, path: str, title: str = "") -> None:
-        """Fig. 11-like PNG: master vs slave per axis, with the paper condition if run."""
+    def series(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                              tuple[np.ndarray, np.ndarray] | None]:
+        """What the Fig. 11-like plot draws, time from the main pass's start (s): master
+        times and positions, slave times and positions, the paper condition's slave
+        (times, positions) or None."""
         t, m, _ = self.main.arrays()
         tl, sl = self.main.slave_log()
+        t0 = self.main.t0_s
         base = None
         if self.baseline is not None:
             tb, sb = self.baseline.slave_log()
-            base = (tb - self.baseline.t0_s + self.main.t0_s, sb)
-        t0 = self.main.t0_s
-        plot_tracking(path, t - t0, m, tl - t0,  sl,
-                      None if base is None else (base[0] - t0, base[1]), title)
+            base = (tb - self.baseline.t0_s, sb)
+        return t - t0, m, tl - t0, sl, base
+
+    def plot(self, path: str, title: str = "") -> None:
+        """Fig. 11-like PNG: master vs slave per axis, with the paper condition if run."""
+        plot_tracking(path, *self.series(), title)
 
 
 def run_session(states: Sequence[FingerState], endpoint: str, cfg: TeleopConfig | None = None,
-                *, truth: np.ndarray | None = None, baseline: bool = True) -> Session:
+                *, truth: np.ndarray | None = None, baseline: bool = True,
+                on_sample: Callable[[], None] | None = None) -> Session:
     """Stream a recording's states to the slave at ``endpoint`` and build the report.
 
     ``truth``: rows ``t_s, contact, x_mm, y_mm, z_mm`` on the recording's time base
@@ -216,18 +244,30 @@ def run_session(states: Sequence[FingerState], endpoint: str, cfg: TeleopConfig 
     pre = next((s for s in states if s.contact), None)
     with realtime_scheduling(cfg.link.rt_priority), MasterSocket(endpoint, cfg.link) as sock:
         _wait_for_slave(sock, endpoint)
-        main = stream(states, sock, preroll_state=pre)
+        main = stream(_counted(states, on_sample), sock, preroll_state=pre)
         base = None
         if baseline:
-            base = stream(states, sock, rate_hz=cfg.baseline_rate_hz, hold_mode=True,
+            base = stream(_counted(states, on_sample), sock, rate_hz=cfg.baseline_rate_hz,
+                          hold_mode=True,
                           first_seq=main.next_seq,
                           preroll_state=pre)
     return Session(build_report(main, base, truth), main, base)
 
 
+def _counted(states: Iterable[FingerState],
+             on_sample: Callable[[], None] | None) -> Iterable[FingerState]:
+    """``states``, calling ``on_sample`` as each is taken (a progress bar)."""
+    if on_sample is None:
+        yield from states
+        return
+    for fs in states:
+        yield fs
+        on_sample()
+
+
 def build_report(main: StreamLog, base: StreamLog | None,
                  truth: np.ndarray | None = None) -> dict:
-    """The RECORDING_FORMAT.md report from a main pass and an optional baseline pass."""
+    """The docs/recording_format.md report from a main pass and an optional baseline pass."""
     t, m, c = main.arrays()
     tl, sl = main.slave_log()
     mae = mae_per_axis(t, m, c, tl, sl)
@@ -246,6 +286,8 @@ def build_report(main: StreamLog, base: StreamLog | None,
         t_true = main.t0_s + (tt[:, 0] - main.t_s0)
         rep["truth_mae_mm"] = axes_dict(mae_per_axis(t_true, tt[:, 2:5], tt[:, 1] > 0.5,
                                                       tl, sl))
+        rep["truth_breakdown_mm"] = truth_breakdown(t, m, c, tl, sl, t_true, tt[:, 2:5],
+                                                    tt[:, 1] > 0.5)
     return rep
 
 
@@ -265,7 +307,8 @@ def _wait_for_slave(sock: MasterSocket, endpoint: str, timeout_s: float = 5.0) -
 
 def run_local_sim(states: Sequence[FingerState], cfg: TeleopConfig | None = None, *,
                   truth: np.ndarray | None = None, plot_path: str | None = None,
-                  baseline: bool = True) -> Session:
+                  baseline: bool = True,
+                  on_sample: Callable[[], None] | None = None) -> Session:
     """The demo: a simulated slave in a thread of this process on a random loopback port,
     driven over a real socket by run_session; optionally the Fig. 11 plot."""
     from teleop.slave import SlaveThread
@@ -274,7 +317,8 @@ def run_local_sim(states: Sequence[FingerState], cfg: TeleopConfig | None = None
     # The slave's thread (and ZeroMQ's, if this makes the first socket) inherit it.
     with (realtime_scheduling(cfg.link.rt_priority),
           SlaveThread(cfg, bind="tcp://127.0.0.1:*") as slave):
-        session = run_session(states, slave.endpoint, cfg, truth=truth, baseline=baseline)
+        session = run_session(states, slave.endpoint, cfg, truth=truth, baseline=baseline,
+                              on_sample=on_sample)
     if plot_path is not None:
         session.plot(plot_path)
     return session

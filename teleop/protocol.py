@@ -1,8 +1,8 @@
-"""Wire format of the master <-> slave link, version 1 (docs/protocol.md).
+"""Wire format of the master <-> slave link, version 2 (docs/protocol.md).
 
 Every message is one ZeroMQ frame, little-endian, fixed size, starting with the
 4-byte magic ``FYDT``, a version byte and a type byte. Positions are in the
-workspace frame (RECORDING_FORMAT.md), millimetres; times are seconds of the
+workspace frame (docs/recording_format.md), millimetres; times are seconds of the
 sender's monotonic clock.
 """
 
@@ -11,8 +11,10 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass
 
+from vision.errors import DeviceFault
+
 MAGIC = b"FYDT"
-VERSION = 1
+VERSION = 2
 
 TYPE_SAMPLE = 1
 TYPE_STATE = 2
@@ -20,17 +22,22 @@ TYPE_STATE = 2
 # Sample flags.
 FLAG_CONTACT = 0x01
 FLAG_HOLD_MODE = 0x02  # paper condition: the slave holds each sample, no prediction
+FLAG_OPERATOR_HOLD = 0x04  # the operator holds the robot: stand still until released
 
 # State status codes (one byte).
 STATUS_IDLE = 0  # no valid sample yet
 STATUS_TRACKING = 1
 STATUS_CLUTCH = 2  # contact 0: x, y held, back to surface height
 STATUS_WATCHDOG_HOLD = 3  # no valid sample for watchdog_s
-STATUS_FAULT = 4  # robot fault (protective stop, connection lost): holding
+STATUS_FAULT = 4  # robot fault (protective stop, connection lost): robot stopped
+STATUS_OPERATOR_HOLD = 5  # the owner's samples carry the operator hold: standing still
+STATUS_STOPPED = 6  # operator hold longer than safety.operator_hold_stop_s: robot stopped
+STATUS_NOT_OWNER = 7  # (acknowledgement only) another master owns the arm: sample refused
 
 # Why a state was sent.
 REASON_TICK = 0
-REASON_ACK = 1
+REASON_ACK = 1  # acknowledgement of an accepted sample
+REASON_REFUSED = 2  # acknowledgement of a refused sample (the slave counted it as dropped)
 
 _HEADER = "<4sBB"
 # magic, version, type, flags u16, seq u64, t_capture f64, t_send f64, x, y, z, force f64
@@ -43,8 +50,11 @@ SAMPLE_SIZE = _SAMPLE.size
 STATE_SIZE = _STATE.size
 
 
-class ProtocolError(ValueError):
-    """A message that is not a valid version-1 FYDT message."""
+class ProtocolError(DeviceFault, ValueError):
+    """A message that is not a valid FYDT message of this version."""
+
+    device = "link peer"
+    check = "that master and slave run the same protocol version (docs/protocol.md)"
 
 
 @dataclass(frozen=True, slots=True)
@@ -60,6 +70,7 @@ class Sample:
     force_n: float
     contact: bool
     hold_mode: bool = False
+    operator_hold: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -68,7 +79,7 @@ class State:
 
     status: int
     reason: int
-    echo_seq: int  # seq of the last sample received (0: none)
+    echo_seq: int  # acknowledgement: that sample's seq; periodic: the newest admitted (0: none)
     t_echo_send_s: float  # that sample's t_send_s, master clock
     t_echo_recv_s: float  # when the slave read it, slave clock
     t_slave_s: float  # when this state was sampled, slave clock
@@ -79,7 +90,8 @@ class State:
 
 
 def encode_sample(s: Sample) -> bytes:
-    flags = (FLAG_CONTACT if s.contact else 0) | (FLAG_HOLD_MODE if s.hold_mode else 0)
+    flags = ((FLAG_CONTACT if s.contact else 0) | (FLAG_HOLD_MODE if s.hold_mode else 0)
+             | (FLAG_OPERATOR_HOLD if s.operator_hold else 0))
     return _SAMPLE.pack(MAGIC, VERSION, TYPE_SAMPLE, flags, s.seq, s.t_capture_s, s.t_send_s,
                         s.x_mm, s.y_mm, s.z_mm, s.force_n)
 
@@ -108,7 +120,7 @@ def decode_sample(buf: bytes) -> Sample:
     _check_header(buf, TYPE_SAMPLE, SAMPLE_SIZE)
     _, _, _, flags, seq, t_cap, t_send, x, y, z, force = _SAMPLE.unpack(buf)
     return Sample(seq, t_cap, t_send, x, y, z, force, bool(flags & FLAG_CONTACT),
-                  bool(flags & FLAG_HOLD_MODE))
+                  bool(flags & FLAG_HOLD_MODE), bool(flags & FLAG_OPERATOR_HOLD))
 
 
 def decode_state(buf: bytes) -> State:

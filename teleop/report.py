@@ -1,4 +1,4 @@
-"""Tracking figures of RECORDING_FORMAT.md: MAE (paper eq. 6), lag, latency; Fig. 11 plot.
+"""Tracking figures of docs/recording_format.md: MAE (paper eq. 6), lag, latency; Fig. 11 plot.
 
 Pure functions over arrays in one clock (the master's).
 """
@@ -13,7 +13,7 @@ AXES = ("x", "y", "z")
 
 
 def scored_rows(t_s: np.ndarray, contact: np.ndarray) -> np.ndarray:
-    """Mask of the samples from the first contact on (RECORDING_FORMAT.md)."""
+    """Mask of the samples from the first contact on (docs/recording_format.md)."""
     idx = np.flatnonzero(contact)
     mask = np.zeros(t_s.size, bool)
     if idx.size:
@@ -54,6 +54,88 @@ def best_lag_s(t_s: np.ndarray, master_mm: np.ndarray, contact: np.ndarray,
     costs = [np.nanmean(mae_per_axis(t_s, master_mm, contact, t_log_s, slave_mm, s))
              for s in shifts]
     return float(shifts[int(np.nanargmin(costs))])
+
+
+def truth_breakdown(t_s: np.ndarray, master_mm: np.ndarray, contact: np.ndarray,
+                    t_log_s: np.ndarray, slave_mm: np.ndarray, t_truth_s: np.ndarray,
+                    truth_mm: np.ndarray, truth_contact: np.ndarray) -> dict:
+    """Where the error against the true finger comes from, eq. (6) per axis, each part
+    over the truth's scored samples (from the first true contact on):
+
+    - ``master_vs_truth``: the master stream against the truth: x and y are the tracked
+      contact centroid's error, z the indentation's against the true depth;
+    - ``slave_vs_master``: the slave against the master stream (the link and the robot);
+    - ``slave_vs_truth``: the slave against the truth (end to end, ``truth_mae_mm``).
+
+    ``t_truth_s`` on the master's clock; ``truth_mm`` rows x, y, depth."""
+    mask = scored_rows(t_truth_s, truth_contact)
+    tq = t_truth_s[mask]
+    master_at = np.full((tq.size, 3), np.nan)
+    for j in range(3):
+        ok = np.isfinite(master_mm[:, j])
+        if np.count_nonzero(ok) >= 2:
+            inside = (tq >= t_s[ok][0]) & (tq <= t_s[ok][-1])
+            master_at[inside, j] = np.interp(tq[inside], t_s[ok], master_mm[ok, j])
+    # The master has no x, y without contact: compare x, y where both touch.
+    both = np.asarray(truth_contact, bool)[mask]
+    near = _nearest_contact(tq, t_s, contact)
+    master_at[~(both & near), :2] = np.nan
+    err = np.abs(master_at - truth_mm[mask])
+    with np.errstate(invalid="ignore"):
+        sensing = np.array([np.nanmean(err[:, j]) if np.any(np.isfinite(err[:, j])) else np.nan
+                            for j in range(3)])
+    return {
+        "master_vs_truth": axes_dict(sensing),
+        "slave_vs_master": axes_dict(mae_per_axis(t_s, master_mm, contact, t_log_s, slave_mm)),
+        "slave_vs_truth": axes_dict(mae_per_axis(t_truth_s, truth_mm, truth_contact,
+                                                 t_log_s, slave_mm)),
+    }
+
+
+def _nearest_contact(tq: np.ndarray, t_s: np.ndarray, contact: np.ndarray) -> np.ndarray:
+    """The master's contact flag at its sample nearest each query time."""
+    if t_s.size == 0:
+        return np.zeros(tq.size, bool)
+    i = np.clip(np.searchsorted(t_s, tq), 1, max(t_s.size - 1, 1))
+    i = np.where(np.abs(t_s[i - 1] - tq) <= np.abs(t_s[np.minimum(i, t_s.size - 1)] - tq),
+                 i - 1, np.minimum(i, t_s.size - 1))
+    return np.asarray(contact, bool)[i]
+
+
+_BREAKDOWN_LABELS = (
+    ("master_vs_truth", "tracking (x, y) and indentation (z) vs truth"),
+    ("slave_vs_master", "slave vs master stream (link, robot)"),
+    ("slave_vs_truth", "slave vs truth (end to end)"),
+)
+
+
+def breakdown_lines(report: dict) -> list[str]:
+    """``truth_breakdown_mm`` of a report as lines to print first, the largest part
+    named; no lines when the report has none (a recording without truth)."""
+    parts = report.get("truth_breakdown_mm")
+    if not parts:
+        return []
+
+    def fmt(v: float | None) -> str:
+        return "  -  " if v is None else f"{v:5.2f}"
+
+    width = max(len(label) for _, label in _BREAKDOWN_LABELS)
+    head = "error against the true finger, MAE mm"
+    lines = [f"{head:<{width + 2}}  " + "  ".join(f"{a:>5}" for a in AXES)]
+    for key, label in _BREAKDOWN_LABELS:
+        d = parts.get(key)
+        if d is None:
+            continue
+        lines.append(f"  {label:<{width}}  " + "  ".join(fmt(d.get(a)) for a in AXES))
+    # The dominant part: the largest of the sensing's and the link's axes.
+    cands = [(v, key, a) for key in ("master_vs_truth", "slave_vs_master")
+             for a, v in parts.get(key, {}).items() if v is not None]
+    if cands:
+        v, key, a = max(cands)
+        what = {"x": "tracking x", "y": "tracking y", "z": "indentation"}[a] \
+            if key == "master_vs_truth" else f"link {a}"
+        lines.append(f"  largest part: {what}, {v:.2f} mm")
+    return lines
 
 
 def axes_dict(v: np.ndarray, ndigits: int = 3) -> dict[str, float | None]:

@@ -1,57 +1,15 @@
-"""Slave-side safety: sample admission, workspace box, speed/acceleration limits, watchdog.
+"""Slave-side safety: workspace box, speed/acceleration limits, watchdog.
 
-Pure: the caller passes times in. Counting every reason a sample was refused is what
-makes a bad link visible in the report.
+Pure: the caller passes times in. Which samples are admitted is teleop/admission.py.
 """
 
 from __future__ import annotations
 
 import math
-from collections import Counter
 
 import numpy as np
 
 from teleop.config import SafetyConfig
-from teleop.protocol import Sample
-
-
-class SampleGate:
-    """Admit a sample only if finite, fresh, new and in order; count the others."""
-
-    def __init__(self, cfg: SafetyConfig) -> None:
-        self.cfg = cfg
-        self.last_seq = 0
-        self.last_t_capture_s = -math.inf
-        self.dropped: Counter[str] = Counter()
-
-    def reset_sequence(self) -> None:
-        """A new master session (e.g. the master restarted, seq from 1 again)."""
-        self.last_seq = 0
-        self.last_t_capture_s = -math.inf
-
-    def admit(self, s: Sample, age_s: float) -> bool:
-        """``age_s``: capture to arrival, in one clock (the caller applies the offset)."""
-        # Force may be NaN (no load cell); positions are needed, x and y only in contact.
-        need = (s.t_capture_s, s.t_send_s, s.z_mm) + ((s.x_mm, s.y_mm) if s.contact else ())
-        if not all(math.isfinite(v) for v in need):
-            self.dropped["nonfinite"] += 1
-            return False
-        if s.seq == self.last_seq:
-            self.dropped["duplicate"] += 1
-            return False
-        if s.seq < self.last_seq or s.t_capture_s <= self.last_t_capture_s:
-            self.dropped["out_of_order"] += 1
-            return False
-        if age_s > self.cfg.max_age_s:
-            self.dropped["stale"] += 1
-            return False
-        self.last_seq = s.seq
-        self.last_t_capture_s = s.t_capture_s
-        return True
-
-    @property
-    def dropped_total(self) -> int:
-        return sum(self.dropped.values())
 
 
 class MotionLimiter:

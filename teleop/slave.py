@@ -11,18 +11,19 @@ import logging
 import math
 import threading
 import time
-from collections import Counter, deque
+from collections import Counter
 from collections.abc import Callable
 
 import numpy as np
 import zmq
 
 from teleop import protocol as P
+from teleop.admission import Admission, peer_name
 from teleop.config import TeleopConfig
 from teleop.link import LoggingAuthenticator, SlaveSocket, wait_readable
 from teleop.mapping import Mapping
 from teleop.predict import IMMPredictor, Predictor
-from teleop.safety import MotionLimiter, SampleGate, Watchdog
+from teleop.safety import MotionLimiter, Watchdog
 from teleop.slaves import Arm, ArmFault
 
 log = logging.getLogger(__name__)
@@ -38,7 +39,7 @@ class SlaveLoop:
         self.sock = sock
         self.clock = clock
         self.mapping = Mapping(self.cfg.mapping)
-        self.gate = SampleGate(self.cfg.safety)
+        self.admission = Admission(self.cfg.safety)
         self.watchdog = Watchdog(self.cfg.safety.watchdog_s)
         pc = self.cfg.prediction
         # x, y restart at every touch (unknown while lifted). z restarts too, seeded with
@@ -57,9 +58,7 @@ class SlaveLoop:
         self.limiter = MotionLimiter(self.cfg.safety, self.home_mm)
         self.status = P.STATUS_IDLE
         self.counts: Counter[str] = Counter()
-        self.peer: bytes | None = None
-        self._offsets: deque[float] = deque(maxlen=200)
-        self.offset_s: float | None = None  # slave clock - master clock (+ min latency)
+        self.peer: bytes | None = None  # the owner, or the last one: periodic states go there
         self._latest: P.Sample | None = None
         self._latest_recv_s = math.nan
         self._contact = False
@@ -68,6 +67,8 @@ class SlaveLoop:
         self._touchdown = False
         self._was_alive = False
         self._actual_mm = self.home_mm.copy()
+        self._hold_since_s = math.nan  # slave clock when the operator hold began
+        self.stopped = False  # the robot was stopped (fault, long hold): never servo again
         self.t_start_s = math.nan
         self.t_end_s = math.nan
 
@@ -85,28 +86,56 @@ class SlaveLoop:
             log.debug("malformed message: %s", e)
             return
         self.counts["received"] += 1
-        if ident != self.peer:
-            # A new master (or the same one after a restart): its seq starts again.
-            if self.peer is not None:
-                log.info("new master connection: sequence and clock offset reset")
-            self.peer = ident
-            self.gate.reset_sequence()
-            self._offsets.clear()
-        d = now_s - s.t_send_s
-        offset = min(min(self._offsets, default=d), d)
-        age_s = now_s - offset - s.t_capture_s
-        if self.gate.admit(s, age_s):
-            self._offsets.append(d)
-            self.offset_s = min(self._offsets)
+        reason = self.admission.judge(ident, s, now_s)
+        if reason is None:
+            if self.admission.acquired:
+                self._new_owner(ident)
             self.watchdog.feed(now_s)
-            self._accept(s)
+            self._accept(s, now_s)
             self._latest_recv_s = now_s
-        self._send_state(P.REASON_ACK, now_s, s)
+            self._send_state(P.REASON_ACK, now_s, s)
+        else:
+            self._send_state(P.REASON_REFUSED, now_s, s, to=ident,
+                             status=P.STATUS_NOT_OWNER if reason == "not_owner" else None)
 
-    def _accept(self, s: P.Sample) -> None:
+    @property
+    def offset_s(self) -> float | None:
+        """Slave clock - the owner's clock (+ a short latency), teleop/admission.py."""
+        return self.admission.owner_offset_s()
+
+    def _new_owner(self, ident: bytes) -> None:
+        """A master took the free arm (only from a hold): start its history afresh; the
+        command glides to its finger at resume speed (``_target_ws``), never jumps."""
+        if self.peer is not None and self.peer != ident:
+            log.info("master %s takes over from %s", peer_name(ident), peer_name(self.peer))
+        self.peer = ident
+        self.predictor.reset()
+        self.predictor_z.reset()
+        self._latest = None
+        self._contact = False
+        self._hold_since_s = math.nan
+
+    def _accept(self, s: P.Sample, now_s: float) -> None:
         self.counts["accepted"] += 1
-        # Predictors run on the master's capture clock (strictly increasing, checked by the
-        # gate); "now" is mapped into it with the offset, which may still be refined.
+        if s.operator_hold:
+            # Stand still; never extrapolate across the hold, glide back on release.
+            if math.isnan(self._hold_since_s):
+                self._hold_since_s = now_s
+                self.counts["operator_holds"] += 1
+                log.info("operator hold: standing still")
+            self.predictor.reset()
+            self.predictor_z.reset()
+            self._contact = False
+            self._latest = s
+            return
+        if not math.isnan(self._hold_since_s):
+            log.info("operator hold released after %.1f s: gliding back at %.0f mm/s",
+                     now_s - self._hold_since_s, self.cfg.safety.resume_speed_mm_s)
+            self._hold_since_s = math.nan
+            self._gliding = True
+            self._glide_speed_mm_s = self.cfg.safety.resume_speed_mm_s
+        # Predictors run on the owner's capture clock (strictly increasing: admission);
+        # "now" is mapped into it with the owner's clock offset.
         t_slave = s.t_capture_s
         if s.contact != self._contact or (self._latest is not None
                                           and s.hold_mode != self._latest.hold_mode):
@@ -125,20 +154,23 @@ class SlaveLoop:
         self._contact = s.contact
         self._latest = s
 
-    def _send_state(self, reason: int, now_s: float, echo: P.Sample | None) -> None:
-        if self.peer is None:
+    def _send_state(self, reason: int, now_s: float, echo: P.Sample | None,
+                    to: bytes | None = None, status: int | None = None) -> None:
+        to = to or self.peer
+        if to is None:
             return
         cmd_ws = self.mapping.to_workspace(self.limiter.cmd_mm)
         act_ws = self.mapping.to_workspace(self._actual_mm)
         e = echo or self._latest
-        st = P.State(status=self.status, reason=reason, echo_seq=e.seq if e else 0,
+        st = P.State(status=self.status if status is None else status, reason=reason,
+                     echo_seq=e.seq if e else 0,
                      t_echo_send_s=e.t_send_s if e else math.nan,
                      t_echo_recv_s=now_s if echo is not None else self._latest_recv_s,
-                     t_slave_s=self.clock() if reason == P.REASON_ACK else now_s,
+                     t_slave_s=self.clock() if reason != P.REASON_TICK else now_s,
                      cmd_mm=tuple(cmd_ws), actual_mm=tuple(act_ws),
-                     received=self.counts["received"], dropped=self.gate.dropped_total)
+                     received=self.counts["received"], dropped=self.admission.dropped_total)
         try:
-            self.sock.sock.send_multipart([self.peer, P.encode_state(st)], zmq.NOBLOCK)
+            self.sock.sock.send_multipart([to, P.encode_state(st)], zmq.NOBLOCK)
         except zmq.ZMQError:
             self.counts["state_send_failed"] += 1
 
@@ -152,6 +184,9 @@ class SlaveLoop:
                 self.predictor.reset()
                 self.predictor_z.reset()
             self._was_alive = False
+            if self.admission.owner is not None:
+                self.admission.release()
+                self._hold_since_s = math.nan
             if self._latest is not None:
                 self.status = P.STATUS_WATCHDOG_HOLD
             return None
@@ -161,6 +196,14 @@ class SlaveLoop:
         self._was_alive = True
         s = self._latest
         cmd_ws = self.mapping.to_workspace(self.limiter.cmd_mm)
+        if s.operator_hold:
+            self.status = P.STATUS_OPERATOR_HOLD
+            stop_s = self.cfg.safety.operator_hold_stop_s
+            if stop_s > 0 and now_s - self._hold_since_s > stop_s:
+                self._stop_robot(P.STATUS_STOPPED,
+                                 f"operator hold longer than {stop_s:g} s "
+                                 "(safety.operator_hold_stop_s)")
+            return None
         if not s.contact:
             self.status = P.STATUS_CLUTCH
             return np.array([cmd_ws[0], cmd_ws[1], 0.0])  # hold x, y; back to the surface
@@ -185,8 +228,25 @@ class SlaveLoop:
             tgt[2] = min(tgt[2], max(s.z_mm, 0.0))
         return tgt
 
+    def _stop_robot(self, status: int, why: str) -> None:
+        """Stop the robot for good (UR: servoStop, stopScript, disconnect): this slave
+        process never moves it again; it keeps answering with ``status``."""
+        self.status = status
+        if self.stopped:
+            return
+        self.stopped = True
+        log.error("robot stopped: %s; restart the slave to continue", why)
+        try:
+            self.arm.close()
+        except Exception:  # the arm is already gone; nothing more to do safely
+            log.exception("stopping the robot failed")
+
     def tick(self, now_s: float, dt_s: float) -> None:
         tgt_ws = self._target_ws(now_s)
+        if tgt_ws is not None and not np.all(np.isfinite(tgt_ws)):
+            # Finite samples far out of range can overflow the prediction: hold instead.
+            self.counts["nonfinite_targets"] += 1
+            tgt_ws = None
         if tgt_ws is None:
             cmd = self.limiter.hold(dt_s)
         else:
@@ -198,18 +258,15 @@ class SlaveLoop:
                                                self.cfg.safety.max_speed_mm_s)
                                            if self._gliding else self.cfg.safety.max_speed_mm_s)
             cmd = self.limiter.step(tgt, dt_s)
-        try:
-            if self.status != P.STATUS_FAULT:
+        if self.stopped:
+            self.status = P.STATUS_FAULT if self.counts["arm_faults"] else P.STATUS_STOPPED
+        else:
+            try:
                 self.arm.servo(cmd, now_s)
                 self._actual_mm = self.arm.actual_mm()
-        except ArmFault as e:
-            self.status = P.STATUS_FAULT
-            self.counts["arm_faults"] += 1
-            log.error("robot fault, holding: %s", e)
-            try:
-                self.arm.hold()
-            except Exception:  # the arm is already gone; nothing more to do safely
-                log.exception("hold after fault failed")
+            except ArmFault as e:
+                self.counts["arm_faults"] += 1
+                self._stop_robot(P.STATUS_FAULT, f"robot fault: {e}")
         self._send_state(P.REASON_TICK, now_s, None)
 
     def run(self, stop: threading.Event, duration_s: float | None = None) -> None:
@@ -232,10 +289,14 @@ class SlaveLoop:
                             break
                         self._on_message(frames, self.clock())
             self.tick(now, min(max(now - t_prev, 1e-4), 0.05))
+            self.sock.poll_monitor()
             t_prev = now
+            # Late ticks catch up at half a period at the least (never back to back: the
+            # limiter's step must span real time), and a starved loop skips ahead.
             t_next += period
             if now - t_next > 0.05:  # starved (e.g. CI load): skip ahead, don't burst
                 t_next = now + period
+            t_next = max(t_next, now + 0.5 * period)
         self.t_end_s = self.clock()
 
     def report(self) -> dict:
@@ -247,11 +308,20 @@ class SlaveLoop:
             "malformed": self.counts["malformed"],
             "received": self.counts["received"],
             "accepted": self.counts["accepted"],
-            "dropped": dict(self.gate.dropped),
+            "dropped": dict(self.admission.dropped),
+            "takeovers": self.admission.takeovers,
+            "operator_holds": self.counts["operator_holds"],
+            "stopped": self.stopped,
             "watchdog_trips": self.watchdog.trips,
+            # Per trip: last valid sample -> the tick before the trip; at most watchdog_s
+            # when every trip (and release of the arm) came at the first tick past it.
+            "watchdog_pre_trip_max_s": round(max(self.watchdog.pre_trip_checks_s,
+                                                 default=0.0), 4),
+            "nonfinite_targets": self.counts["nonfinite_targets"],
             "box_clamped_ticks": self.limiter.clamped,
             "arm_faults": self.counts["arm_faults"],
             "auth_denied": LoggingAuthenticator.denied,
+            "handshakes_failed": dict(self.sock.handshakes_failed),
         }
 
 

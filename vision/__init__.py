@@ -1,6 +1,6 @@
 """Finger sensing for the FYD-pad: contact centroid, indentation and force.
 
-This package imports nothing from the rest of the project (DESIGN.md).
+This package imports nothing from the rest of the project (docs/architecture.md).
 """
 
 from vision.contact import Contact, ContactTracker

@@ -20,10 +20,11 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from vision.errors import UserError
 from vision.mapping import flip_point
 
 
-class CalibrationError(ValueError):
+class CalibrationError(UserError, ValueError):
     """Calibration data is too little, degenerate or inconsistent; the message says which."""
 
 

@@ -46,6 +46,9 @@ class IRConfig:
     correction_coef: tuple[float, ...] = ()
     correction_xy_degree: int = 4
     correction_depth_degree: int = 2
+    #: The correction weighs each sensor's deflection (True, what ``fydpad calibrate
+    #: indentation`` fits) or the plane's estimate (False).
+    correction_per_sensor: bool = False
     #: Sensor board ADC: bits and reference voltage (the board's hello line overrides).
     adc_bits: int = 10
     adc_vref_v: float = 5.0
@@ -84,13 +87,15 @@ class IRConfig:
         ):
             raise ValueError("baseline_mm: expected three positive distances in mm")
         if self.correction_coef:
-            n = (self.correction_depth_degree * (self.correction_xy_degree + 1)
-                 * (self.correction_xy_degree + 2) // 2)
+            n = ((3 if self.correction_per_sensor else 1) * self.correction_depth_degree
+                 * (self.correction_xy_degree + 1) * (self.correction_xy_degree + 2) // 2)
             if len(self.correction_coef) != n:
                 raise ValueError(
                     f"correction_coef: expected {n} coefficients for correction_xy_degree "
                     f"{self.correction_xy_degree} and correction_depth_degree "
-                    f"{self.correction_depth_degree}, got {len(self.correction_coef)}")
+                    f"{self.correction_depth_degree}"
+                    f"{' per sensor' if self.correction_per_sensor else ''}, "
+                    f"got {len(self.correction_coef)}")
         if not 1 <= self.adc_bits <= 24:
             raise ValueError("adc_bits: expected 1-24")
         if not self.adc_vref_v > 0 or not self.rate_hz > 0 or not self.serial_timeout_s > 0:

@@ -9,7 +9,7 @@ workspace frame, or None. ``method="paper"`` is the paper's algorithm exactly:
 4. pixels darker than the threshold (150) are the finger;
 5. weights ``k = exp(-(I - Imin)^2 / (2 sigma^2))`` with ``sigma = (Imax - Imin) / beta``
    (beta = 5) over the finger pixels; when ``sigma = 0`` every finger pixel weighs 1;
-6. the weighted mean of the pixel centres, mapped to the workspace (RECORDING_FORMAT.md).
+6. the weighted mean of the pixel centres, mapped to the workspace (docs/recording_format.md).
 """
 
 from __future__ import annotations

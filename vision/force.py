@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from vision.config import G_M_S2, ForceConfig
+from vision.errors import UserError
 
 
 @dataclass
@@ -47,7 +48,7 @@ def saturation_flags(
     return sat
 
 
-class ForceCalibrationError(ValueError):
+class ForceCalibrationError(UserError, ValueError):
     """Calibration data is too little or degenerate; the message says why."""
 
 

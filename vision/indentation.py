@@ -6,7 +6,7 @@ to the fabric above it. A finger pushes the fabric *down*, towards the base, so 
 shrinks: ``e_i = z_i - zbar_i`` (zbar_i the rest distance) is negative when pressing.
 The plane through the three points (x_i, y_i, e_i) evaluated at the contact centroid
 gives eq. (2)'s delta, also negative when pressing; the indentation (positive down,
-RECORDING_FORMAT.md) is ``-delta``.
+docs/recording_format.md) is ``-delta``.
 
 Eq. (2) is the plane for the paper's sensor positions (-22, -3), (0, 27), (22, -3) mm:
 solved for delta it is the barycentric interpolation of e_0, e_1, e_2. This module
@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from vision.config import PAPER_SENSORS_MM, IRConfig
+from vision.errors import UserError
 from vision.ir import PAPER_POLY_CM, VALID_VOLTAGE_RANGE_V
 
 #: Voltages where eq. (1) is nearly flat (slope under about 13 mm/V): low resolution.
@@ -171,7 +172,7 @@ def resolve_baseline_mm(
     estimated_mm: ArrayLike | None,
     base_to_fabric_mm: float,
 ) -> NDArray[np.float64]:
-    """RECORDING_FORMAT.md's rule: the given ``baseline_mm``; where absent, the estimate
+    """docs/recording_format.md's rule: the given ``baseline_mm``; where absent, the estimate
     from samples without contact; where there is none, ``base_to_fabric_mm``."""
     if configured_mm is not None:
         return np.asarray(configured_mm, dtype=np.float64).copy()
@@ -187,63 +188,101 @@ def resolve_baseline_mm(
 
 @dataclass(frozen=True)
 class PlaneCorrection:
-    """Indentation beyond the plane: ``depth = sum_k c_k f_k(p, x, y)`` with p the plane
-    estimate and f_k = p^a / 50^(a-1) * u^i * v^j, for a = 1..``depth_degree`` and
-    i + j <= ``xy_degree`` (u = x/50, v = y/50).
+    """Indentation beyond the plane, a linear model on features that all vanish with no
+    deflection (no indentation stays no indentation), u = x/50, v = y/50:
+
+    - ``per_sensor`` (what ``fydpad calibrate indentation`` fits): each sensor's own
+      deflection e_i (positive down) weighted by a polynomial of the centroid,
+      ``depth = sum_a sum_i sum_jk c e_i^a / 50^(a-1) u^j v^k``, a = 1..``depth_degree``,
+      j + k <= ``xy_degree``. The plane is the case of weights linear in (x, y) (the
+      barycentric ones); free weights learn how the fabric really sags between each
+      sensor and the finger, sensors mounted off their nominal places included, so a
+      fit on presses holds for strokes elsewhere at other depths;
+    - otherwise on the plane estimate p alone,
+      ``depth = sum_a sum_jk c p^a / 50^(a-1) u^j v^k`` (device files written before
+      ``per_sensor`` existed).
 
     A real fabric is not a plane: it sags towards the finger, so the sensors (22-30 mm
     away) see less than the finger's depth, by a factor that depends on where the finger
-    is and, as the fabric wraps the finger, on the depth. Every feature vanishes at
-    p = 0, so no indentation stays no indentation. Fitted by ridge least squares,
-    shrunk towards the identity (depth = p).
+    is and, as the fabric wraps the finger, on the depth. Fitted by ridge least squares,
+    shrunk towards the plane (depth = p).
     """
 
     coef: tuple[float, ...]
     xy_degree: int = 4
     depth_degree: int = 2
+    per_sensor: bool = False
 
     def __post_init__(self) -> None:
-        n = self.n_coef(self.xy_degree, self.depth_degree)
+        n = self.n_coef(self.xy_degree, self.depth_degree, self.per_sensor)
         if len(self.coef) != n:
             raise ValueError(f"correction: expected {n} coefficients for xy degree "
-                             f"{self.xy_degree} and depth degree {self.depth_degree}, "
+                             f"{self.xy_degree} and depth degree {self.depth_degree}"
+                             f"{' per sensor' if self.per_sensor else ''}, "
                              f"got {len(self.coef)}")
 
     @staticmethod
-    def n_coef(xy_degree: int, depth_degree: int) -> int:
-        return depth_degree * (xy_degree + 1) * (xy_degree + 2) // 2
+    def n_coef(xy_degree: int, depth_degree: int, per_sensor: bool = False) -> int:
+        return (3 if per_sensor else 1) * depth_degree * (xy_degree + 1) * (xy_degree + 2) // 2
 
     @staticmethod
     def features(
         plane_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike, xy_degree: int = 4,
-        depth_degree: int = 2,
+        depth_degree: int = 2, e_mm: ArrayLike | None = None,
     ) -> NDArray[np.float64]:
-        p = np.asarray(plane_mm, np.float64)
+        """The model's features; per sensor when ``e_mm`` (n, 3, positive down) is given."""
         # Scaled to about [-1, 1] over the workspace, so the powers stay well conditioned.
         u, v = np.asarray(x_mm, np.float64) / 50.0, np.asarray(y_mm, np.float64) / 50.0
+        mons = [u**i * v**j for i in range(xy_degree + 1) for j in range(xy_degree + 1 - i)]
+        inputs = [np.asarray(plane_mm, np.float64)] if e_mm is None else \
+            list(np.atleast_2d(np.asarray(e_mm, np.float64)).T)
         cols = []
         for a in range(1, depth_degree + 1):
-            pa = p**a / 50.0 ** (a - 1)
-            for i in range(xy_degree + 1):
-                for j in range(xy_degree + 1 - i):
-                    cols.append(pa * u**i * v**j)
+            for q in inputs:
+                qa = q**a / 50.0 ** (a - 1)
+                cols.extend(qa * m for m in mons)
         return np.stack(cols, axis=-1)
 
-    def apply(self, plane_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike) -> NDArray[np.float64]:
-        f = self.features(plane_mm, x_mm, y_mm, self.xy_degree, self.depth_degree)
+    def apply(self, plane_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike,
+              e_mm: ArrayLike | None = None) -> NDArray[np.float64]:
+        """The corrected depth; a per-sensor correction needs ``e_mm`` (n, 3)."""
+        if self.per_sensor and e_mm is None:
+            raise ValueError("a per-sensor correction needs the sensors' deflections e_mm")
+        f = self.features(plane_mm, x_mm, y_mm, self.xy_degree, self.depth_degree,
+                          e_mm if self.per_sensor else None)
         return f @ np.asarray(self.coef)
 
     @classmethod
-    def identity(cls, xy_degree: int = 4, depth_degree: int = 2) -> PlaneCorrection:
-        n = cls.n_coef(xy_degree, depth_degree)
-        return cls((1.0,) + (0.0,) * (n - 1), xy_degree, depth_degree)
+    def identity(cls, xy_degree: int = 4, depth_degree: int = 2,
+                 sensors_mm: Sequence[Sequence[float]] | None = None) -> PlaneCorrection:
+        """depth = p: for a per-sensor correction (``sensors_mm`` given) the barycentric
+        weights of those sensors written as polynomials of (x, y)."""
+        n = cls.n_coef(xy_degree, depth_degree, sensors_mm is not None)
+        coef = np.zeros(n)
+        if sensors_mm is None:
+            coef[0] = 1.0
+            return cls(tuple(coef), xy_degree, depth_degree)
+        s = np.asarray(sensors_mm, np.float64)
+        m_inv = np.linalg.inv(np.vstack([s[:, 0], s[:, 1], np.ones(3)]))
+        # w_i = m_inv[i, 0] x + m_inv[i, 1] y + m_inv[i, 2], in u = x/50, v = y/50.
+        mons = [(i, j) for i in range(xy_degree + 1) for j in range(xy_degree + 1 - i)]
+        per = len(mons)
+        if xy_degree >= 1:
+            for k in range(3):
+                coef[k * per + mons.index((0, 0))] = m_inv[k, 2]
+                coef[k * per + mons.index((1, 0))] = m_inv[k, 0] * 50.0
+                coef[k * per + mons.index((0, 1))] = m_inv[k, 1] * 50.0
+        return cls(tuple(float(c) for c in coef), xy_degree, depth_degree, True)
 
     @staticmethod
-    def penalty(xy_degree: int = 4, depth_degree: int = 2) -> NDArray[np.float64]:
-        """Ridge weight per term: (order in x, y plus extra power of p) squared, so the
-        plane's own term is free and higher orders give way first when data are few."""
-        return np.array([float(i + j + a - 1) ** 2
+    def penalty(xy_degree: int = 4, depth_degree: int = 2, per_sensor: bool = False
+                ) -> NDArray[np.float64]:
+        """Ridge weight per term: (order in x, y plus extra power of the input) squared,
+        at least 1, so higher orders give way first when data are few."""
+        reps = 3 if per_sensor else 1
+        return np.array([max(float(i + j + a - 1) ** 2, 1.0 if per_sensor else 0.0)
                          for a in range(1, depth_degree + 1)
+                         for _ in range(reps)
                          for i in range(xy_degree + 1)
                          for j in range(xy_degree + 1 - i)])
 
@@ -251,45 +290,57 @@ class PlaneCorrection:
     def fit(
         cls, plane_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike, truth_mm: ArrayLike,
         xy_degree: int = 4, depth_degree: int = 2, ridge: float = 1e-2,
+        e_mm: ArrayLike | None = None, sensors_mm: Sequence[Sequence[float]] | None = None,
     ) -> PlaneCorrection:
         """Ridge least squares of the true depth on the features, the ridge (relative to
         the features' mean square) weighted by ``penalty`` and shrinking towards
-        depth = p, so sparse data (few press positions) cannot run away."""
-        n = cls.n_coef(xy_degree, depth_degree)
-        f = cls.features(plane_mm, x_mm, y_mm, xy_degree, depth_degree)
+        depth = p, so sparse data (few press positions) cannot run away. Per sensor when
+        ``e_mm`` is given (then ``sensors_mm``, the nominal positions, set the prior)."""
+        per_sensor = e_mm is not None
+        n = cls.n_coef(xy_degree, depth_degree, per_sensor)
+        f = cls.features(plane_mm, x_mm, y_mm, xy_degree, depth_degree, e_mm)
         t = np.asarray(truth_mm, np.float64)
         ok = np.all(np.isfinite(f), axis=1) & np.isfinite(t)
         f, t = f[ok], t[ok]
         if t.size < 3 * n:
             raise ValueError(f"correction: need at least {3 * n} calibration samples with "
                              f"valid readings, got {t.size}")
-        prior = np.asarray(cls.identity(xy_degree, depth_degree).coef)
+        if per_sensor:
+            prior = np.asarray(cls.identity(
+                xy_degree, depth_degree,
+                PAPER_SENSORS_MM if sensors_mm is None else sensors_mm).coef)
+        else:
+            prior = np.asarray(cls.identity(xy_degree, depth_degree).coef)
         lam = ridge * float(np.mean(np.sum(f * f, axis=1))) * np.diag(
-            cls.penalty(xy_degree, depth_degree))
+            cls.penalty(xy_degree, depth_degree, per_sensor))
         coef = np.linalg.solve(f.T @ f + lam, f.T @ t + lam @ prior)
-        return cls(tuple(float(c) for c in coef), xy_degree, depth_degree)
+        return cls(tuple(float(c) for c in coef), xy_degree, depth_degree, per_sensor)
 
     @classmethod
     def fit_cv(
         cls, plane_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike, truth_mm: ArrayLike,
         groups: ArrayLike, xy_degree: int = 4, depth_degree: int = 2,
         ridges: Sequence[float] = (1e-3, 1e-2, 1e-1, 1.0, 10.0),
+        e_mm: ArrayLike | None = None, sensors_mm: Sequence[Sequence[float]] | None = None,
     ) -> tuple[PlaneCorrection, float, dict[float, float]]:
         """The ridge chosen by two-fold cross-validation over ``groups`` (e.g. press
         numbers: even presses fit, odd ones score, and back), then fitted on all data.
         Returns the correction, its held-out RMSE and the RMSE per ridge tried."""
         p, x, y, t = (np.asarray(a, np.float64) for a in (plane_mm, x_mm, y_mm, truth_mm))
+        e = None if e_mm is None else np.asarray(e_mm, np.float64)
         half = np.asarray(groups) % 2
         scores: dict[float, float] = {}
         for ridge in ridges:
             held = np.full(t.size, np.nan)
             for g in (0, 1):
                 a, b = half == g, half != g
-                c = cls.fit(p[a], x[a], y[a], t[a], xy_degree, depth_degree, ridge)
-                held[b] = c.apply(p[b], x[b], y[b])
+                c = cls.fit(p[a], x[a], y[a], t[a], xy_degree, depth_degree, ridge,
+                            None if e is None else e[a], sensors_mm)
+                held[b] = c.apply(p[b], x[b], y[b], None if e is None else e[b])
             scores[ridge] = rmse(held, t)
         best = min(scores, key=lambda r: scores[r])
-        return cls.fit(p, x, y, t, xy_degree, depth_degree, best), scores[best], scores
+        final = cls.fit(p, x, y, t, xy_degree, depth_degree, best, e, sensors_mm)
+        return final, scores[best], scores
 
 
 def rmse(a: ArrayLike, b: ArrayLike) -> float:
@@ -304,11 +355,13 @@ def rmse(a: ArrayLike, b: ArrayLike) -> float:
 @dataclass
 class IndentationResult:
     """Per sample: the indentation (mm, positive down; NaN when invalid), the plane's
-    estimate -delta before correction, and ``IRFlag`` bits."""
+    estimate -delta before correction, ``IRFlag`` bits and the sensors' deflections."""
 
     indentation_mm: NDArray[np.float64]
     plane_mm: NDArray[np.float64]
     flags: NDArray[np.int64]
+    #: Each sensor's deflection from its rest distance, positive down, (n, 3).
+    deflection_mm: NDArray[np.float64] | None = None
 
     @property
     def valid(self) -> NDArray[np.bool_]:
@@ -354,7 +407,8 @@ class IndentationEstimator:
                                     else config.base_to_fabric_mm),
             baseline_mm=None if base is None else tuple(float(b) for b in base),  # type: ignore[arg-type]
             correction=PlaneCorrection(tuple(config.correction_coef), config.correction_xy_degree,
-                                       config.correction_depth_degree)
+                                       config.correction_depth_degree,
+                                       config.correction_per_sensor)
             if config.correction_coef else None,
         )
 
@@ -402,14 +456,14 @@ class IndentationEstimator:
         fl |= np.where(has_xy & np.any(w < -1e-9, axis=1), int(IRFlag.EXTRAPOLATED), 0)
         e = d - self.rest_mm()  # negative when the finger presses the fabric down
         plane = -np.sum(w * e, axis=1)  # indentation = -delta
-        depth = plane if self.correction is None else self.correction.apply(plane, xs, ys)
+        depth = plane if self.correction is None else self.correction.apply(plane, xs, ys, -e)
         bad = (fl & int(INVALID)) != 0
         plane = np.where(bad, np.nan, plane)
         depth = np.where(bad, np.nan, depth)
         # Without contact the format says 0, whatever the sensors read (noise, drift).
         depth = np.where(touching, depth, 0.0)
         plane = np.where(touching, plane, 0.0)
-        return IndentationResult(depth, plane, fl)
+        return IndentationResult(depth, plane, fl, -e)
 
     def estimate(
         self, volts: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike,
@@ -592,7 +646,7 @@ def indentation_at_frames(
 # --------------------------------------------------------------------------- eq. (1) refit
 
 
-class IRCalibrationError(ValueError):
+class IRCalibrationError(UserError, ValueError):
     """(distance, voltage) pairs too few or degenerate for a fit; the message says why."""
 
 

@@ -1,4 +1,4 @@
-"""Image to workspace geometry: the camera flip and the ROI mapping (RECORDING_FORMAT.md).
+"""Image to workspace geometry: the camera flip and the ROI mapping (docs/recording_format.md).
 
 Pixel coordinates are continuous: pixel (col i, row j) covers [i, i+1) x [j, j+1), so
 its centre is (i + 0.5, j + 0.5). The workspace frame is the fabric seen from above,
@@ -43,7 +43,7 @@ def roi_to_workspace(
     roi_px: tuple[int, int, int, int],
     workspace_mm: tuple[float, float],
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """RECORDING_FORMAT.md's linear map from flipped-frame pixels to the workspace:
+    """docs/recording_format.md's linear map from flipped-frame pixels to the workspace:
     ``x_mm = ((u - x)/w - 0.5) * W_mm``, ``y_mm = (0.5 - (v - y)/h) * H_mm``."""
     x, y, w, h = roi_px
     u = np.asarray(u_px, dtype=np.float64)

@@ -1,6 +1,6 @@
 """Readers and writers for the pad session recording and the tracking output.
 
-The formats are the contract of ``RECORDING_FORMAT.md``; every error names the file
+The formats are the contract of docs/recording_format.md; every error names the file
 and the key, or the line number (the header is line 1).
 """
 
@@ -10,8 +10,10 @@ import csv
 import json
 import math
 import os
+import stat
 import time
-from collections.abc import Iterator, Sequence
+import warnings
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -19,6 +21,9 @@ from typing import IO, Any
 import cv2
 import numpy as np
 from numpy.typing import NDArray
+
+from vision.errors import UserError
+from vision.strict_json import finite
 
 IMAGE_FLIPS = ("none", "horizontal", "vertical", "both")
 DEFAULT_IR_SENSORS_MM: tuple[tuple[float, float], ...] = ((-22.0, -3.0), (0.0, 27.0), (22.0, -3.0))
@@ -28,7 +33,7 @@ TRUTH_COLUMNS = ("t_s", "frame", "contact", "x_mm", "y_mm", "indentation_mm")
 VIDEO_NAMES = ("video.avi", "video.mp4")
 
 
-class RecordingError(ValueError):
+class RecordingError(UserError, ValueError):
     """A recording file is missing or malformed; the message names the file and key or line."""
 
 
@@ -168,7 +173,8 @@ def read_meta(recdir: str | Path) -> PadMeta:
 
 def write_meta(recdir: str | Path, meta: PadMeta) -> Path:
     path = Path(recdir) / "meta.json"
-    path.write_text(json.dumps(meta.to_json(), indent=2) + "\n", encoding="utf-8")
+    path.write_text(json.dumps(finite(meta.to_json()), indent=2, allow_nan=False) + "\n",
+                    encoding="utf-8")
     return path
 
 
@@ -298,6 +304,14 @@ class CsvRowWriter:
             self._fh.flush()
             self._last_flush = now
 
+    def write_rows(self, rows: Iterable[Sequence[object]]) -> None:
+        """Many rows in one write (a log's writer thread, a chunk at a time)."""
+        self._fh.write("".join(",".join(map(_fmt, r)) + "\n" for r in rows))
+        now = time.monotonic()
+        if now - self._last_flush >= self._flush_every_s:
+            self._fh.flush()
+            self._last_flush = now
+
     def flush(self) -> None:
         self._fh.flush()
         self._last_flush = time.monotonic()
@@ -305,7 +319,8 @@ class CsvRowWriter:
     def close(self) -> None:
         if not self._fh.closed:
             self._fh.flush()
-            os.fsync(self._fh.fileno())
+            if stat.S_ISREG(os.fstat(self._fh.fileno()).st_mode):  # a pipe has no fsync
+                os.fsync(self._fh.fileno())
             self._fh.close()
 
     def __enter__(self) -> CsvRowWriter:
@@ -362,12 +377,39 @@ class Truth:
     indentation_mm: NDArray[np.float64]
 
 
+def _last_time(path: Path) -> float | None:
+    """The last row's t_s (first column) of a CSV file, or None when absent or empty."""
+    if not path.exists():
+        return None
+    with path.open("rb") as fh:
+        fh.seek(0, os.SEEK_END)
+        fh.seek(max(0, fh.tell() - 4096))
+        lines = fh.read().decode("utf-8", "replace").strip().splitlines()
+    for line in reversed(lines):
+        try:
+            return float(line.split(",", 1)[0])
+        except ValueError:
+            continue  # the header, or a torn line
+    return None
+
+
+class TruncatedVideo(RecordingError):
+    """The video ends (or stops decoding) before the recording's other files do."""
+
+
 class PadRecording:
     """A pad session recording directory, read lazily.
 
     ``frames()`` streams the video one frame at a time; the sensor files are read
-    on demand and validated, each error naming its file and line.
+    on demand and validated, each error naming its file and line. A video that ends
+    before frames.csv, ir.csv, force.csv or truth.csv does (truncated, or a frame that
+    fails to decode) raises :class:`TruncatedVideo` after the last good frame, unless
+    ``allow_truncated`` is set (``--allow-truncated``): then ``truncation`` says what was
+    cut and the frames simply stop.
     """
+
+    #: Set by ``--allow-truncated``: a short video ends the frames instead of raising.
+    allow_truncated: bool = False
 
     def __init__(self, recdir: str | Path):
         self.path = Path(recdir)
@@ -398,6 +440,8 @@ class PadRecording:
         finally:
             cap.release()
         self.video_size = (w, h)
+        #: The message of a truncation met with allow_truncated set, else None.
+        self.truncation: str | None = None
         if self.meta.frame_size is not None and tuple(self.meta.frame_size) != (w, h):
             raise RecordingError(
                 f"{self.path / 'meta.json'}: key 'frame_size' is {list(self.meta.frame_size)} "
@@ -440,6 +484,7 @@ class PadRecording:
             while True:
                 ok, frame = cap.read()
                 if not ok:
+                    self._check_complete(k)
                     break
                 h, w = frame.shape[:2]
                 if (w, h) != self.video_size:
@@ -451,6 +496,38 @@ class PadRecording:
                 k += 1
         finally:
             cap.release()
+
+    def _check_complete(self, n_read: int) -> None:
+        """After the video's last decodable frame: do the other files end there too?
+
+        frames.csv must list exactly the frames read. Without it the video's end is its
+        frame count over meta.json's fps, and a sensor or truth file may run on by a frame
+        period plus 5 % (its own rate is not the camera's, and a live camera's true rate
+        drifts from its nominal one)."""
+        if self._frame_times is not None:
+            if n_read >= self._frame_times.size:
+                return
+            longer = (f"frames.csv lists {self._frame_times.size} frames "
+                      f"(to {self._frame_times[-1]:.2f} s)")
+        else:
+            period = 1.0 / float(self.meta.fps)  # type: ignore[arg-type]
+            t_video_end = n_read * period
+            longer = ""
+            for name in ("truth.csv", "ir.csv", "force.csv"):
+                t_last = _last_time(self.path / name)
+                if t_last is not None and t_last > 1.05 * t_video_end + period:
+                    longer = f"{name} runs on to {t_last:.2f} s"
+                    break
+            if not longer:
+                return
+        last = f"frame {n_read - 1}" if n_read else "no frame"
+        message = (f"{self.video_path}: the video ends after {last} (the last good one: "
+                   f"truncated or a frame that does not decode), while {longer}")
+        if not self.allow_truncated:
+            raise TruncatedVideo(message + "; --allow-truncated uses the frames before it")
+        self.truncation = message
+        warnings.warn(message + " (--allow-truncated: the frames before it are used)",
+                      stacklevel=2)
 
     # Sensor files -----------------------------------------------------------
 

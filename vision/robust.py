@@ -1,4 +1,4 @@
-"""A contact tracker that survives real footage (see docs/robust_tracking.md).
+"""A contact tracker that survives real footage (see docs/tracking.md).
 
 The paper's fixed grey-level threshold fails as soon as the light changes, the fabric
 has a mark on it, or a hovering finger casts a shadow. This tracker measures each
@@ -74,6 +74,13 @@ class RobustParams:
     bg_guard_mm: float = 8.0
     #: Grid step (in pyramid pixels) of the samples the gain field is fitted on.
     gain_grid_step: int = 3
+    #: Bootstrap without a stored background: the first frame's dark features narrower
+    #: than this (mm) are filled from around them (a grey closing) to look for a finger
+    #: already on the fabric.
+    bootstrap_fill_mm: float = 36.0
+    #: ... and a fingertip found there must be darkest within this many core radii of
+    #: its centroid (a dried drop, darkest on its rim, is not).
+    bootstrap_max_offcentre: float = 0.5
 
 
 @dataclass(frozen=True, slots=True)
@@ -93,7 +100,8 @@ class RobustTracker:
     """Background-relative contact detection over grey frames of one camera.
 
     Stateful (the background model and the contact hysteresis): one instance per camera
-    stream; :meth:`reset` forgets the background.
+    stream; :meth:`reset` forgets the learned background (a stored one,
+    :meth:`set_background`, is kept).
     """
 
     def __init__(
@@ -108,11 +116,18 @@ class RobustTracker:
         self.image_flip = image_flip
         self.workspace_mm = workspace_mm
         self._shape: tuple[int, int] | None = None
+        self._stored_bg: NDArray[np.uint8] | None = None
         self.reset()
 
     def reset(self) -> None:
         self._bg: NDArray[np.float32] | None = None
         self.in_contact = False
+
+    def set_background(self, frame: NDArray[np.uint8]) -> None:
+        """Start from a frame of the bare fabric (``fydpad calibrate background``) instead
+        of bootstrapping from the first frame tracked; the same size as the frames."""
+        self._stored_bg = self.grey_pyramid(frame)
+        self.reset()
 
     # -- geometry ---------------------------------------------------------------
 
@@ -209,19 +224,55 @@ class RobustTracker:
         img = self._img
         np.copyto(img, cv2.max(small, 1))  # no zero grey level: I / B stays finite
         if self._bg is None:
-            self._bg = img.copy()
+            if self._stored_bg is not None and self._stored_bg.shape == small.shape:
+                self._bg = cv2.max(self._stored_bg, 1).astype(np.float32)
+            else:
+                self._bg = self._bootstrap(img)
         result = self._detect(img)
         self._update_background(img, result)
         return result
 
+    def _bootstrap(self, img: NDArray[np.float32]) -> NDArray[np.float32]:
+        """The background from the first frame, without learning a finger already on it.
+
+        The first frame is the background (marks, vignetting and all) except where a
+        finger may be: a grey closing over ``bootstrap_fill_mm`` (a local maximum, then
+        a minimum) fills every dark feature narrower than that from the fabric around
+        it; the frame is then looked at against that filled background with the
+        tracker's own checks, and where they find a fingertip, its dark region (grown by
+        ``bg_guard_mm``) takes the filled value. Marks and shadows that do not pass as a
+        fingertip stay in the background as they are."""
+        p = self.params
+        kw = 2 * round(p.bootstrap_fill_mm / self._cell_w_mm / 2) + 1
+        kh = 2 * round(p.bootstrap_fill_mm / self._cell_h_mm / 2) + 1
+        kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (kw, kh))
+        filled = cv2.morphologyEx(img, cv2.MORPH_CLOSE, kernel, borderType=cv2.BORDER_REPLICATE)
+        self._bg = filled
+        found = self._detect(img)
+        self.in_contact = False  # the first frame's answer is the next call's
+        bg = img.copy()
+        # A fingertip pressed on the fabric is darkest near its middle; a mark that
+        # passes the other checks (a dried drop, darkest on its rim) is not: it stays.
+        if found is not None and self._best_offcentre <= p.bootstrap_max_offcentre:
+            x0, y0, bw, bh = self._best_box
+            region = np.zeros(self._shape, np.uint8)
+            region[y0 : y0 + bh, x0 : x0 + bw] = self._dark[y0 : y0 + bh, x0 : x0 + bw]
+            region = cv2.dilate(region, self._guard_kernel)
+            np.copyto(bg, filled, where=region.view(bool))
+        return bg
+
     def _fit_gain(self, ratio: NDArray[np.float32]) -> NDArray[np.float32]:
         """A smooth gain field fitted to ``I / B`` over pixels that are not dark."""
         samples = ratio.ravel().take(self._grid_flat).astype(np.float64)
-        floor = _median(samples) * 0.85
-        for i in range(2):
-            # Least squares by the 6x6 normal equations over the samples above the floor
-            # (the rest weighted 0: cheaper than copying the kept rows out).
-            keep = (samples > floor).astype(np.float64)
+        # First a band around the median: a finger or a shadow is darker, a dark thing
+        # learned into the background that has gone (a palm resting at the start)
+        # brighter; then a band around the fit.
+        med = _median(samples)
+        lo, hi = med * 0.85, med * 1.15
+        for i in range(3):
+            # Least squares by the 6x6 normal equations over the samples kept (the rest
+            # weighted 0: cheaper than copying the kept rows out).
+            keep = ((samples > lo) & (samples < hi)).astype(np.float64)
             normal = self._normal
             normal[self._upper] = normal[self._lower] = self._outer_t @ keep
             normal += self._ridge
@@ -230,9 +281,13 @@ class RobustTracker:
             # its ~20 us of Python-side checks per call.
             _, coef = cv2.solve(normal, rhs[:, None], flags=cv2.DECOMP_LU)
             coef = coef.ravel()
-            if i == 0:
-                # Drop samples well below the fit (a finger, a shadow) and refit.
-                floor = (coef @ self._basis_grid_t) * 0.9
+            if i < 2:
+                # Drop samples well below the fit (a finger, a shadow) and well above it
+                # (a dark thing learned into the background that has gone: a palm that
+                # rested at the start), and refit.
+                fit = coef @ self._basis_grid_t
+                lo = fit * 0.9
+                hi = fit * 1.12
         gain = self._gain
         np.matmul(coef.astype(np.float32), self._basis_full, out=gain.reshape(-1))
         cv2.max(gain, 1e-3, dst=gain)
@@ -346,6 +401,9 @@ class RobustTracker:
                     flatness=flatness,
                 )
                 self._best_box = (x0, y0, bw, bh)
+                # Where its darkest cell lies from its centroid, in core radii.
+                self._best_offcentre = float(np.hypot(px - cu, py - cv_)) / max(
+                    np.sqrt(core_cells / np.pi), 1.0)
         self.in_contact = best is not None
         return best
 

@@ -22,12 +22,21 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from vision.config import ForceConfig, IRConfig
+from vision.errors import DeviceFault
 from vision.force import raw_to_force, saturation_flags
 from vision.recording import PadRecording
+from vision.serial_line import MAX_LINE_BYTES as MAX_LINE_BYTES
+from vision.serial_line import ChecksumError as ChecksumError
+from vision.serial_line import DeviceClock, LineError, frame_line, take_line, unframe_line
+from vision.serial_line import checksum as checksum
+from vision.serial_line import parse_serial_spec as parse_serial_spec
 
 
-class SensorError(RuntimeError):
+class SensorError(DeviceFault, RuntimeError):
     """A sensor device is missing, disconnected or silent; the message names it."""
+
+    device = "sensor board"
+    check = "its cable, its power and the [sensors] port in the configuration"
 
 
 @dataclass(frozen=True, slots=True)
@@ -143,28 +152,14 @@ class ReplayForce:
 
 PROTOCOL_VERSION = 1
 BOARD_NAME = "FYDPAD-BOARD"
-#: Longest line the board sends is about 50 bytes; beyond this it is garbage.
-MAX_LINE_BYTES = 128
-
-
-def checksum(payload: bytes) -> int:
-    """XOR of the bytes between '$' and '*' (as NMEA 0183), two hex digits on the wire."""
-    c = 0
-    for b in payload:
-        c ^= b
-    return c
-
-
-def frame_line(payload: str) -> bytes:
-    """``$payload*HH\\n`` for a payload such as ``D,1234,512,498,530,-1022``."""
-    body = payload.encode("ascii")
-    return b"$" + body + b"*" + f"{checksum(body):02X}".encode("ascii") + b"\n"
-
-
-def data_line(t_ms: int, v_raw: Sequence[int], force_raw: int | None) -> bytes:
+def data_line(t_ms: int, v_raw: Sequence[int], force_raw: int | None,
+              pedal: bool | None = None) -> bytes:
+    """A data line; ``pedal`` (the deadman pedal: True pressed) adds the optional 7th
+    field, None leaves it out (a board without one)."""
     f = "" if force_raw is None else str(int(force_raw))
+    tail = "" if pedal is None else f",{int(bool(pedal))}"
     return frame_line(f"D,{int(t_ms) % 2**32},{int(v_raw[0])},{int(v_raw[1])},"
-                      f"{int(v_raw[2])},{f}")
+                      f"{int(v_raw[2])},{f}{tail}")
 
 
 def hello_line(rate_hz: float, adc_bits: int, vref_mv: int) -> bytes:
@@ -187,56 +182,33 @@ class DataLine:
     t_ms: int
     v_raw: tuple[int, int, int]
     force_raw: int | None
-
-
-class LineError(ValueError):
-    """A line that is not a valid board line; the message says why."""
-
-
-def unframe_line(line: bytes) -> list[str]:
-    """``$payload*HH`` (without the newline) -> the payload's comma-separated fields, or
-    LineError / ChecksumError. The last ``$`` starts the line (resync after a cut line)."""
-    line = line.rstrip(b"\r")
-    start = line.rfind(b"$")  # a line cut short and followed by a good one: resync
-    if start < 0:
-        raise LineError("no '$'")
-    line = line[start:]
-    star = line.rfind(b"*")
-    if star < 0 or len(line) != star + 3:
-        raise LineError("no '*HH' checksum at the end")
-    body = line[1:star]
-    try:
-        expected = int(line[star + 1:], 16)
-    except ValueError:
-        raise LineError("checksum is not two hex digits") from None
-    if checksum(body) != expected:
-        raise ChecksumError("checksum mismatch")
-    try:
-        return body.decode("ascii").split(",")
-    except UnicodeDecodeError:
-        raise LineError("non-ASCII bytes") from None
+    #: The deadman pedal: True pressed, False released, None no pedal (no 7th field).
+    pedal: bool | None = None
 
 
 def parse_line(line: bytes, adc_bits: int = 10) -> DataLine | BoardInfo:
     """One line (without the newline) -> DataLine or BoardInfo, or LineError."""
     fields = unframe_line(line)
     try:
-        if fields[0] == "D" and len(fields) == 6:
+        if fields[0] == "D" and len(fields) in (6, 7):
             v = (int(fields[2]), int(fields[3]), int(fields[4]))
             if not all(0 <= x < 2**adc_bits for x in v):
                 raise LineError(f"ADC value out of 0..{2**adc_bits - 1}")
             force = None if fields[5] == "" else int(fields[5])
-            return DataLine(int(fields[1]), v, force)  # type: ignore[arg-type]
+            pedal = None
+            if len(fields) == 7 and fields[6] != "":
+                if fields[6] not in ("0", "1"):
+                    raise LineError(f"pedal field {fields[6][:8]!r} is not 0 or 1")
+                pedal = fields[6] == "1"
+            return DataLine(int(fields[1]), v, force, pedal)  # type: ignore[arg-type]
         if fields[0] == "H" and len(fields) == 6:
             return BoardInfo(fields[1], int(fields[2]), float(fields[3]), int(fields[4]),
                              int(fields[5]) / 1000.0)
+    except LineError:
+        raise
     except ValueError:
         raise LineError("a field is not a number") from None
     raise LineError(f"unknown line type or field count ({fields[0][:8]!r}, {len(fields)})")
-
-
-class ChecksumError(LineError):
-    """The checksum does not match (a corrupted line)."""
 
 
 @dataclass
@@ -250,66 +222,6 @@ class BoardStats:
     overlong: int = 0
     board_resets: int = 0
     last_error: str = ""
-
-
-def take_line(buf: bytearray, max_bytes: int = MAX_LINE_BYTES) -> tuple[bytes | None, bool]:
-    """Pop the next complete line (without its newline) off ``buf``: (line, False). None
-    when no line is complete; then, if ``buf`` holds more than ``max_bytes`` with no
-    newline, it is dropped up to its last ``$`` (a line may be starting) and the second
-    value is True (an overlong run, to be counted)."""
-    nl = buf.find(b"\n")
-    if nl >= 0:
-        line = bytes(buf[:nl])
-        del buf[:nl + 1]
-        return line, False
-    if len(buf) > max_bytes:
-        start = buf.rfind(b"$")
-        del buf[:start if start > 0 else len(buf)]
-        return None, True
-    return None, False
-
-
-class DeviceClock:
-    """A device's 32-bit tick counter -> seconds from the first sample: unwraps the
-    counter and keeps time going forward across a device reset (its counter restarts).
-    ``ticks_per_s`` is 1000 for the sensor board's milliseconds, 1e6 for microseconds.
-
-    A count that goes back is a wrap only when it is a plausible one: the step forward
-    across 2^32 is at most ``max_gap_s`` (a few dropped samples, never minutes). Any
-    other step back is a restart, as is the next sample after ``restart()`` (the reader
-    saw the device's hello line mid-stream): time then goes on one period after the last
-    sample, whatever the new count."""
-
-    def __init__(self, ticks_per_s: float = 1000.0, max_gap_s: float = 1.0) -> None:
-        self.ticks_per_s = float(ticks_per_s)
-        self.max_gap_s = float(max_gap_s)
-        self._last: int | None = None
-        self._offset = 0
-        self._t0: int | None = None
-        self._restarted = False
-        self.resets = 0
-
-    def restart(self) -> None:
-        """The device restarted (its hello line): its next count starts a new epoch."""
-        self._restarted = self._last is not None
-
-    def seconds(self, ticks: int, period_ticks: float) -> float:
-        last = self._last
-        if last is not None and (self._restarted or ticks < last):
-            step = ticks + 2**32 - last  # forward across a wrap of the counter
-            if not self._restarted and step <= max(self.max_gap_s * self.ticks_per_s,
-                                                   2 * period_ticks):
-                self._offset += 2**32  # the counter wrapped (ms: 49.7 days; us: 71.6 min)
-            else:
-                # The device restarted its counter: continue one period after the last.
-                self._offset += last - ticks + round(period_ticks)
-                self.resets += 1
-            self._restarted = False
-        self._last = ticks
-        t = ticks + self._offset
-        if self._t0 is None:
-            self._t0 = t
-        return (t - self._t0) / self.ticks_per_s
 
 
 @dataclass
@@ -342,6 +254,8 @@ class SerialBoard:
         self.adc_bits = self.ir_config.adc_bits
         self.vref_v = self.ir_config.adc_vref_v
         self.info: BoardInfo | None = None
+        #: The deadman pedal as of the newest data line (None: the board has none).
+        self.pedal: bool | None = None
         self.stats = BoardStats()
         self._serial_errors: tuple[type[BaseException], ...] = (serial.SerialException, OSError)
         self._clock = DeviceClock(1000.0)
@@ -420,6 +334,7 @@ class SerialBoard:
             self.stats.hello += 1
             return False
         self.stats.lines_ok += 1
+        self.pedal = parsed.pedal
         t_s = self._clock.seconds(parsed.t_ms, 1000.0 / self.ir_config.rate_hz)
         self.stats.board_resets = self._clock.resets
         scale = self.vref_v / 2**self.adc_bits  # Arduino convention: V = raw * Vref / 2^bits
@@ -490,16 +405,3 @@ def volts_array(samples: Sequence[IRSample]) -> tuple[NDArray[np.float64], NDArr
     return t, v
 
 
-def parse_serial_spec(spec: str, default_baud: int = 115200,
-                      what: str = "sensor board") -> tuple[str, int]:
-    """``serial:PORT[@BAUD]`` -> (port, baud); ValueError naming ``what`` and the problem."""
-    kind, sep, rest = spec.partition(":")
-    if kind != "serial" or not sep or not rest:
-        raise ValueError(f"{what} {spec!r}: expected serial:PORT[@BAUD], "
-                         f"e.g. serial:/dev/ttyACM0@{default_baud}")
-    port, at, baud = rest.rpartition("@") if "@" in rest else (rest, "", "")
-    if at:
-        if not baud.isdigit() or int(baud) <= 0:
-            raise ValueError(f"{what} {spec!r}: baud {baud!r} is not a positive integer")
-        return port, int(baud)
-    return port, default_baud

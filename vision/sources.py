@@ -13,11 +13,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from vision.calibration import CameraIntrinsics, WorkspaceHomography
+from vision.errors import DeviceFault
 from vision.recording import PadRecording
 
 
-class SourceError(RuntimeError):
+class SourceError(DeviceFault, RuntimeError):
     """A frame source is missing, gives no frames, or failed; the message names the device."""
+
+    device = "camera"
+    check = "the camera index or path (`ls /dev/video*` lists video devices)"
 
 
 @dataclass(frozen=True, slots=True)
@@ -64,7 +68,7 @@ class CameraConfig:
     #: Lens model from ``fydpad calibrate camera`` (absent: no undistortion).
     intrinsics: CameraIntrinsics | None = None
     #: Image-to-workspace homography from ``fydpad calibrate workspace`` (absent: the
-    #: linear ROI mapping of RECORDING_FORMAT.md).
+    #: linear ROI mapping of docs/recording_format.md).
     workspace_homography: WorkspaceHomography | None = None
 
     def __post_init__(self) -> None:

@@ -1,4 +1,4 @@
-"""The finger state: the one stream type every consumer reads (DESIGN.md)."""
+"""The finger state: the one stream type every consumer reads (docs/architecture.md)."""
 
 from __future__ import annotations
 

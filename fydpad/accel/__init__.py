@@ -22,7 +22,7 @@ def open_accelerometer(spec: str, plant: object | None = None,
         return ReplayAccelerometer(arg)
     if kind == "serial":
         from fydpad.accel.serial import DEFAULT_BAUD, SerialAccelerometer
-        from vision.sensors import parse_serial_spec
+        from vision.serial_line import parse_serial_spec
         try:
             port, baud = parse_serial_spec(spec, DEFAULT_BAUD, what="accelerometer")
         except ValueError as exc:

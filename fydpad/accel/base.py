@@ -1,4 +1,4 @@
-"""The accelerometer interface every backend implements (issue 8).
+"""The accelerometer interface every backend implements.
 
 A backend delivers samples as an ``(n, 4)`` float array: ``t_s, ax_m_s2, ay_m_s2,
 az_m_s2`` with ``t_s`` on the device's clock (seconds, monotonic). ``read`` returns
@@ -14,12 +14,17 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from vision.errors import DeviceFault
+
 #: Column names of an accelerometer block.
 ACCEL_COLUMNS = ("t_s", "ax_m_s2", "ay_m_s2", "az_m_s2")
 
 
-class AccelError(RuntimeError):
+class AccelError(DeviceFault, RuntimeError):
     """An accelerometer fault; the message names the device and what to check."""
+
+    device = "accelerometer"
+    check = "its cable, its power and the [accel] section of the configuration"
 
 
 class Accelerometer(Protocol):

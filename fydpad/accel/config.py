@@ -1,4 +1,4 @@
-"""The ``[accel]`` section of the station's TOML config (issue 8)."""
+"""The ``[accel]`` section of the station's TOML config."""
 
 from __future__ import annotations
 

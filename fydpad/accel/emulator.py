@@ -2,9 +2,9 @@
 so the real reader (:class:`fydpad.accel.serial.SerialAccelerometer`) is tested end to
 end over a real tty.
 
-It is the sensor board's emulator (:class:`vision.board_emulator.BoardEmulator`: pty,
-streaming thread, ``send`` of raw bytes, ``pause``, ``unplug``, bytes the reader does not
-take in time dropped like a UART without flow control) with the accelerometer's lines:
+It is a :class:`vision.serial_line.PtyEmulator` (pty, streaming thread, ``send`` of raw
+bytes, ``pause``, ``unplug``, bytes the reader does not take in time dropped like a UART
+without flow control), as the sensor board's emulator is, with the accelerometer's lines:
 it streams a signal in m/s^2, quantised to the part's counts. ``skip`` loses samples on
 the device (a FIFO overrun), ``restart`` is a device reset (counter and clock restart).
 With ``clocked``, the part samples on its own clock like the real one and sends what its
@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from fydpad.accel.serial import G_M_S2, accel_data_line, accel_hello_line
-from vision.board_emulator import BoardEmulator
+from vision.serial_line import PtyEmulator
 
 Signal = Callable[[int], tuple[float, float, float]]
 
@@ -38,7 +38,7 @@ def _at_rest(k: int) -> tuple[float, float, float]:
     return 0.0, 0.0, G_M_S2  # lying flat, face up
 
 
-class AccelEmulator(BoardEmulator):
+class AccelEmulator(PtyEmulator):
     """A 3-axis MEMS part behind a microcontroller on a pty; ``port`` is the path to open.
 
     ``signal`` is ``(n, 3)`` m/s^2 (looped) or ``k -> (ax, ay, az)``. Default part: an

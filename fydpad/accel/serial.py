@@ -2,7 +2,8 @@
 part at >= 1 kHz in the line protocol of docs/accel_protocol.md (pyserial).
 
 The framing (``$payload*HH``, XOR checksum), the line splitter and the device clock are
-the sensor board's (:mod:`vision.sensors`); this module adds the accelerometer's lines
+the serial line transport's (:mod:`vision.serial_line`), as the sensor board's are; this
+module adds the accelerometer's lines
 and a reader that returns blocks. ``read`` never crashes on bad bytes: garbage, cut
 lines and bad checksums are counted in ``stats`` and skipped, a gap in the sample
 counter is counted as dropped samples, and a device that sends no valid sample for
@@ -21,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.accel.base import AccelError
-from vision.sensors import (
+from vision.serial_line import (
     ChecksumError,
     DeviceClock,
     LineError,

@@ -1,4 +1,4 @@
-"""The actuator chain (issue 8, paper 000 sections 3.2-4.1): excite it, identify its
+"""The actuator chain (Felicetti 2022 sections 3.2-4.1): excite it, identify its
 transfer function TF = CPSD_yx / PSD_x per stiffness setting, and pre-compensate the
 texture vibration (offline Z = FIV / TF, live a minimum-phase FIR inverse).
 

@@ -1,4 +1,4 @@
-"""Compensation check (paper 000 section 4.1, Fig. 8): play a target through the chain
+"""Compensation check (Felicetti 2022 section 4.1, Fig. 8): play a target through the chain
 uncompensated and compensated, and compare the spectra the fabric reproduces.
 
 Uncompensated means a gain-only calibration: the target divided by the chain's typical

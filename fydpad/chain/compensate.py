@@ -1,4 +1,4 @@
-"""Pre-compensation by the identified TF (paper 000 section 3.3): Z = FIV / TF (eq. 3),
+"""Pre-compensation by the identified TF (Felicetti 2022 section 3.3): Z = FIV / TF (eq. 3),
 z = IFFT(Z) (eq. 4), so that W = Z TF = FIV (eq. 5), regularised.
 
 The plain ratio blows up where |TF| is small or where TF was not measured well, so:

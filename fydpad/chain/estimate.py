@@ -13,7 +13,7 @@ from fydpad.chain import ChainError
 
 Array = NDArray[np.float64]
 
-#: Coherence above which a frequency counts as identified (the issue's target band).
+#: Coherence above which a frequency counts as identified (and scored by the check).
 COHERENCE_MIN = 0.9
 #: A measurement is refused when fewer than this share of the band's bins reach it.
 COHERENT_SHARE_MIN = 0.5

@@ -1,4 +1,4 @@
-"""The excitation of the chain identification (paper 000 section 3.2: a random signal
+"""The excitation of the chain identification (Felicetti 2022 section 3.2: a random signal
 between 10 and 1000 Hz; here capped below the output channel's Nyquist)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Identification (paper 000 section 3.2): excite the chain with band-limited noise at
+"""Identification (Felicetti 2022 section 3.2): excite the chain with band-limited noise at
 each stiffness setting and a fixed normal force, estimate TF = CPSD_yx / PSD_x with
 Welch averaging, refuse what cannot be trusted, collect a :class:`TfSet`."""
 

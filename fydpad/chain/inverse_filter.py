@@ -1,4 +1,4 @@
-"""The live, causal inverse of the chain: a minimum-phase FIR (issue 8).
+"""The live, causal inverse of the chain: a minimum-phase FIR.
 
 The FFT form of eqs. 2-4 needs the whole signal; the 1 kHz render loop needs a causal
 filter. A minimum-phase filter with the regularised inverse's *magnitude* is causal and

@@ -1,5 +1,5 @@
 """Plots of the chain: the identified TF set (magnitude, phase, coherence) and the
-compensation check (target, uncompensated, compensated spectra: paper 000 Fig. 8b)."""
+compensation check (target, uncompensated, compensated spectra: Felicetti 2022 Fig. 8b)."""
 
 from __future__ import annotations
 

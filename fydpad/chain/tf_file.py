@@ -18,6 +18,7 @@ import numpy as np
 
 from fydpad.chain import ChainError
 from fydpad.chain.estimate import TfEstimate
+from vision.strict_json import finite
 
 FORMAT = "fydpad-chain-tf"
 VERSION = 1
@@ -98,7 +99,7 @@ def save_tf_set(tfs: TfSet, path: str | Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "wb") as fh:  # an open file: np.savez would append ".npz" to a name
         np.savez(
-            fh, header=np.array(json.dumps(header)), freqs_hz=f,
+            fh, header=np.array(json.dumps(finite(header), allow_nan=False)), freqs_hz=f,
             tf_real=tf.real, tf_imag=tf.imag,
             coherence=np.stack([e.estimate.coherence for e in tfs.entries]),
             **{k: np.array([getattr(e, k) for e in tfs.entries]) for k in

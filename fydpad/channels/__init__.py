@@ -1,4 +1,4 @@
-"""Output channels a texture renderer writes to, each at its own rate (issue 8)."""
+"""Output channels a texture renderer writes to, each at its own rate."""
 
 from __future__ import annotations
 

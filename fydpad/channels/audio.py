@@ -1,4 +1,4 @@
-"""The audio-rate channel through the sound card (issue 8): how PIEZOTACT (paper 000)
+"""The audio-rate channel through the sound card: how PIEZOTACT (Felicetti 2022)
 drives its piezo amplifier, and how voice-coil, piezo and electrostatic display
 amplifiers are driven in haptics labs.
 

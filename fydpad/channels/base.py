@@ -1,4 +1,4 @@
-"""The output-channel interface (issue 8).
+"""The output-channel interface.
 
 A renderer produces a signal at its own rate; a channel consumes blocks at the
 channel's rate (``rate_hz``). Between the two, :mod:`fydpad.channels.resample`
@@ -21,6 +21,8 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from vision.errors import DeviceFault
+
 #: The channels the FYD-pad itself drives from the 1 kHz render loop.
 VIBRATION = "vibration"
 TENSION = "tension"
@@ -36,8 +38,11 @@ def zero_nonfinite(block: NDArray[np.floating]) -> tuple[NDArray[np.float64], in
     return (np.where(bad, 0.0, x) if n else x), n
 
 
-class ChannelError(RuntimeError):
+class ChannelError(DeviceFault, RuntimeError):
     """A channel that cannot be opened or written; the message says what to check."""
+
+    device = "channel"
+    check = "the --channel spec (wav:FILE, csv:FILE or audio[:DEVICE][@RATE])"
 
 
 class OutputChannel(Protocol):

@@ -1,4 +1,4 @@
-"""Streaming rational polyphase resampler (issue 8).
+"""Streaming rational polyphase resampler.
 
 y[n] = sum_j h[p + j L] x[i0 - j], with i0 = floor(n M / L), p = (n M) mod L: the
 upsample-by-L, FIR, downsample-by-M chain of ``scipy.signal.upfirdn``, evaluated only at

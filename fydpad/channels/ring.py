@@ -1,6 +1,8 @@
-"""The bounded buffer between a renderer and a sound card's callback (issue 8).
+"""Bounded buffers between the 1 kHz render loop and whatever consumes its output at its
+own pace: a sound card's callback, a file writer's thread.
 
-:class:`SampleRing` is a single-producer single-consumer ring of float32 samples. The
+:class:`SampleRing` is a single-producer single-consumer ring of samples (float32 for a
+sound card, float64 for a file); :class:`RowRing` one of fixed-width rows (a log). The
 writer only advances ``_w`` and the reader only ``_r``, each after its copy, so neither
 waits for the other (CPython's GIL makes each index update atomic and ordered; no lock
 that the 1 kHz loop could block on).
@@ -24,14 +26,14 @@ from fydpad.channels.resample import Resampler
 
 
 class SampleRing:
-    """Bounded SPSC ring of float32 samples: ``push`` drops what does not fit, ``pop_into``
+    """Bounded SPSC ring of samples: ``push`` drops what does not fit, ``pop_into``
     zero-fills what is missing; both return how many samples moved."""
 
-    def __init__(self, capacity: int) -> None:
+    def __init__(self, capacity: int, dtype: type = np.float32) -> None:
         if capacity <= 0:
             raise ValueError(f"ring capacity must be positive, not {capacity}")
         self.capacity = int(capacity)
-        self._buf = np.zeros(self.capacity, np.float32)
+        self._buf = np.zeros(self.capacity, dtype)
         self._w = 0  # samples ever pushed (writer's)
         self._r = 0  # samples ever popped (reader's)
 
@@ -60,6 +62,59 @@ class SampleRing:
         out[:first] = self._buf[i:i + first]
         out[first:n] = self._buf[:n - first]
         out[n:] = 0.0
+        self._r += n  # free the space after the copy
+        return n
+
+
+class RowRing:
+    """Bounded SPSC ring of float64 rows of ``width`` values, preallocated.
+
+    The writer's ``push`` stores one row in place (no allocation) or, when the ring is
+    full, drops it and counts it in ``n_dropped``: it never waits. The reader's
+    ``pop_into`` copies up to ``len(out)`` rows out. ``peak_level`` is the fullest the
+    ring has been (the margin left against a disk stall)."""
+
+    def __init__(self, width: int, capacity: int) -> None:
+        if width <= 0 or capacity <= 0:
+            raise ValueError(f"ring of {capacity} rows of {width} must be positive")
+        self.width, self.capacity = int(width), int(capacity)
+        self._buf = np.zeros((self.capacity, self.width), np.float64)
+        self._flat = self._buf.reshape(-1)
+        self._w = 0  # rows ever pushed (writer's)
+        self._r = 0  # rows ever popped (reader's)
+        self.n_pushed = 0
+        self.n_dropped = 0
+        self.peak_level = 0
+
+    @property
+    def level(self) -> int:
+        return self._w - self._r
+
+    def push(self, *values: float) -> bool:
+        """Store one row (``width`` values); False (counted) when the ring is full."""
+        w = self._w
+        level = w - self._r
+        if level >= self.capacity:
+            self.n_dropped += 1
+            return False
+        flat = self._flat
+        k = (w % self.capacity) * self.width
+        for v in values:
+            flat[k] = v
+            k += 1
+        self._w = w + 1  # publish after the copy
+        self.n_pushed += 1
+        if level >= self.peak_level:
+            self.peak_level = level + 1
+        return True
+
+    def pop_into(self, out: np.ndarray) -> int:
+        """Copy up to ``len(out)`` rows into ``out`` (shape (n, width)); how many."""
+        n = min(len(out), self._w - self._r)
+        i = self._r % self.capacity
+        first = min(n, self.capacity - i)
+        out[:first] = self._buf[i:i + first]
+        out[first:n] = self._buf[:n - first]
         self._r += n  # free the space after the copy
         return n
 

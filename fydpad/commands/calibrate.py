@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from fydpad.cli import add_truncation_argument
 from fydpad.errors import UserError
 from vision.config import ForceConfig, IRConfig
 from vision.force import ForceCalibration, ForceCalibrationError, calibrate_force
@@ -89,15 +90,22 @@ def register_indentation(sub: argparse._SubParsersAction) -> None:
             "indenter, or the synthetic pad). The truth's contact and centroid are used, so "
             "the fit concerns the indentation alone. Prints the plane's RMSE and the "
             "corrected one on held-out presses (two-fold, alternate presses), and writes "
-            "correction_coef into the [ir] section."
+            "correction_coef into the [ir] section. The correction weighs each sensor's "
+            "deflection by a polynomial of the contact's position, so a fit on presses "
+            "holds for strokes. --protocol prints the 2-minute session to record "
+            "(the web view's /guide/indentation walks through it)."
         ),
     )
-    p.add_argument("recdirs", nargs="+", metavar="RECDIR", help="recordings with truth.csv")
+    p.add_argument("recdirs", nargs="*", metavar="RECDIR", help="recordings with truth.csv")
+    p.add_argument("--protocol", action="store_true",
+                   help="print the calibration protocol (which presses, where, how deep) "
+                        "and exit")
     p.add_argument("--out", metavar="TOML", help="configuration file to write (default: print)")
-    p.add_argument("--xy-degree", type=int, default=4,
-                   help="degree in the centroid position (default: 4)")
+    p.add_argument("--xy-degree", type=int, default=3,
+                   help="degree in the centroid position (default: 3)")
     p.add_argument("--depth-degree", type=int, default=2,
-                   help="degree in the plane estimate (default: 2)")
+                   help="degree in the sensors' deflections (default: 2)")
+    add_truncation_argument(p)
     p.set_defaults(func=run_indentation)
 
 
@@ -296,10 +304,20 @@ def _press_samples(path: str, ir_config: IRConfig) -> dict[str, np.ndarray]:
     # Number the presses (runs of contact) so held-out halves never share one.
     press = np.cumsum(np.diff(np.concatenate([[0], truth.contact.astype(int)])) == 1)  # type: ignore[union-attr]
     return {"plane": r.plane_mm[c], "x": truth.x_mm[c], "y": truth.y_mm[c],  # type: ignore[union-attr]
-            "depth": truth.indentation_mm[c], "press": press[c]}  # type: ignore[union-attr]
+            "depth": truth.indentation_mm[c], "press": press[c],  # type: ignore[union-attr]
+            "e": r.deflection_mm[c],  # type: ignore[index]
+            "sensors": np.asarray(m.ir_sensors_mm, np.float64)}
 
 
 def run_indentation(args: argparse.Namespace) -> int:
+    if args.protocol:
+        from fydpad.indentation_protocol import protocol_text
+
+        print(protocol_text())
+        return 0
+    if not args.recdirs:
+        raise UserError("give the calibration recordings (RECDIR...), or --protocol for how "
+                        "to record them")
     config = _load_config(args)
     ir_config: IRConfig = getattr(config, "ir", None) or IRConfig()
     if args.xy_degree < 0 or args.depth_degree < 1:
@@ -309,8 +327,13 @@ def run_indentation(args: argparse.Namespace) -> int:
     for part in parts:  # presses of different recordings are different presses
         part["press"] = part["press"] + offset
         offset = int(part["press"].max(initial=offset)) + 1
+    sensors = parts[0].pop("sensors")
+    for part in parts[1:]:
+        if not np.allclose(part.pop("sensors"), sensors):
+            raise UserError("the recordings state different IR sensor positions: calibrate "
+                            "one device at a time")
     data = {k: np.concatenate([part[k] for part in parts]) for k in parts[0]}
-    need = 3 * PlaneCorrection.n_coef(args.xy_degree, args.depth_degree)
+    need = 3 * PlaneCorrection.n_coef(args.xy_degree, args.depth_degree, per_sensor=True)
     n = int(data["depth"].size)
     names = ", ".join(args.recdirs)
     if n < need:
@@ -321,7 +344,8 @@ def run_indentation(args: argparse.Namespace) -> int:
     try:
         final, held_rmse, scores = PlaneCorrection.fit_cv(
             data["plane"], data["x"], data["y"], data["depth"], data["press"],
-            args.xy_degree, args.depth_degree)
+            args.xy_degree, args.depth_degree, ridges=(1e-4, 1e-3, 1e-2, 1e-1, 1.0),
+            e_mm=data["e"], sensors_mm=sensors)
     except ValueError as exc:
         raise UserError(f"{names}: {exc}") from None
     d = data["depth"]
@@ -335,6 +359,7 @@ def run_indentation(args: argparse.Namespace) -> int:
     for line in summary[1:]:
         print(line)
     _write_section(args, "ir", {"correction_coef": final.coef,
+                                "correction_per_sensor": True,
                                 "correction_xy_degree": final.xy_degree,
                                 "correction_depth_degree": final.depth_degree}, summary)
     return 0

@@ -11,7 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from fydpad.cli import add_config_argument
+from fydpad.cli import add_config_argument, add_truncation_argument
 from fydpad.config import StationConfig, load_config, save_config
 from fydpad.errors import UserError
 from fydpad.opening import open_source
@@ -79,6 +79,7 @@ def register_workspace(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", metavar="TOML", required=True,
                    help="configuration file to write (the --config file updated, or new)")
     add_config_argument(p)
+    add_truncation_argument(p)
     p.set_defaults(func=run_workspace)
 
 

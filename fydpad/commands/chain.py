@@ -1,5 +1,5 @@
 """``fydpad chain``: identify the actuator chain's transfer function and check its
-compensation (paper 000 sections 3.2-4.1; docs/chain.md)."""
+compensation (Felicetti 2022 sections 3.2-4.1; docs/chain.md)."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ from pathlib import Path
 
 from fydpad.cli import add_config_argument
 from fydpad.errors import UserError
+from vision.strict_json import finite
 
 
 def _floats(text: str, what: str) -> list[float]:
@@ -41,7 +42,7 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sensors", metavar="serial:PORT[@BAUD]",
                    help="with --motors qb: the sensor board whose load cell monitors the force")
     p.add_argument("--force-n", type=float, default=0.3,
-                   help="normal force to hold on the fabric, N (paper 000: %(default)s)")
+                   help="normal force to hold on the fabric, N (Felicetti 2022: %(default)s)")
     p.add_argument("--force-tolerance", type=float, default=0.1, metavar="N",
                    help="refuse a run whose mean force is further off (default: %(default)s)")
     p.add_argument("--seconds", type=float, default=30.0,
@@ -59,9 +60,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=(
             "The actuator chain (motors, fabric, finger) shapes the texture vibration the "
             "finger feels. 'identify' measures its transfer function per stiffness setting "
-            "(paper 000 eq. 1: TF = CPSD_yx / PSD_x, Welch, with coherence) into a TF file; "
+            "(Felicetti 2022 eq. 1: TF = CPSD_yx / PSD_x, Welch, with coherence) into a TF file; "
             "'check' plays a target through the chain with and without compensation and "
-            "plots the spectra (paper 000 Fig. 8). 'fydpad run --compensate TF.npz' "
+            "plots the spectra (Felicetti 2022 Fig. 8). 'fydpad run --compensate TF.npz' "
             "applies the inverse live. See docs/chain.md."),
     )
     ss = p.add_subparsers(dest="chain_command", metavar="ACTION", required=True)
@@ -82,7 +83,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="stiffness settings, N/mm, comma separated (default: %(default)s)")
     i.add_argument("--band", default="10,450", metavar="LO,HI",
                    help="excitation band, Hz; below 0.9 of the 1 kHz channel's Nyquist "
-                   "(default: %(default)s; paper 000: 10-1000 Hz at audio rate)")
+                   "(default: %(default)s; Felicetti 2022: 10-1000 Hz at audio rate)")
     i.add_argument("--nperseg", type=int, default=512,
                    help="Welch segment length, samples (default: %(default)s)")
     i.add_argument("--yes", action="store_true",
@@ -90,7 +91,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     _common(i)
     i.set_defaults(func=run_identify)
     c = ss.add_parser(
-        "check", help="target vs uncompensated vs compensated spectra (paper 000 Fig. 8)",
+        "check", help="target vs uncompensated vs compensated spectra (Felicetti 2022 Fig. 8)",
         description=(
             "Play a target through the chain at the TF entry nearest --stiffness: "
             "uncompensated (gain-only calibration), compensated by the live minimum-phase "
@@ -197,7 +198,7 @@ def run_check(args: argparse.Namespace) -> int:
                                      progress=bar.update)
     finally:
         session.close()
-    text = json.dumps(res.figures, indent=2)
+    text = json.dumps(finite(res.figures), indent=2, allow_nan=False)
     print(text)
     if args.json:
         Path(args.json).write_text(text + "\n")

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from fydpad.errors import UserError
 from fydpad.web.experiment import ExperimentError, plot_confusion, report
+from vision.strict_json import finite
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -41,6 +42,6 @@ def run_report(args: argparse.Namespace) -> int:
     plot_confusion(conf, png)
     print(f"plot: {png}")
     if args.json:
-        Path(args.json).write_text(json.dumps({"participants": participants,
-                                               **conf.as_dict()}, indent=2) + "\n")
+        summary = finite({"participants": participants, **conf.as_dict()})
+        Path(args.json).write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
     return 0

@@ -10,7 +10,7 @@ import signal
 import sys
 from pathlib import Path
 
-from fydpad.cli import add_config_argument
+from fydpad.cli import add_config_argument, add_truncation_argument
 from fydpad.commands.track import make_tracker
 from fydpad.config import load_config
 from fydpad.errors import UserError
@@ -21,6 +21,7 @@ from fydpad.texture.family import TextureFamily
 from fydpad.texture.interpolation import METHODS
 from vision.indentation import IndentationEstimator
 from vision.stream import LiveIndentation, recording_estimator
+from vision.strict_json import finite
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -32,7 +33,11 @@ def register(sub: argparse._SubParsersAction) -> None:
             "rate, IR and force at the sensor rate, rendering at 1 kHz in a process of its "
             "own, tele-operation at the vision rate), handing each other the latest value. "
             "Ctrl-C, --duration or any fault stops it safely: vibration off, motors to rest, "
-            "robot told to hold, files closed. A second Ctrl-C forces the exit."
+            "robot told to hold, files closed. A second Ctrl-C forces the exit. "
+            "Operator hold: in the terminal, h or the space bar holds the robot still and "
+            "silences the vibration, the same key releases (the robot glides back to the "
+            "finger); also the web view's Hold button and the sensor board's pedal "
+            "(docs/station.md)."
         ),
     )
     src = p.add_mutually_exclusive_group(required=True)
@@ -52,8 +57,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "tele-operation follows at the same rate (default: [loops] vision_hz of "
                    "the config, 30, or the camera's rate when lower)")
     p.add_argument("--record", metavar="DIR",
-                   help="record the session (RECORDING_FORMAT.md) as it goes")
+                   help="record the session (docs/recording_format.md) as it goes")
     p.add_argument("--no-video", action="store_true", help="with --record: no video file")
+    p.add_argument("--bag", metavar="BAGDIR",
+                   help="with --record: when the station stops, also export the recording as "
+                   "a ROS 2 bag (MCAP) here, as `fydpad export bag` does (docs/ros.md)")
     p.add_argument("--stats", metavar="FILE", help="write loop statistics as JSON on exit")
     p.add_argument("--motors", choices=["none", "sim", "qb"], default="none",
                    help="motor backend (default: %(default)s)")
@@ -75,7 +83,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "family has it); ',fs=X' sets the full scale of WAV and card (default 1). "
                    "Stop or fault silences the card (docs/channels.md)")
     p.add_argument("--teleop", metavar="ENDPOINT",
-                   help="stream the finger to a slave robot (`teleop slave`) at this endpoint")
+                   help="stream the finger to a slave robot (`teleop slave`) at this endpoint "
+                   "(tcp://HOST:PORT or HOST:PORT). A slave that never answers or goes "
+                   "silent leaves the station running (the robot holds by its watchdog); the "
+                   "run then ends with a line saying so and exit status 3")
+    add_link_arguments(p)
     p.add_argument("--vibration-gain", type=float, default=1.0,
                    help="texture vibration gain (the paper: 1)")
     p.add_argument("--texture-method", choices=METHODS, default=None,
@@ -95,7 +107,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-realtime", action="store_true",
                    help="do not ask for SCHED_FIFO and a core for the render process")
     add_config_argument(p)
-    # -- web view (issue 10) --
+    add_truncation_argument(p)
+    # -- web view --
     p.add_argument("--web", metavar="[HOST:]PORT",
                    help="serve the web view (live image, plots, setup, experiment runner); "
                    "loopback unless HOST is given, then with a token printed at start")
@@ -106,6 +119,69 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "docs/experiment.md); default: the paper's SS1-SS4 with grating models")
     # -- end web view --
     p.set_defaults(func=run)
+
+
+def add_link_arguments(p: argparse.ArgumentParser) -> None:
+    """The master's side of the link's security: --curve and --keys (docs/getting_started.md)."""
+    p.add_argument("--curve", choices=("auto", "on", "off"),
+                   help="CurveZMQ on the tele-operation link: auto = on unless the endpoint is "
+                   "loopback (default: [teleop.link] curve of the config, auto)")
+    p.add_argument("--keys", metavar="DIR",
+                   help="CurveZMQ key directory holding server.key, client.key and "
+                   "client.key_secret from the slave's `teleop keys generate DIR` (default: "
+                   "[teleop.link] keys_dir of the config, teleop_keys)")
+
+
+def apply_link_arguments(args: argparse.Namespace, config) -> None:
+    """--curve and --keys over the config's [teleop.link]."""
+    if args.curve:
+        config.teleop.link.curve = args.curve
+    if args.keys:
+        config.teleop.link.keys_dir = args.keys
+
+
+def open_link(endpoint: str, config):
+    """The station's link; a missing key file or a bad endpoint is one line."""
+    from fydpad.station.link import StationLink
+
+    try:
+        return StationLink(endpoint, config.teleop)
+    except (OSError, ValueError) as exc:
+        raise UserError(f"--teleop {endpoint}: {exc}") from None
+
+
+class LinkWatch:
+    """What the run tells at its end about the link: whether the slave ever answered, and
+    how often and how long it went silent (LINK_SILENT_S without an answer) after that."""
+
+    def __init__(self) -> None:
+        self.outages = 0
+        self.longest_silence_s = 0.0
+        self._silent = False
+
+    def update(self, answered: bool, age_s: float) -> None:
+        if not answered:
+            return
+        if age_s > LINK_SILENT_S:
+            self.longest_silence_s = max(self.longest_silence_s, age_s)
+            if not self._silent:
+                self.outages += 1
+                self._silent = True
+        else:
+            self._silent = False
+
+    def summary(self, endpoint: str, answered: bool, sent: int, failed: int) -> str | None:
+        """None for a link that held; else the line that says what went wrong."""
+        if not answered:
+            return (f"tele-operation link {endpoint}: no slave ever answered ({sent} samples "
+                    f"sent, {failed} refused for want of a connection): is `teleop slave` "
+                    "running there, its port open, and are the CurveZMQ settings and keys the "
+                    "same on both sides?")
+        if self.outages:
+            return (f"tele-operation link {endpoint}: the slave went silent {self.outages} "
+                    f"time(s), the longest {self.longest_silence_s:.1f} s; the robot held "
+                    "meanwhile (its watchdog)")
+        return None
 
 
 class _Interrupts:
@@ -128,20 +204,29 @@ class _Interrupts:
 LINK_SILENT_S = 1.0
 
 
+def _num(value: object, spec: str, width: int = 0) -> str:
+    """``value`` formatted by ``spec``, or "-" (right-aligned to ``width``) when there is
+    none yet: no NaN where a user reads."""
+    if isinstance(value, int | float) and math.isfinite(value):
+        return format(value, spec)
+    return "-".rjust(width)
+
+
 def format_status(s: dict) -> str:
     """The live status line: rates and jitter, contact, indentation, force, requested and
-    measured stiffness, the link and the sensor board."""
-    contact = (f"contact x {s['x_mm']:+6.1f} y {s['y_mm']:+6.1f} mm"
+    measured stiffness, the link and the sensor board; "-" for a value not known yet."""
+    contact = (f"contact x {_num(s['x_mm'], '+6.1f', 6)} y {_num(s['y_mm'], '+6.1f', 6)} mm"
                if s["contact"] else "no contact" + " " * 20)
     r = s.get("render") or {}
     v = s.get("vision") or {}
-    line = (f"frames {s['frames']:6d}  {contact}  z {s['indentation_mm']:5.1f} mm  "
-            f"F {s['force_n']:5.2f} N  "
-            f"k {s['measured_n_per_mm']:.2f}/{s['requested_n_per_mm']:.2f} N/mm  "
-            f"vision {v.get('rate_hz', math.nan):4.1f} Hz  "
-            f"render {r.get('rate_hz', math.nan):6.1f} Hz "
-            f"{r.get('on_time_pct', math.nan):5.1f} % on time "
-            f"p99 {r.get('jitter_ms', {}).get('p99', math.nan):.2f} ms")
+    line = (f"frames {s['frames']:6d}  {contact}  z {_num(s['indentation_mm'], '5.1f', 5)} mm  "
+            f"F {_num(s['force_n'], '5.2f', 5)} N  "
+            f"k {_num(s['measured_n_per_mm'], '.2f')}/{_num(s['requested_n_per_mm'], '.2f')} "
+            f"N/mm  "
+            f"vision {_num(v.get('rate_hz'), '4.1f', 4)} Hz  "
+            f"render {_num(r.get('rate_hz'), '6.1f', 6)} Hz "
+            f"{_num(r.get('on_time_pct'), '5.1f', 5)} % on time "
+            f"p99 {_num(r.get('jitter_ms', {}).get('p99'), '.2f')} ms")
     link = s.get("link")
     if link is not None:
         age_s = link.get("answer_age_s", 0.0)
@@ -154,6 +239,8 @@ def format_status(s: dict) -> str:
         else:
             state = "ok"
         line += f"  link {state}"
+    if s.get("operator_hold"):
+        line += "  HOLD"
     board = s.get("sensors")
     if board is not None:
         line += f"  board {board['samples']} ok {board['bad_lines']} bad"
@@ -259,8 +346,19 @@ def run(args: argparse.Namespace) -> int:
     if sensor_spec:  # the live board replaces the source's own IR and force
         sensors = _serial_sensors(sensor_spec, config)
         indentation = LiveIndentation(IndentationEstimator.from_config(config.ir))
+    if args.bag:  # --bag: refused here, before the station starts, not after the session
+        from fydpad.commands.export import require_rosbags
+
+        if not args.record:
+            raise UserError("--bag needs --record DIR (the bag is exported from the recording)")
+        if Path(args.bag).exists():
+            raise UserError(f"--bag {args.bag}: already exists (a bag is written to a new "
+                            "directory)")
+        require_rosbags()
     if args.record:
         Path(args.record).mkdir(parents=True, exist_ok=True)
+    if args.teleop is None and (args.curve or args.keys):
+        raise UserError("--curve and --keys apply to the tele-operation link: give --teleop")
     if args.texture:  # a bad model file fails here, in one line, not in the render process
         from fydpad.station.texture_source import check_texture
 
@@ -295,16 +393,18 @@ def run(args: argparse.Namespace) -> int:
         status=_status_printer(),
     )
     link = None
+    watch = LinkWatch()
     if args.teleop:
-        from fydpad.station.link import StationLink
-
-        link = StationLink(args.teleop, config.teleop)
+        apply_link_arguments(args, config)
+        link = open_link(args.teleop, config)
         options.teleop_hold = link.hold
+        options.operator_hold = link.set_operator_hold
     station = Station(source, tracker, meta, options, sensors=sensors, indentation=indentation,
                       force_full_scale_n=config.force.full_scale_n)
     if link is not None:
         def send(state, link=link, station=station) -> None:
             link.send(state)
+            watch.update(link.slave is not None, link.answer_age_s())
             # For the web view and the status: the robot's tracking error, as it is now.
             station.live_stats["link"] = {
                 "endpoint": link.endpoint, "sent": link.sent, "send_failed": link.send_failed,
@@ -314,7 +414,7 @@ def run(args: argparse.Namespace) -> int:
                     err := link.tracking_error_mm(state)) else None),
             }
         options.teleop_send = send
-    # -- web view (issue 10) --
+    # -- web view --
     web = None
     if getattr(args, "web", None):
         from fydpad.web import parse_web_address, start_web
@@ -336,30 +436,50 @@ def run(args: argparse.Namespace) -> int:
     previous = signal.signal(signal.SIGINT, interrupts)
     # A service manager's SIGTERM stops the station the same safe way as Ctrl-C.
     previous_term = signal.signal(signal.SIGTERM, interrupts)
+    from fydpad.station.hold_keys import HoldKeys
+
+    keys = HoldKeys(lambda: station.toggle_operator_hold("key"))
     try:
-        stats = station.run()
+        with keys:
+            if keys.active:
+                print("press h or space to hold the robot (again to release)",
+                      file=sys.stderr, flush=True)
+            stats = station.run()
     except StationFault as exc:
         raise UserError(f"station stopped safely after a fault: {exc}") from None
     finally:
         signal.signal(signal.SIGINT, previous)
         signal.signal(signal.SIGTERM, previous_term)
-        if web is not None:  # web view (issue 10)
+        if web is not None:  # web view
             web.stop()
+        link_summary = None
         if link is not None:
+            link_summary = watch.summary(link.endpoint, link.slave is not None, link.sent,
+                                         link.send_failed)
             station.stats["link"] = {"sent": link.sent, "send_failed": link.send_failed,
-                                     "slave_answered": link.slave is not None}
+                                     "slave_answered": link.slave is not None,
+                                     "outages": watch.outages,
+                                     "longest_silence_s": round(watch.longest_silence_s, 3)}
             link.close()
         if options.status is not None:
             print(file=sys.stderr)
         if args.stats:
-            Path(args.stats).write_text(json.dumps(station.stats, indent=2) + "\n")
+            Path(args.stats).write_text(
+                json.dumps(finite(station.stats), indent=2, allow_nan=False) + "\n")
     r = stats.get("render", {})
     dropped = (f", {station.frames_dropped} dropped for --vision-hz"
                if station.frames_dropped else "")
     print(f"station ran {station.frames} frames ({station.contact_frames} with contact"
           f"{dropped}); "
           f"render {r.get('rate_hz', 0):.1f} Hz, {r.get('on_time_pct', 0):.2f} % on time, "
-          f"jitter p99 {r.get('jitter_ms', {}).get('p99', math.nan):.2f} ms, "
+          f"jitter p99 {_num(r.get('jitter_ms', {}).get('p99'), '.2f')} ms, "
           f"frame-to-command p99 "
-          f"{stats.get('frame_to_command_ms', {}).get('p99', math.nan):.1f} ms")
+          f"{_num(stats.get('frame_to_command_ms', {}).get('p99'), '.1f')} ms")
+    if args.bag:
+        from fydpad.commands.export import export_recording
+
+        print(export_recording(args.record, args.bag, args.config, video=not args.no_video))
+    if link_summary is not None:
+        print(f"fydpad run: {link_summary}", file=sys.stderr)
+        return 3
     return 0

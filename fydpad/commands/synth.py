@@ -12,7 +12,7 @@ from fydpad.progress import progress
 from fydpad.synth import EFFECT_HELP, TRAJECTORIES, Effects, SynthConfig, SyntheticPad
 from vision.recording import IMAGE_FLIPS, VIDEO_NAMES
 
-#: The files of a pad session recording (RECORDING_FORMAT.md), removed by --force.
+#: The files of a pad session recording (docs/recording_format.md), removed by --force.
 RECORDING_FILES = ("meta.json", *VIDEO_NAMES, "frames.csv", "ir.csv", "force.csv", "truth.csv")
 
 _TRAJECTORY_HELP = (
@@ -31,7 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="write a synthetic pad session recording with ground truth",
         description=(
             "Render a pad session recording (meta.json, video, ir.csv, force.csv, truth.csv; "
-            "RECORDING_FORMAT.md) from the project's physical model: backlit woven fabric "
+            "docs/recording_format.md) from the project's physical model: backlit woven fabric "
             "seen from below, a dark fingertip contact growing with indentation and the "
             "paler shadow of the finger, vignetting, sensor noise, motion blur over the "
             "exposure, MJPG compression; IR voltages from the fabric's non-planar sag "

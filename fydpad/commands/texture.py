@@ -21,11 +21,13 @@ from fydpad.texture.interpolation import DEFAULT_METHOD, METHODS
 from fydpad.texture.scan_generator import TEXTURES
 from fydpad.web.experiment import ExperimentError
 from fydpad.web.staircase import StaircaseSession
+from vision.strict_json import finite
 
 #: The interpolation between modelled speeds (fydpad.texture.interpolation, docs/texture.md).
-INTERPOLATION_HELP = ("interpolation between modelled speeds: stretch (default: the nearest "
-                      "models' spectra stretched to the speed, and a two-part model's own "
-                      "spectrum), lsf, reflection, or linear (Bianchi 2015's)")
+INTERPOLATION_HELP = ("interpolation between modelled speeds (default: the model file's "
+                      "own, which fit chose): nearest (Bianchi 2015's per-speed fits), "
+                      "stretch (the spectra moved along frequency with speed), lsf, "
+                      "reflection, or linear")
 
 def _floats(text: str) -> list[float]:
     try:
@@ -69,16 +71,17 @@ def register(sub: argparse._SubParsersAction) -> None:
         "fit", help="fit a model file from scans of one surface",
         description=(
             "Fit one texture model file from one or more scans of the same surface. Each "
-            "scan's three axes are high-passed at --highpass-hz (hand motion, gravity), "
-            "reduced to one signal by DFT321, cut into runs whose speed stays within "
-            "--tolerance of each target speed, and an LPC model of --order is fitted per "
-            "speed up to Nyquist (autocorrelation/Levinson-Durbin or Burg). With two or "
-            "more speeds a speed-resolved spectrum is fitted too by default (--free-form "
-            "calibrated: the two-part S(f,v) of every 0.5 s chunk, corrected to the "
-            "recorded spectrum at each fitted speed), which the renderer follows between "
-            "the fitted speeds; --pooled keeps the per-speed LPC fit alone (Bianchi 2015's "
-            "model). Every model's stability is "
-            "checked. The 165-220 Hz band of Bianchi 2015 is stored as the output drive "
+            "scan's three axes are high-passed at --highpass-hz (hand motion, gravity) and "
+            "reduced to one signal by DFT321. Two forms are validated on the scans "
+            "themselves: Bianchi 2015's method read plainly (per speed, an LPC of --order "
+            "on the samples within --tolerance of it, rendered at the nearest fitted speed) "
+            "and the calibrated speed-resolved spectrum; a time block of each speed "
+            "plateau and each inner plateau whole are held out in turn, each form is "
+            "scored by its log-spectral distance there, the best wins (ties within the "
+            "noise to the paper's), is refitted on all the scans and the table printed "
+            "(docs/texture.md, 'How fit chooses'). Scans that cannot be validated (fewer "
+            "than two plateaus of 4.5 s) get the paper's method. Every model's stability "
+            "is checked. The 165-220 Hz band of Bianchi 2015 is stored as the output drive "
             "filter, not used for fitting."),
     )
     f.add_argument("scans", nargs="*", metavar="SCAN.csv", help="texture scan recordings")
@@ -132,6 +135,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "scans: a fixed tool/floor part and a surface part that moves with speed; "
                    "rendered at every speed by the 'stretch' method. Against the pooled fit: "
                    "better between speeds, R2 0.2 dB worse at 20 mm/s (docs/texture.md)")
+    f.add_argument("--form", choices=("auto", "paper", "calibrated"), default="auto",
+                   help="auto (default): validate every form on held-out blocks of the "
+                   "scans' speed plateaus and whole inner plateaus, keep the best (ties to "
+                   "the simpler), refit it on all the scans and print the table; 'paper': "
+                   "Bianchi 2015's method read plainly (a 5 mm/s window LPC per speed, no "
+                   "interpolation); 'calibrated': the speed-resolved spectrum. The options "
+                   "below select the older forms")
     form = f.add_mutually_exclusive_group()
     form.add_argument("--free-form", nargs="?", const="calibrated", default=AUTO,
                       choices=("calibrated", "free", "surface"),
@@ -390,7 +400,9 @@ def _set_options(pairs: list[str]) -> dict:
 
 
 def _write_json(path: str, data: dict) -> None:
-    Path(path).write_text(json.dumps(data, indent=1, allow_nan=False) + "\n", encoding="utf-8")
+    """Strict JSON: a figure that is not a number (NaN) is written as null."""
+    Path(path).write_text(json.dumps(finite(data), indent=1, allow_nan=False) + "\n",
+                          encoding="utf-8")
 
 
 def run_fit(args: argparse.Namespace) -> int:

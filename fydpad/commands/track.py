@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from fydpad.annotate import AnnotatedVideoWriter, annotate_frame
-from fydpad.cli import add_config_argument
+from fydpad.cli import add_config_argument, add_truncation_argument
 from fydpad.config import load_config
 from fydpad.errors import UserError
 from fydpad.opening import open_source
@@ -25,6 +25,7 @@ from vision.mapping import workspace_to_roi
 from vision.recording import TrackWriter, read_track
 from vision.sources import CameraConfig, FrameSource, SourceError
 from vision.stream import TrackedFrame, finger_states, live_states
+from vision.strict_json import finite
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -33,7 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="track the finger's contact in a recording or a live camera",
         description=(
             "Track the finger's contact centroid in every frame of a pad session recording "
-            "(or a live camera) and write the tracking output of RECORDING_FORMAT.md: "
+            "(or a live camera) and write the tracking output of docs/recording_format.md: "
             "t_s,frame,contact,x_mm,y_mm,indentation_mm, one row per frame, written as the "
             "frames are processed (an interrupted run keeps what it had). Where the recording "
             "has truth.csv, the accuracy against it is printed at the end."
@@ -53,6 +54,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="map a recording through the configuration's camera calibration "
                    "(always on for --camera when the configuration has one)")
     add_config_argument(p)
+    add_truncation_argument(p)
     p.set_defaults(func=run)
 
 
@@ -92,7 +94,8 @@ def run(args: argparse.Namespace) -> int:
         _plot(Path(args.plot), cols, m.workspace_mm, truth, str(source))
     print(format_summary(summary))
     if args.json:
-        Path(args.json).write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+        Path(args.json).write_text(
+            json.dumps(finite(summary), indent=2, allow_nan=False) + "\n", encoding="utf-8")
     return 0
 
 

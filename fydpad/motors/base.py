@@ -11,11 +11,14 @@ from dataclasses import dataclass
 from types import TracebackType
 from typing import Protocol, runtime_checkable
 
-from fydpad.errors import UserError
+from vision.errors import DeviceFault
 
 
-class MotorError(UserError):
+class MotorError(DeviceFault):
     """A motor backend that cannot do what it was asked (names the device or port)."""
+
+    device = "motors"
+    check = "the [motors] and [qb] configuration, the board's cable and its power"
 
 
 @dataclass(frozen=True)

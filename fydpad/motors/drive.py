@@ -21,10 +21,19 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from fydpad.motors.base import MotorConfig, MotorError, MotorPair
 from fydpad.motors.control import PositionLoop
 from fydpad.motors.pwm import PwmComposer, PwmConfig
-from fydpad.softness import SoftnessError, SoftnessTable
+from fydpad.motors.sim import FabricMotorPlant, SimMotors, indenter_press
+from fydpad.softness import (
+    SoftnessConfig,
+    SoftnessError,
+    SoftnessTable,
+    characterise_fabric,
+    load_table,
+)
 
 
 class MotorDrive:
@@ -138,20 +147,45 @@ def build_drive(motors: MotorConfig | None = None, pwm: PwmConfig | None = None,
     softness table measured on it by the simulated indenter unless ``softness.table``
     names one) or "qb" (the board at ``qb.port``, in ``qb.control_mode``). Imports the
     backend it needs only (pyserial for "qb")."""
-    from fydpad.softness import SoftnessConfig, load_table
-
     motors = motors if motors is not None else MotorConfig()
     softness = softness if softness is not None else SoftnessConfig()
     table = load_table(softness.table) if softness.table else None
     if motors.backend == "sim":
-        from fydpad.motors.sim import SimMotors, characterise_plant
-
         if table is None:
             table = characterise_plant()
         return MotorDrive(SimMotors(config=motors), table, motors, pwm, mode="pwm")
     if motors.backend == "qb":
-        from fydpad.motors.qb import QbBoardConfig, QbMotors
+        from fydpad.motors.qb import QbBoardConfig, QbMotors  # pyserial, for this backend only
 
         qb = qb if qb is not None else QbBoardConfig()
         return MotorDrive(QbMotors(qb, motors), table, motors, pwm, mode=qb.control_mode)
     raise MotorError(f"motors.backend must be 'sim' or 'qb', got {motors.backend!r}")
+
+
+def characterise_plant(
+    thetas_rad=(0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2), seed: int = 0,
+    plant: FabricMotorPlant | None = None,
+):
+    """The simulated pad's softness table, measured as on the real pad: the motors hold
+    each theta (host loop at 1 kHz) while the simulated indenter presses (0.5-10 mm,
+    noisy force and depth); k(theta) is fitted from that data, not read from the model.
+    Lets ``--motors sim`` render a stiffness without a table file."""
+    rng = np.random.default_rng(seed)
+    plant = plant if plant is not None else FabricMotorPlant()
+    drive = MotorDrive(SimMotors(plant))
+    drive.start()
+
+    def hold(ticks: int = 10) -> None:
+        for _ in range(ticks):
+            drive.tick(0.0)
+
+    theta, depth, force = [], [], []
+    for th in thetas_rad:
+        drive.set_theta_rad(th)
+        hold(800)
+        d, f = indenter_press(plant, np.linspace(0.5, 10.0, 20), rng, hold=hold)
+        theta += [th] * d.size
+        depth += list(d)
+        force += list(f)
+    drive.safe_stop()
+    return characterise_fabric(theta, depth, force)

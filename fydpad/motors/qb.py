@@ -11,8 +11,14 @@ Two control modes (``QbBoardConfig.control_mode``; ``docs/motors.md`` weighs the
   sends position references (softness position + vibration as a position offset).
 
 Every read has a deadline: a board that does not answer gives a :class:`QbTimeoutError`
-naming the port, the board id and the command, never a hang. Replies with a bad
-checksum and stray bytes are skipped and counted (``stats()``).
+naming the port, the board id and the command, never a hang. The 1 kHz loop's read waits
+at most ``tick_timeout_s`` (half a tick): a late reply reuses the last reading and is
+taken by a later tick. Replies with a bad checksum and stray bytes are skipped and
+counted (``stats()``).
+
+The board stops by itself: activation arms the firmware's watchdog (``watchdog_cs``,
+qbAPI's ``commSetWatchDog``), so a host that dies or hangs leaves the motors unpowered
+within 20 ms, not at their last duty.
 """
 
 from __future__ import annotations
@@ -47,11 +53,13 @@ class QbBoardConfig:
     device_id: int = 1
     #: Deadline for a reply to a set-up command (ping, activate, parameters), s.
     timeout_s: float = 0.1
-    #: Deadline for the per-tick measurement reply in the 1 kHz loop, s.
-    tick_timeout_s: float = 0.004
-    #: Missed per-tick replies tolerated in a row (the last reading is reused) before
-    #: the read fails and the station goes to its safe state.
-    max_missed_replies: int = 3
+    #: The most a tick's measurement read waits, s: half the 1 kHz period, so a late
+    #: reply never holds the tick past its deadline (the last reading is reused).
+    tick_timeout_s: float = 0.0005
+    #: Ticks in a row without a reply tolerated (the last reading is reused) before the
+    #: read fails and the station goes to its safe state: 10 ms at 1 kHz, inside the
+    #: board's 20 ms watchdog.
+    max_missed_replies: int = 10
     #: "pwm" (host position loop, eq. 3 literal) or "position" (board position loop).
     control_mode: str = "pwm"
     #: Encoder counts per turn in the measurements (16-bit angle, resolution shift 0).
@@ -66,10 +74,11 @@ class QbBoardConfig:
     n_sensors: int = 2
     #: Per-tick encoder reads one tick behind (see ``QbMotors.read_positions_rad``).
     pipelined: bool = True
-    #: CMD_SET_WATCHDOG value sent on activation (qbAPI ``commSetWatchDog``: the board
-    #: stops driving when commands stop for this period, firmware units); 0: not sent.
-    #: In PWM mode the board would otherwise keep the last duty if the host died.
-    watchdog: int = 0
+    #: The firmware watchdog, centiseconds (qbAPI ``commSetWatchDog(wdt)``, 0-500 cs,
+    #: sent as wdt / 2: the firmware counts in 2 cs steps). No command for this long and
+    #: the board deactivates its motors. Default: the shortest, 2 cs = 20 ms (20 ticks
+    #: at 1 kHz). 0 disarms it: the board would keep its last duty if the host died.
+    watchdog_cs: int = 2
 
 
 class QbMotors:
@@ -80,6 +89,9 @@ class QbMotors:
         if config.control_mode not in ("pwm", "position"):
             raise MotorError(f"QB board: control_mode must be 'pwm' or 'position', "
                              f"got {config.control_mode!r}")
+        if not (config.watchdog_cs == 0 or 2 <= config.watchdog_cs <= 500):
+            raise MotorError(f"QB board: watchdog_cs must be 0 (off) or 2-500 centiseconds "
+                             f"(the firmware counts in 2 cs steps), got {config.watchdog_cs}")
         self.config = config
         self.motor_config = motor_config if motor_config is not None else MotorConfig()
         self.port = config.port
@@ -87,8 +99,10 @@ class QbMotors:
         self._rad_per_count = 2.0 * math.pi / config.counts_per_rev
         self._last = (math.nan, math.nan)
         self._missed = 0
-        self._pending = False
+        self._in_flight = 0  # measurement requests sent, not yet answered
         self.timeouts = 0
+        #: Ticks that reused the last reading (no reply within ``tick_timeout_s``).
+        self.reused_readings = 0
         self.active = False
         self.last_error = ""
         try:
@@ -119,7 +133,7 @@ class QbMotors:
         except (serial.SerialException, OSError) as exc:
             raise MotorError(f"QB board on {self.port}: {exc}") from None
         self._parser.clear()
-        self._pending = False
+        self._in_flight = 0
         self._send(cmd, payload)
         return self._read_reply(cmd, self.config.timeout_s if timeout_s is None else timeout_s)
 
@@ -187,8 +201,7 @@ class QbMotors:
         """Ping, set the control mode, power the motors and check they are on."""
         self.ping()
         self.set_control_mode(self.config.control_mode)
-        if self.config.watchdog > 0:
-            self._send(qp.CMD_SET_WATCHDOG, bytes((min(self.config.watchdog // 2, 255),)))
+        self._send(qp.CMD_SET_WATCHDOG, bytes((self.config.watchdog_cs // 2,)))
         # Hold still on power-up: zero duty, or the current position as the reference.
         if self.config.control_mode == "pwm":
             self._send(qp.CMD_SET_INPUTS, qp.int16s(0, 0))
@@ -249,13 +262,15 @@ class QbMotors:
         return qp.parse_int16s(reply[1:])
 
     def read_positions_rad(self) -> tuple[float, float]:
-        """Both encoders (GET_MEASUREMENTS). Up to ``max_missed_replies`` missed replies
-        in a row reuse the last reading; one more raises :class:`QbTimeoutError`.
+        """Both encoders (GET_MEASUREMENTS), waiting at most ``tick_timeout_s``. No reply
+        in time reuses the last reading (counted in ``reused_readings``); more than
+        ``max_missed_replies`` ticks in a row without one raise :class:`QbTimeoutError`.
 
-        Pipelined (``QbBoardConfig.pipelined``): this tick takes the reply to the request
-        sent last tick and sends the next request, so a USB round trip (about 1 ms with
-        the FTDI latency timer at 1 ms) never stalls the 1 kHz tick; the position loop
-        sees encoders one tick old, which its ~10 Hz bandwidth does not notice."""
+        Pipelined (``QbBoardConfig.pipelined``): this tick takes the newest reply to the
+        requests of earlier ticks and sends the next request, so a USB round trip (about
+        1 ms with the FTDI latency timer at 1 ms) never stalls the 1 kHz tick; the position
+        loop sees encoders a tick or two old, which its ~10 Hz bandwidth does not notice.
+        At most two requests are in flight: a reply later than that is taken as lost."""
         try:
             if self.config.pipelined:
                 p = self._pipelined_counts()
@@ -265,25 +280,57 @@ class QbMotors:
             self._missed += 1
             if self._missed > self.config.max_missed_replies or math.isnan(self._last[0]):
                 raise
+            self.reused_readings += 1
             return self._last
         self._missed = 0
         self._last = (p[0] * self._rad_per_count, p[1] * self._rad_per_count)
         return self._last
 
     def _pipelined_counts(self) -> tuple[int, ...]:
-        if not self._pending:
-            p = self._get_counts(self.config.timeout_s)
-        else:
+        try:
+            if math.isnan(self._last[0]) and self._in_flight == 0:
+                return self._get_counts(self.config.timeout_s)  # the first: set-up time
+            return self._newest_measurement()
+        finally:  # the next request goes out whatever this tick got
+            if self._in_flight >= 2:
+                self._in_flight -= 1  # the oldest request's reply is late past use: lost
+            self._send(qp.CMD_GET_MEASUREMENTS)
+            self._in_flight += 1
+
+    def _newest_measurement(self) -> tuple[int, ...]:
+        """The newest measurement reply to arrive within ``tick_timeout_s`` (all those
+        already there are taken, the newest kept); QbTimeoutError if none."""
+        want = 1 + 2 * self.config.n_sensors
+        newest = None
+        for pkt in self._poll_packets(self.config.tick_timeout_s):
+            if pkt.body[0] == qp.CMD_GET_MEASUREMENTS and len(pkt.body) >= want:
+                newest = pkt.body
+                self._in_flight = max(0, self._in_flight - 1)
+        if newest is None:
+            self.timeouts += 1
+            raise QbTimeoutError(
+                f"QB board on {self.port}: no valid reply to GET_MEASUREMENTS from device "
+                f"{self.config.device_id} within {self.config.tick_timeout_s * 1000:.1f} ms")
+        return qp.parse_int16s(newest[1:])
+
+    def _poll_packets(self, timeout_s: float) -> list:
+        """Every packet already received, or (none yet) the first to arrive within
+        ``timeout_s``."""
+        deadline = time.monotonic() + timeout_s
+        ser = self._ser
+        packets: list = []
+        while True:
             try:
-                body = self._read_reply(qp.CMD_GET_MEASUREMENTS, self.config.tick_timeout_s,
-                                        want=qp.CMD_GET_MEASUREMENTS)
-            except QbTimeoutError:
-                self._send(qp.CMD_GET_MEASUREMENTS)  # a lost request: ask again
-                raise
-            p = qp.parse_int16s(body[1:])
-        self._send(qp.CMD_GET_MEASUREMENTS)
-        self._pending = True
-        return p
+                ready, _, _ = select.select([self._fd], [], [],
+                                            max(0.0, deadline - time.monotonic()))
+                chunk = ser.read(max(1, ser.in_waiting)) if ready else b""
+            except (serial.SerialException, OSError) as exc:
+                raise MotorError(f"QB board on {self.port}: read failed ({exc})") from None
+            if chunk:
+                packets += self._parser.feed(chunk)
+                continue  # more may be there already
+            if packets or time.monotonic() >= deadline:
+                return packets
 
     def stats(self) -> dict:
         return {"timeouts": self.timeouts,

@@ -5,17 +5,25 @@ slave end) like a USB serial port. Behind it the emulator runs the simulated pla
 (:mod:`fydpad.motors.sim`): each ``SET_INPUTS`` is one board tick: in PWM mode the
 duty drives the plant, in position mode the board's own position loop does. Faults can
 be injected for tests: no replies (``mute``), replies with a bad checksum
-(``corrupt_replies``), stray bytes before a reply (``garbage_before_reply``).
+(``corrupt_replies``), stray bytes before a reply (``garbage_before_reply``), replies
+sent late (``reply_delay_s``).
 
-Like the firmware, it ignores frames with a bad checksum or another board's id.
+Like the firmware, it ignores frames with a bad checksum or another board's id, and
+enforces its watchdog (``CMD_SET_WATCHDOG``): armed with byte b, the board deactivates
+its motors (zero duty, unpowered) when no frame for it arrives for b * 2 cs. The board
+clock is ``time.monotonic``; the expiry is kept at the exact deadline, as the firmware's
+hardware counter fires there (``watchdog_stops``: (last frame, stop) times), and
+applied when the emulator next looks (its thread wakes at the deadline).
 """
 
 from __future__ import annotations
 
+import heapq
 import math
 import os
 import select
 import threading
+import time
 import tty
 from types import TracebackType
 
@@ -44,12 +52,20 @@ class QbEmulator:
                                   mc.kd_duty_s_per_rad, self.plant.config.dt_s, 1.0)
         self.control_mode = qp.CONTROL_ANGLE  # the firmware's default mode
         self.activation = 0
+        #: The watchdog byte as the firmware got it (period: 2 cs per unit; 0: off).
         self.watchdog = 0
+        #: Board time of the last frame for this board, and each watchdog stop as
+        #: (last frame before it, the stop) board times.
+        self.last_frame_s = math.nan
+        self.watchdog_stops: list[tuple[float, float]] = []
         self.inputs = (0, 0)
         # Fault injection.
         self.mute = False
         self.corrupt_replies = 0
         self.garbage_before_reply = b""
+        self.reply_delay_s = 0.0
+        self._delayed: list[tuple[float, int, bytes]] = []  # (due, order, frame)
+        self._order = 0
         # What the host sent (command codes, in order) and what was ignored.
         self.received: list[int] = []
         self.bad_frames = 0
@@ -93,11 +109,22 @@ class QbEmulator:
                  tb: TracebackType | None) -> None:
         self.stop()
 
+    @property
+    def watchdog_period_s(self) -> float:
+        return self.watchdog * 0.02
+
     def _run(self) -> None:
         while True:
-            ready, _, _ = select.select([self._master, self._stop_r], [], [])
+            with self._lock:
+                timeout = self._next_event_s()
+            ready, _, _ = select.select([self._master, self._stop_r], [], [], timeout)
             if self._stop_r in ready:
                 return
+            with self._lock:
+                self._apply_watchdog()
+                self._send_due_replies()
+            if self._master not in ready:
+                continue
             try:
                 data = os.read(self._master, 4096)
             except OSError:
@@ -107,10 +134,44 @@ class QbEmulator:
                 for pkt in self._parser.feed(data):
                     if pkt.device_id not in (self.device_id, 0):
                         continue
+                    self._apply_watchdog()  # a frame after the deadline comes too late
+                    self.last_frame_s = time.monotonic()
                     reply = self._handle(pkt.body)
                     if reply is not None:
                         self._reply(reply)
                 self.bad_frames += self._parser.checksum_errors - bad0
+
+    def _next_event_s(self) -> float | None:
+        """Seconds to the next watchdog deadline or delayed reply (None: none)."""
+        due = []
+        if self.watchdog and self.activation and not math.isnan(self.last_frame_s):
+            due.append(self.last_frame_s + self.watchdog_period_s)
+        if self._delayed:
+            due.append(self._delayed[0][0])
+        return max(0.0, min(due) - time.monotonic()) if due else None
+
+    def _apply_watchdog(self) -> None:
+        """The firmware's watchdog: past its deadline, motors off (as of the deadline)."""
+        if not (self.watchdog and self.activation) or math.isnan(self.last_frame_s):
+            return
+        deadline = self.last_frame_s + self.watchdog_period_s
+        if time.monotonic() >= deadline:
+            self.activation = 0
+            self.plant.powered = False
+            self.plant.set_duty(0.0, 0.0)
+            self._loop.reset()
+            self.watchdog_stops.append((self.last_frame_s, deadline))
+
+    def at_rest(self) -> bool:
+        """Motors unpowered at zero duty (the watchdog applied as of now)."""
+        with self._lock:
+            self._apply_watchdog()
+            return not self.activation and not self.plant.powered
+
+    def _send_due_replies(self) -> None:
+        now = time.monotonic()
+        while self._delayed and self._delayed[0][0] <= now:
+            os.write(self._master, heapq.heappop(self._delayed)[2])
 
     def _reply(self, body: bytes) -> None:
         if self.mute:
@@ -119,7 +180,13 @@ class QbEmulator:
         if self.corrupt_replies > 0:
             self.corrupt_replies -= 1
             frame[-1] ^= 0xFF
-        os.write(self._master, self.garbage_before_reply + bytes(frame))
+        out = self.garbage_before_reply + bytes(frame)
+        if self.reply_delay_s > 0:
+            self._order += 1
+            heapq.heappush(self._delayed, (time.monotonic() + self.reply_delay_s,
+                                           self._order, out))
+            return
+        os.write(self._master, out)
 
     # ------------------------------------------------------------------ firmware
 

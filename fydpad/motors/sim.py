@@ -268,35 +268,3 @@ def indenter_press(
         depth[j] = float(d) + rng.normal(0.0, depth_noise_mm)
     plant.set_indentation_mm(0.0)
     return depth, force
-
-
-def characterise_plant(
-    thetas_rad=(0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2), seed: int = 0,
-    plant: FabricMotorPlant | None = None,
-):
-    """The simulated pad's softness table, measured as on the real pad: the motors hold
-    each theta (host loop at 1 kHz) while the simulated indenter presses (0.5-10 mm,
-    noisy force and depth); k(theta) is fitted from that data, not read from the model.
-    Lets ``--motors sim`` render a stiffness without a table file."""
-    from fydpad.motors.drive import MotorDrive
-    from fydpad.softness import characterise_fabric
-
-    rng = np.random.default_rng(seed)
-    plant = plant if plant is not None else FabricMotorPlant()
-    drive = MotorDrive(SimMotors(plant))
-    drive.start()
-
-    def hold(ticks: int = 10) -> None:
-        for _ in range(ticks):
-            drive.tick(0.0)
-
-    theta, depth, force = [], [], []
-    for th in thetas_rad:
-        drive.set_theta_rad(th)
-        hold(800)
-        d, f = indenter_press(plant, np.linspace(0.5, 10.0, 20), rng, hold=hold)
-        theta += [th] * d.size
-        depth += list(d)
-        force += list(f)
-    drive.safe_stop()
-    return characterise_fabric(theta, depth, force)

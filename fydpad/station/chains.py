@@ -6,7 +6,10 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
-from fydpad.station.render import RenderSpec
+from fydpad.chain.live import open_compensator
+from fydpad.motors.drive import build_drive
+from fydpad.station.outputs import ChannelOutputs
+from fydpad.station.spec import RenderSpec
 from fydpad.station.texture_source import open_texture, tick_speed
 
 
@@ -16,8 +19,6 @@ class DriveChain:
     outputs = ("vibration", "duty0", "duty1", "theta_ref_rad")
 
     def __init__(self, spec: RenderSpec):
-        from fydpad.motors.drive import build_drive
-
         cfg = spec.config
         motors = replace(cfg.motors, backend=spec.motors, rate_hz=spec.rate_hz)
         self.drive = build_drive(motors, cfg.pwm, cfg.qb, cfg.softness)
@@ -48,15 +49,11 @@ class DriveChain:
         self._k_lo, self._k_hi = (table.k_range_n_per_mm if table is not None
                                   else (0.0, math.inf))
         self._strict = cfg.softness.strict
-        self.compensator = None  # chain compensation (issue 8): TF inverse, per stiffness
+        self.compensator = None  # chain compensation: TF inverse, per stiffness
         if spec.compensate is not None:
-            from fydpad.chain.live import open_compensator
-
             self.compensator = open_compensator(spec.compensate, spec.rate_hz)
-        self.channels = None  # --channel: the texture's signals to cards and files (issue 8)
+        self.channels = None  # --channel: the texture's signals to cards and files
         if spec.channels:
-            from fydpad.station.outputs import ChannelOutputs
-
             self.channels = ChannelOutputs(list(spec.channels), self.models, spec.rate_hz,
                                            spec.channel_block_ticks)
         self.drive.start()

@@ -1,17 +1,18 @@
-"""Output channels of the live station (issue 8): ``fydpad run --channel [SIGNAL=]TARGET``.
+"""Output channels of the live station: ``fydpad run --channel [SIGNAL=]TARGET``.
 
 The render process's texture family writes, besides the motors' vibration term, to named
 channels each at its own rate (docs/channels.md): ``vibration`` and ``tension`` come from
 the family's 1 kHz ``tick`` (eq. 3's texture term before the chain compensation, which
 belongs to the motors' chain only); a family's other declared channels (friction's
-electrostatic ``audio`` V = b mu(x) Y(t) of paper 001 eq. 2, a grating's ``audio`` V_e or
-``force`` F_v of paper 002) are rendered at their own rate (48 kHz) by the family's
+electrostatic ``audio`` V = b mu(x) Y(t) of Jiao 2018 eq. 2, a grating's ``audio`` V_e or
+``force`` F_v of Ito 2019) are rendered at their own rate (48 kHz) by the family's
 ``render`` over each block, from the ticks' finger stream.
 
 Nothing per tick but stores into preallocated arrays: every ``block_ticks`` ticks
 (10 ms) the block is rendered and handed on. A sound card's ring write
-(:class:`fydpad.channels.audio.AudioChannel`) never blocks; a file channel is written by a
-thread of its own (:class:`FileWriter`), so the 1 kHz loop never waits on the disk.
+(:class:`fydpad.channels.audio.AudioChannel`) never blocks; a file channel's block goes
+into a preallocated ring that a thread of its own writes (:class:`FileWriter`), so the
+1 kHz loop never waits on the disk.
 On stop or fault (``close``) files get what was rendered and the sound card stops at once
 (``abort``: silence, not a play-out of its buffer).
 """
@@ -20,15 +21,16 @@ from __future__ import annotations
 
 import copy
 import math
-import queue
 import re
 import threading
+import time
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from fydpad.channels.base import ChannelError
+from fydpad.channels.ring import SampleRing
 from fydpad.texture.family import FingerBlock, TickPosition
 
 #: The value of a signal with no texture, or a model without that channel.
@@ -134,36 +136,57 @@ def check_channel(text: str, families: list[Any], rate_hz: float = 1000.0) -> st
 
 
 class FileWriter:
-    """A file channel written by its own thread: ``write`` queues a copy and returns.
+    """A file channel written by its own thread: ``write`` copies the block into a
+    preallocated ring (:class:`fydpad.channels.ring.SampleRing`, ``buffer_s`` of samples)
+    and returns; no allocation, no wait. A disk stalled past the ring drops samples,
+    counted in ``stats`` (``dropped_samples``).
 
-    The thread owns the channel: it writes the blocks in order and closes the channel
-    after the last one, so a close never lands in the middle of a write (a slow disk).
+    The thread owns the channel: it writes what the ring holds, in order, every
+    ``poll_s``, and closes the channel after the last write, so a close never lands in
+    the middle of a write (a slow disk).
     """
 
-    def __init__(self, channel: Any) -> None:
+    def __init__(self, channel: Any, buffer_s: float = 2.5, poll_s: float = 0.02) -> None:
         self.channel = channel
         self.name, self.rate_hz = channel.name, channel.rate_hz
-        self._q: queue.SimpleQueue = queue.SimpleQueue()
+        self.ring = SampleRing(max(1, math.ceil(buffer_s * channel.rate_hz)), np.float64)
+        self.poll_s = float(poll_s)
         #: The first failed write (the thread stops writing then), and a failed close.
         self.error: BaseException | None = None
         self.close_error: BaseException | None = None
         self._reported = False  # ``error`` already raised by ``write``
-        self._discard = False  # close(drain=False): drop the blocks still queued
-        self._closing = False
+        self._discard = False  # close(drain=False): drop the samples still buffered
+        self._stop = threading.Event()
+        #: Samples that did not fit (a stalled disk) and, on close(drain=False), those
+        #: still buffered.
         self.dropped = 0
+        self.discarded = 0
         self._thread = threading.Thread(target=self._run, name=f"channel-{self.name}",
                                         daemon=True)
         self._thread.start()
 
     def _run(self) -> None:
-        while (block := self._q.get()) is not None:
+        chunk = np.empty(max(1, min(self.ring.capacity, 4096)))
+        while True:
+            stopping = self._stop.is_set()
             if self._discard:
-                self.dropped += 1
-            elif self.error is None:
-                try:
-                    self.channel.write(block)
-                except BaseException as exc:  # reported by ``write``/``close``
-                    self.error = exc
+                n = self.ring.pop_into(chunk)
+                self.discarded += n
+                if n:
+                    continue
+            else:
+                n = self.ring.pop_into(chunk)
+                if n:
+                    if self.error is None:
+                        try:
+                            self.channel.write(chunk[:n])
+                        except BaseException as exc:  # reported by ``write``/``close``
+                            self.error = exc
+                    time.sleep(0)  # a waiting tick takes the GIL between chunks
+                    continue
+            if stopping:
+                break
+            self._stop.wait(self.poll_s)
         try:
             self.channel.close()  # here, after the last write: never during one
         except BaseException as exc:
@@ -173,19 +196,19 @@ class FileWriter:
         if self.error is not None:
             self._reported = True
             raise ChannelError(f"write failed: {self.error}")
-        self._q.put(np.array(block, dtype=np.float64))
+        if self._stop.is_set():
+            raise ChannelError("write after close")
+        self.dropped += len(block) - self.ring.push(block)
 
     def close(self, drain: bool = True, timeout_s: float = 10.0) -> None:
-        """``drain``: write the blocks still queued first (a file keeps what was rendered);
-        else drop them (counted in ``dropped``). The thread closes the channel after its
-        last write. ChannelError (one line) for a write failure not yet raised by
-        ``write``, a failed close (a WAV header not finalised), or a write still running
-        after ``timeout_s`` (the channel is then closed when it returns)."""
+        """``drain``: write the samples still buffered first (a file keeps what was
+        rendered); else drop them (counted in ``discarded``). The thread closes the
+        channel after its last write. ChannelError (one line) for a write failure not yet
+        raised by ``write``, a failed close (a WAV header not finalised), or a write still
+        running after ``timeout_s`` (the channel is then closed when it returns)."""
         if not drain:
             self._discard = True
-        if not self._closing:
-            self._closing = True
-            self._q.put(None)
+        self._stop.set()
         self._thread.join(timeout=timeout_s)
         if self._thread.is_alive():
             raise ChannelError(f"still writing after {timeout_s:g} s; closed once that "
@@ -206,8 +229,9 @@ class FileWriter:
             out["clipped"] = int(self.channel.n_clipped)
         if getattr(self.channel, "n_nonfinite", 0):
             out["nonfinite"] = int(self.channel.n_nonfinite)
-        if self.dropped:
-            out["dropped_blocks"] = self.dropped
+        out["dropped_samples"] = self.dropped
+        if self.discarded:
+            out["discarded_samples"] = self.discarded
         if self.error is not None:
             out["error"] = str(self.error)
         if self.close_error is not None:

@@ -10,30 +10,37 @@ from shared memory and never waiting on anything.
 Each tick: read the newest finger state (seqlock, no wait) -> the render chain (texture
 vibration, softness position, eq. 3 PWM) -> the actuator. On a stop request, a fault
 or any exception: vibration off, motors to rest (``RenderChain.safe_stop``).
+
+No disk I/O in the loop: the commands log's rows go into a preallocated ring that a
+thread writes (:class:`fydpad.station.row_log.RingRowLog`), as file channels' blocks do
+(:class:`fydpad.station.outputs.FileWriter`); a disk that stalls past the ring's 2.5 s
+drops rows, counted in the stats (``commands_log.dropped``), never a tick.
 """
 
 from __future__ import annotations
 
-import math
 import multiprocessing as mp
 import os
+import sys
 import time
 import traceback
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Protocol
 
 from fydpad.errors import one_line_warnings
 from fydpad.pacing import LatencyHistogram, LoopTimer
+from fydpad.station.chains import build_render_chain
+from fydpad.station.row_log import RingRowLog
 from fydpad.station.shared import SharedFingerState, SharedRecord
+from fydpad.station.spec import RenderSpec
 from teleop.realtime import request_realtime
-from vision.recording import CsvRowWriter
 
 #: Control values the station may change while the render process runs. ``texture_index``
 #: selects the texture model among ``[RenderSpec.texture, *RenderSpec.textures]`` (-1: none;
-#: the experiment's stimuli); ``friction_b_v`` sets a friction model's b (NaN: the file's).
+#: the experiment's stimuli); ``friction_b_v`` sets a friction model's b (NaN: the file's);
+#: ``operator_hold`` (1: held) silences the vibration whatever ``vibration_enabled`` says.
 CONTROL_FIELDS = ("vibration_gain", "stiffness_n_per_mm", "vibration_enabled", "epoch_s",
-                  "texture_index", "friction_b_v")
+                  "texture_index", "friction_b_v", "operator_hold")
 
 
 class RenderChain(Protocol):
@@ -48,42 +55,6 @@ class RenderChain(Protocol):
 
     def safe_stop(self) -> None:
         """Vibration off, motors to rest. Must not raise."""
-
-
-@dataclass
-class RenderSpec:
-    """Everything the render process needs to build its chain (picklable)."""
-
-    rate_hz: float = 1000.0
-    #: A texture model file (None: no vibration).
-    texture: str | None = None
-    #: More texture models, all loaded at start and selected live by the control record's
-    #: ``texture_index`` (1, 2, ...; 0 is ``texture``): no file I/O in the 1 kHz loop.
-    textures: tuple[str, ...] = ()
-    vibration_gain: float = 1.0
-    #: LPC models' interpolation between fitted speeds (None: the default, "stretch").
-    texture_method: str | None = None
-    #: Band-pass LPC models' vibration through the model file's drive band (paper III-B:
-    #: 165-220 Hz, where the fabric's actuator chain responds).
-    drive_filter: bool = False
-    stiffness_n_per_mm: float = math.nan
-    #: "sim" (the simulated fabric and motor plant) or "qb" (the QB board) or "none".
-    motors: str = "none"
-    motor_options: dict = field(default_factory=dict)
-    #: Write every tick's commands here (CSV), or None.
-    commands_csv: str | None = None
-    #: Try SCHED_FIFO and a core of its own (needs the right to; falls back silently).
-    realtime: bool = True
-    #: A custom chain, "module:callable" taking the spec (labs' own actuators, tests).
-    chain: str | None = None
-    #: The device configuration (motor, PWM, board and softness sections are used).
-    config: Any = None
-    #: A TF file of ``fydpad chain identify``: its inverse pre-compensates the vibration.
-    compensate: str | None = None
-    #: Output channels, ``[SIGNAL=]TARGET[,fs=X]`` each (fydpad.station.outputs).
-    channels: tuple[str, ...] = ()
-    #: Ticks per block handed to the channels (10: 10 ms).
-    channel_block_ticks: int = 10
 
 
 class NullChain:
@@ -108,8 +79,6 @@ def build_chain(spec: RenderSpec) -> RenderChain:
         return getattr(importlib.import_module(module), name)(spec)
     if spec.motors == "none" and spec.texture is None and not spec.textures:
         return NullChain()
-    from fydpad.station.chains import build_render_chain
-
     return build_render_chain(spec)
 
 
@@ -123,15 +92,19 @@ def render_main(
 ) -> None:
     """Entry point of the render process; posts ("stats", dict) and maybe ("fault", text)."""
     one_line_warnings("fydpad run")  # this process's warnings (a clamped speed) as one line
+    # The writer threads (commands log, file channels) format under the GIL: a tick that
+    # wants it back waits at most this long, not CPython's default 5 ms.
+    sys.setswitchinterval(1e-4)
     scheduling = request_realtime(50, cpu=-1) if spec.realtime else "normal"
     timer = LoopTimer(spec.rate_hz, "render")
     latency = LatencyHistogram()
     chain: RenderChain | None = None
-    log: CsvRowWriter | None = None
+    log: RingRowLog | None = None
     try:
         chain = build_chain(spec)
         if spec.commands_csv:
-            log = CsvRowWriter(Path(spec.commands_csv), ("t_s", "frame", *chain.outputs))
+            log = RingRowLog(Path(spec.commands_csv), ("t_s", "frame", *chain.outputs),
+                             spec.rate_hz, spec.commands_buffer_s, integer_columns=("frame",))
         last_seq = 0
         last_ctl_seq = -1
         # Optional: a chain that switches textures or takes b live (DriveChain does).
@@ -156,7 +129,7 @@ def render_main(
                 if apply_control is not None:
                     apply_control(ctl[4], ctl[5])
             t0 = ctl[3]  # the station's epoch: t_s = 0 at its first frame
-            gain = ctl[0] if ctl[2] > 0.5 else 0.0
+            gain = ctl[0] if ctl[2] > 0.5 and not ctl[6] > 0.5 else 0.0
             if seq and ctl_seq:
                 out = chain.tick(tick_time - t0, v[1] > 0.5, v[2], v[3], v[5], v[6], gain,
                                  ctl[1])
@@ -165,11 +138,13 @@ def render_main(
                     latency.add(time.perf_counter() - v[7])
                     last_seq = seq
                 if log is not None:
-                    log.write(tick_time - t0, int(v[8]), *out)
+                    log.write(tick_time - t0, v[8], *out)
             if timer.stats_due():
                 if os.getppid() != parent:
                     # The station died without stopping us (SIGKILL): stop safely, now.
                     raise RuntimeError("the station process is gone")
+                if log is not None and log.error is not None:
+                    raise RuntimeError(f"commands log {spec.commands_csv}: {log.error}")
                 # Once a second: the live figures for the status line and the web view.
                 live = {"render": timer.stats().as_dict(),
                         "frame_to_command_ms": latency.percentiles_ms()}
@@ -192,7 +167,7 @@ def render_main(
             try:
                 log.close()
             except BaseException as exc:
-                faults.append(f"commands log {spec.commands_csv}: {exc}")
+                faults.append(f"commands log {exc}")
         for fault in faults:
             results.put(("fault", f"render process: {fault}"))
         stats = timer.stats().as_dict()
@@ -200,6 +175,8 @@ def render_main(
         stale = state.stale_reads + control.stale_reads
         if stale:
             stats["stale_reads"] = stale
+        if log is not None:
+            stats["commands_log"] = log.stats()
         if chain is not None and hasattr(chain, "stats"):
             try:
                 stats["chain"] = chain.stats()

@@ -13,6 +13,12 @@
 A fault in any loop, Ctrl-C or the end of ``duration_s`` stops everything the same
 way: vibration off and motors to rest (the render process), the robot told to hold
 (the link), files flushed and closed.
+
+The operator hold (:meth:`Station.set_operator_hold`, from the terminal's key, the web
+view's button or the sensor board's pedal): the robot holds still (the link's samples
+carry the flag), the vibration goes silent, the softness stays (the finger keeps its
+support); released, the robot glides back to the finger. Every change is an event of the
+recording (``events.csv``).
 """
 
 from __future__ import annotations
@@ -35,14 +41,18 @@ from fydpad.station.render import CONTROL_FIELDS, RenderSpec, render_main
 from fydpad.station.shared import SharedFingerState, SharedRecord
 from fydpad.station.snapshot import Snapshot, View
 from vision.contact import ContactTracker
+from vision.errors import DeviceFault
 from vision.recording import CsvRowWriter, PadMeta, PadRecordingWriter, TrackWriter, write_meta
 from vision.sources import FrameSource
 from vision.state import FingerState
 from vision.stream import FingerStateBuilder, LiveIndentation
 
 
-class StationFault(RuntimeError):
+class StationFault(DeviceFault, RuntimeError):
     """A loop of the station failed; the station has stopped safely."""
+
+    device = "station"
+    check = "the loop and device the message names (vibration is off, the motors at rest)"
 
 
 @dataclass
@@ -175,6 +185,9 @@ class SerialSensorFeed:
 
     def __init__(self, board):
         self.board = board
+        #: Called with the deadman pedal's state (True pressed) on each change, and once
+        #: with the first state read; unset: the pedal is not used.
+        self.on_pedal: Callable[[bool], None] | None = None
         self.samples = 0
         self.invalid_ir = 0
         self.saturated_force = 0
@@ -183,6 +196,7 @@ class SerialSensorFeed:
         # Lines queued before the station started are stale: start from the newest.
         self.board.flush_input()
         clock = ClockOffset()  # the board's clock onto the station's
+        last_pedal: bool | None = None
         try:
             while not stop.is_set():
                 ir, force = self.board.read()
@@ -196,6 +210,11 @@ class SerialSensorFeed:
                     latest.set_force(t_s, force.force_n)
                     self.saturated_force += force.saturated
                 self.samples += 1
+                pedal = self.board.pedal
+                if pedal is not None and pedal != last_pedal:
+                    last_pedal = pedal
+                    if self.on_pedal is not None:
+                        self.on_pedal(pedal)
         finally:
             self.board.close()
 
@@ -204,7 +223,7 @@ class SerialSensorFeed:
 
     def status(self) -> dict:
         st = self.board.stats
-        return {"port": self.board.port, "samples": self.samples,
+        return {"port": self.board.port, "samples": self.samples, "pedal": self.board.pedal,
                 "bad_lines": st.bad_checksum + st.malformed + st.overlong,
                 "invalid_ir": self.invalid_ir, "saturated_force": self.saturated_force,
                 "board_resets": st.board_resets}
@@ -248,6 +267,8 @@ class StationOptions:
     #: Called with the latest state at the vision rate (the tele-operation link).
     teleop_send: Callable[[FingerState], None] | None = None
     teleop_hold: Callable[[], None] | None = None
+    #: Called with the operator hold on each change (the link's ``set_operator_hold``).
+    operator_hold: Callable[[bool], None] | None = None
     status: Callable[[dict], None] | None = None
     #: How long the render process may take to build its chain (a board to connect).
     render_start_timeout_s: float = 30.0
@@ -279,7 +300,7 @@ class Station:
         self.shared = SharedFingerState()
         self.control = SharedRecord(CONTROL_FIELDS)
         self._control = [options.render.vibration_gain, options.render.stiffness_n_per_mm, 1.0,
-                         math.nan, 0.0, math.nan]  # texture 0 (--texture), b of the file
+                         math.nan, 0.0, math.nan, 0.0]  # texture 0, b of the file, no hold
         self._control_lock = threading.Lock()
         self.control.write(self._control)
         self.stop_event = threading.Event()
@@ -302,6 +323,48 @@ class Station:
         #: A replayed feed as fast as possible: advanced by the vision loop, no thread.
         self._sensors_by_frame = (not options.real_time
                                   and hasattr(self.sensors, "advance_to"))
+        #: The operator hold (``set_operator_hold``) and its changes: (t_s, on, source).
+        self.operator_hold = False
+        self.hold_events: list[tuple[float, bool, str]] = []
+        self._hold_lock = threading.Lock()
+        self._deadman_released = False
+        self._events: CsvRowWriter | None = None
+        if isinstance(sensors, SerialSensorFeed):  # a deadman pedal: released holds
+            sensors.on_pedal = lambda pressed: self.set_operator_hold(not pressed, "pedal")
+
+    # -- operator hold -----------------------------------------------------------
+
+    def set_operator_hold(self, on: bool, source: str = "api") -> bool:
+        """Hold (True) or release (False), from any input (``source``: "key", "web",
+        "pedal", ...); returns the hold as it is now. Held: the link's samples carry the
+        flag (the robot holds still), the vibration is silenced (the render process's
+        ``operator_hold`` control), the softness stays. Each change is recorded."""
+        on = bool(on)
+        with self._hold_lock:
+            if source == "pedal":
+                self._deadman_released = on
+            elif not on and self._deadman_released:
+                return self.operator_hold  # the deadman pedal is released: it holds
+            if on == self.operator_hold:
+                return on
+            self.operator_hold = on
+            t_s = time.perf_counter() - self.t0 if self.t0 is not None else 0.0
+            self.hold_events.append((t_s, on, source))
+            self.set_control(operator_hold=1.0 if on else 0.0)
+            if self.options.operator_hold is not None:
+                try:
+                    self.options.operator_hold(on)
+                except Exception as exc:  # a link fault is the link's: never this input's
+                    self.faults.append(f"operator hold on the link: {exc}")
+                    self.stop_event.set()
+            if self._events is not None:
+                self._events.write(t_s, "hold" if on else "release", source)
+        return on
+
+    def toggle_operator_hold(self, source: str = "api") -> bool:
+        with self._hold_lock:
+            on = not self.operator_hold
+        return self.set_operator_hold(on, source)
 
     # -- control ----------------------------------------------------------------
 
@@ -423,9 +486,29 @@ class Station:
                         else _NoVideoWriter(rec, meta))
         self._track = TrackWriter(rec / "track.csv")
         self.latest.sink = self._writer
+        with self._hold_lock:
+            self._events = CsvRowWriter(rec / "events.csv", ("t_s", "event", "detail"))
+            for t_s, on, source in self.hold_events:  # those before the recording opened
+                self._events.write(t_s, "hold" if on else "release", source)
 
     def _close_recording(self) -> None:
         self.latest.sink = None
+        with self._hold_lock:
+            events, self._events = self._events, None
+        if events is not None:
+            # What the render process's rings lost to a disk stalled past them: counted
+            # in the recording itself, never silently.
+            t_end = time.perf_counter() - self.t0 if self.t0 is not None else 0.0
+            render = self.stats.get("render", {})
+            lost = render.get("commands_log", {}).get("dropped", 0)
+            if lost:
+                events.write(t_end, "lost_rows", f"commands.csv: {lost} rows")
+            channels = (render.get("chain") or {}).get("channels") or {}
+            for name, st in channels.items():
+                if st.get("dropped_samples"):
+                    events.write(t_end, "lost_samples",
+                                 f"{name}: {st['dropped_samples']} samples")
+            events.close()
         for w in (self._writer, self._track):
             if w is not None:
                 w.close()
@@ -499,6 +582,8 @@ class Station:
             self._close_recording()
         if isinstance(self.sensors, SerialSensorFeed):
             self.stats["sensors"] = self.sensors.status()
+        self.stats["operator_hold"] = {"changes": len(self.hold_events),
+                                       "held_at_stop": self.operator_hold}
         self.stats["softness"] = {
             "requested_n_per_mm": self.options.render.stiffness_n_per_mm,
             "measured_n_per_mm": self._measured_stiffness(),
@@ -544,6 +629,7 @@ class Station:
             "render": self.live_stats.get("render"),
             "vision": self.live_stats.get("vision"),
             "link": self.live_stats.get("link"),
+            "operator_hold": self.operator_hold,
             "sensors": (self.sensors.status() if isinstance(self.sensors, SerialSensorFeed)
                         else None),
         }

@@ -7,7 +7,7 @@ Quick use::
     for frame_bgr, truth in pad.frames():   # raw camera frames, flipped per image_flip
         ...
     t_s, volts = pad.ir(); t_s, force_n = pad.force()
-    pad.write("out/")                       # a RECORDING_FORMAT.md pad session recording
+    pad.write("out/")                       # a docs/recording_format.md pad session recording
 """
 
 from fydpad.synth.effects import EFFECT_HELP, Effects

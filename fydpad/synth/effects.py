@@ -1,4 +1,4 @@
-"""The conditions of real footage (issue 4), each a flag, all combinable.
+"""The conditions of real footage, each a flag, all combinable.
 
 ``Effects`` names which are on. The ones that change the light over time are small
 deterministic processes drawn once from the session's Generator:
@@ -13,7 +13,10 @@ deterministic processes drawn once from the session's Generator:
   direction and strength drift slowly;
 - ``HandShadow``: the rest of the hand (palm, curled fingers, thumb) above the fabric
   near the user, a large blurred shadow entering the view from its user edge and
-  moving with the finger.
+  moving with the finger;
+- ``PalmRest``: the heel of the palm resting on the fabric at the user's edge when the
+  recording starts, pressed on it (a large dark patch as sharp as a contact), lifted
+  after 1-2 s (its shadow blurs and pales as it rises).
 """
 
 from __future__ import annotations
@@ -39,6 +42,8 @@ EFFECT_HELP: dict[str, str] = {
     "hand_shadow": "the rest of the hand shadows the user's edge of the view",
     "light_touch": "light touches: indentations under ~1.5 mm and a pale contact",
     "fast": "fast strokes: finger speed up to 45 mm/s and a 1/30 s exposure",
+    "palm_rest": "the heel of the palm rests on the fabric at the user's edge at the start, "
+                 "lifted after 1-2 s",
 }
 
 
@@ -55,6 +60,7 @@ class Effects:
     hand_shadow: bool = False
     light_touch: bool = False
     fast: bool = False
+    palm_rest: bool = False
 
     @classmethod
     def all(cls) -> Effects:
@@ -234,3 +240,37 @@ class HandShadow:
             part = q.darkness * fade * _soft_inside((r - 1.0) * 0.5 * (ax + ay), p.blur_mm)
             blocked = 1.0 - (1.0 - blocked) * (1.0 - part)
         lum[rows] *= 1.0 - blocked
+
+
+class PalmRest:
+    """The heel of the palm on the fabric at the user's edge: an ellipse of 28 x 16 mm
+    semi-axes centred 6 mm inside the near edge of the workspace, pressed (transmission
+    1 - 0.6, a 1 mm edge) until ``lift_s``, then rising over 0.4 s: its shadow pales to 0
+    and its edge blurs to 8 mm."""
+
+    def __init__(self, rng: np.random.Generator, geom: CameraGeometry,
+                 axes_mm: tuple[float, float] = (28.0, 16.0), darkness: float = 0.6):
+        self.geom = geom
+        self.axes_mm = axes_mm
+        self.darkness = darkness
+        self.x_mm = float(rng.uniform(-0.25, 0.25) * geom.workspace_mm[0])
+        self.y_mm = -0.5 * geom.workspace_mm[1] + 6.0 - axes_mm[1] * 0.3
+        self.lift_s = float(rng.uniform(1.0, 2.0))
+        self.rise_s = 0.4
+
+    def apply(self, lum: NDArray[np.float32], t_s: float) -> None:
+        up = (t_s - self.lift_s) / self.rise_s
+        if up >= 1.0:
+            return
+        up = max(up, 0.0)
+        darkness = self.darkness * (1.0 - up)
+        blur = 1.0 + 7.0 * up
+        ax, ay = self.axes_mm
+        rows, cols = self.geom.box(self.x_mm, self.y_mm, ax + 3 * blur, ay + 3 * blur)
+        if rows.start >= rows.stop or cols.start >= cols.stop:
+            return
+        gx, gy = self.geom.grid(rows, cols)
+        r = np.sqrt(((gx - self.x_mm) / ax) ** 2 + ((gy - self.y_mm) / ay) ** 2)
+        part = np.float32(darkness) * _soft_inside((r - 1.0) * np.float32(0.5 * (ax + ay)),
+                                                    blur)
+        lum[rows, cols] *= 1.0 - part

@@ -1,6 +1,6 @@
 """Camera geometry of the synthetic pad: pixel grids in the workspace frame.
 
-Rendering happens in the *flipped* frame (the fabric seen from above, RECORDING_FORMAT.md);
+Rendering happens in the *flipped* frame (the fabric seen from above, docs/recording_format.md);
 the raw camera frame is produced by flipping at the very end. Pixel (col i, row j) has
 its centre at (i + 0.5, j + 0.5), mapped linearly through the ROI onto the workspace.
 """

@@ -26,7 +26,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.fabric import Fabric
-from fydpad.synth.effects import AutoExposure, Daylight, Effects, HandShadow, RoomLight
+from fydpad.synth.effects import (
+    AutoExposure,
+    Daylight,
+    Effects,
+    HandShadow,
+    PalmRest,
+    RoomLight,
+)
 from fydpad.synth.finger import FingerLook, render_contact, render_shadows
 from fydpad.synth.geometry import CameraGeometry
 from fydpad.synth.scene import (
@@ -55,6 +62,9 @@ class SynthConfig:
     trajectory: str = "circle"
     seconds: float = 10.0
     seed: int = 0
+    #: Where in the trajectory the recording starts (s): > 0 starts it mid-session,
+    #: e.g. with the finger already down, still or moving, or pressing.
+    start_s: float = 0.0
     effects: Effects = field(default_factory=Effects)
     image_flip: str = "horizontal"
     fps: float = 30.0
@@ -88,6 +98,8 @@ class SynthConfig:
             raise ValueError(f"seconds must be positive, got {self.seconds}")
         if not self.fps > 0:
             raise ValueError(f"fps must be positive, got {self.fps}")
+        if not self.start_s >= 0:
+            raise ValueError(f"start_s must be >= 0, got {self.start_s}")
 
     @property
     def exposure(self) -> float:
@@ -181,6 +193,9 @@ class FrameRenderer:
             hand = HandShadow(light_rng, self.geom)
             self.stages.append(("hand_shadow",
                                 lambda img, c: hand.apply(img, c.x_mm, c.y_mm, c.z_mm)))
+        if e.palm_rest:
+            palm = PalmRest(light_rng, self.geom)
+            self.stages.append(("palm_rest", lambda img, c: palm.apply(img, c.t_s)))
         self.stages.append(("finger_shadows", self._shadows))
         self.stages.append(("contact", self._contact))
         if e.room_light:
@@ -230,7 +245,7 @@ class FrameRenderer:
     def context(self, k: int) -> FrameContext:
         """Finger samples over frame k's exposure (centred on t = k / fps)."""
         cfg = self.cfg
-        t = k / cfg.fps
+        t = cfg.start_s + k / cfg.fps  # on the trajectory's clock
         e = cfg.exposure
         x, y, z = self.path.at(np.array([t - e / 2, t, t + e / 2]))
         sx, sy = self.geom.px_per_mm
@@ -241,7 +256,7 @@ class FrameRenderer:
         ts = t - e / 2 + (np.arange(n) + 0.5) * (e / n)
         xs, ys, zs = self.path.at(ts)
         rng = np.random.default_rng((cfg.seed, _FRAME, k))
-        return FrameContext(k, t, xs, ys, zs, float(x[1]), float(y[1]), float(z[1]), rng)
+        return FrameContext(k, k / cfg.fps, xs, ys, zs, float(x[1]), float(y[1]), float(z[1]), rng)
 
     def render(self, k: int) -> NDArray[np.uint8]:
         """Raw camera frame k (BGR, as the camera gives it: flipped per ``image_flip``)."""
@@ -264,7 +279,7 @@ class SyntheticPad:
         cfg = cfg if cfg is not None else SynthConfig()
         self.requested = cfg
         self.cfg = _effective(cfg)
-        self.path = make_path(self.cfg.trajectory, self.cfg.seconds,
+        self.path = make_path(self.cfg.trajectory, self.cfg.start_s + self.cfg.seconds,
                               np.random.default_rng((cfg.seed, _PATH)), self.cfg.path)
         self.renderer = FrameRenderer(self.cfg, self.path)
         self._ir: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
@@ -276,7 +291,7 @@ class SyntheticPad:
 
     def truth(self, k: int) -> FrameTruth:
         t = k / self.cfg.fps
-        x, y, z = (float(a) for a in self.path.at(t))
+        x, y, z = (float(a) for a in self.path.at(self.cfg.start_s + t))
         return FrameTruth(k, t, z > 0, x, y, max(z, 0.0), z)
 
     def straddles_contact(self, k: int) -> bool:
@@ -300,7 +315,8 @@ class SyntheticPad:
             p = self.cfg.ir
             t = np.arange(math.floor(self.cfg.seconds * p.rate_hz + 1e-9)) / p.rate_hz
             v, rest = ir_volts(self.path, self.cfg.fabric, p,
-                               np.random.default_rng((self.cfg.seed, _IR)), t)
+                               np.random.default_rng((self.cfg.seed, _IR)),
+                               t + self.cfg.start_s)
             self._ir, self.ir_rest_mm = (t, v), rest
         return self._ir
 
@@ -309,7 +325,7 @@ class SyntheticPad:
         p = self.cfg.force
         t = np.arange(math.floor(self.cfg.seconds * p.rate_hz + 1e-9)) / p.rate_hz
         return t, load_cell_n(self.path, self.cfg.fabric, p,
-                              np.random.default_rng((self.cfg.seed, _FORCE)), t)
+                              np.random.default_rng((self.cfg.seed, _FORCE)), t + self.cfg.start_s)
 
     def meta(self) -> PadMeta:
         cfg = self.cfg
@@ -318,6 +334,7 @@ class SyntheticPad:
             "generator": "fydpad synth",
             "trajectory": cfg.trajectory,
             "seconds": cfg.seconds,
+            "start_s": cfg.start_s,
             "seed": cfg.seed,
             "effects": cfg.effects.names(),
             "exposure_s": cfg.exposure,
@@ -336,7 +353,7 @@ class SyntheticPad:
 
     def write(self, outdir: str | Path, video_name: str = "video.avi",
               progress: Callable[[Iterator[Any], int], Iterator[Any]] | None = None) -> Path:
-        """Write the session as a pad session recording (RECORDING_FORMAT.md)."""
+        """Write the session as a pad session recording (docs/recording_format.md)."""
         outdir = Path(outdir)
         with PadRecordingWriter(outdir, self.meta(), video_name=video_name) as w:
             t_ir, v = self.ir()

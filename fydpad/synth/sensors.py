@@ -34,6 +34,9 @@ class IRParams:
     base_to_fabric_mm: float = 100.0
     #: Each sensor's mounting differs from the nominal distance by up to this much.
     mounting_spread_mm: float = 1.5
+    #: Where each sensor really is, off its nominal place ``sensors_mm`` (which the
+    #: recording's meta.json states), in mm.
+    position_error_mm: tuple[tuple[float, float], ...] = ((0.0, 0.0),) * 3
     rate_hz: float = 100.0
     #: The sensor's own measurement period (datasheet: 16.5 +- 3.7 ms).
     update_period_s: float = 0.0165
@@ -60,7 +63,7 @@ def ir_volts(path: FingerPath, fabric: Fabric, p: IRParams, rng: np.random.Gener
     """IR voltages[n, 3] at the board's sample times ``t_s``, and the sensors' true
     rest distances (mm). The sensors measure at their own period with their own phase;
     the board reads the latest held output."""
-    s = np.asarray(p.sensors_mm, np.float64)
+    s = np.asarray(p.sensors_mm, np.float64) + np.asarray(p.position_error_mm, np.float64)
     rest_mm = p.base_to_fabric_mm + rng.uniform(-p.mounting_spread_mm, p.mounting_spread_mm, 3)
     out = np.empty((t_s.size, 3))
     for i in range(3):

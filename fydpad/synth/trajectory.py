@@ -360,3 +360,36 @@ def make_path(name: str, seconds: float, rng: np.random.Generator,
     if params.light_max_mm is not None:
         z = light_touch(z, params.light_max_mm)
     return FingerPath(path.dt_s, path.x_mm[:n], path.y_mm[:n], z)
+
+
+#: What the finger is doing when a recording starts mid-session (:func:`start_time_s`).
+START_STATES = ("down_still", "down_moving", "pressing")
+
+
+def start_time_s(path: FingerPath, state: str, after_s: float = 0.0,
+                 lasting_s: float = 0.3) -> float:
+    """The first time after ``after_s`` at which the finger is in ``state`` for at least
+    ``lasting_s``: ``down_still`` (touching >= 1 mm deep, moving < 2 mm/s),
+    ``down_moving`` (touching >= 1 mm deep, moving > 15 mm/s) or ``pressing`` (touching,
+    pressing further in at > 10 mm/s). A synthetic recording started there
+    (``SynthConfig.start_s``) begins with the finger in that state at frame 0."""
+    z = path.z_mm
+    speed = path.speed_mm_s()
+    z_rate = np.gradient(z, path.dt_s)
+    if state == "down_still":
+        ok = (z >= 1.0) & (speed < 2.0)
+    elif state == "down_moving":
+        ok = (z >= 1.0) & (speed > 15.0)
+    elif state == "pressing":
+        ok = (z > 0.5) & (z_rate > 10.0)
+        lasting_s = min(lasting_s, 0.05)
+    else:
+        raise ValueError(f"state must be one of {START_STATES}, got {state!r}")
+    n = max(round(lasting_s / path.dt_s), 1)
+    ok[: round(after_s / path.dt_s)] = False
+    # Runs of n consecutive samples in the state: the first one's start.
+    run = np.convolve(ok.astype(np.int32), np.ones(n, np.int32), mode="valid")
+    hits = np.flatnonzero(run == n)
+    if not hits.size:
+        raise ValueError(f"the finger is never {state.replace('_', ' ')} for {lasting_s} s")
+    return float(hits[0] * path.dt_s)

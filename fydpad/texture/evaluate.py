@@ -1,4 +1,4 @@
-"""Comparing synthesized with recorded texture signals (paper IV-A, issue 7 targets).
+"""Comparing synthesized with recorded texture signals (paper IV-A; the targets below).
 
 All metrics are on the DFT321, 10 Hz high-passed signal, before any drive filter:
 
@@ -98,7 +98,7 @@ def compare(recorded: Array, synthesized: Array, fs: float, mask: ArrayLike | No
     return c, f, pr, ps
 
 
-#: Issue 7's targets: the power-spectrum correlation at least this, and the log-spectral
+#: The targets: the power-spectrum correlation at least this, and the log-spectral
 #: distance within this of what a second recording of the surface scores (the ceiling).
 TARGET_PSD_CORRELATION = 0.95
 TARGET_LSD_OVER_CEILING_DB = 0.25
@@ -107,7 +107,7 @@ TARGET_LSD_OVER_CEILING_DB = 0.25
 @dataclass
 class Ceiling:
     """A second recording of the same surface, at the same speed and about as long,
-    scored against the scan as a model is: the reference of issue 7's target (what two
+    scored against the scan as a model is: the reference of the target (what two
     realisations of the texture score against each other)."""
 
     psd_correlation: float
@@ -146,14 +146,14 @@ def unfair_ceiling(scan_speeds_mm_s: Array, second_speeds_mm_s: Array, fs_hz: fl
 
 
 def meets_targets(c: Comparison, ceil: Ceiling) -> bool:
-    """Issue 7's targets: correlation >= 0.95 and LSD <= the ceiling's + 0.25 dB."""
+    """The targets: correlation >= 0.95 and LSD <= the ceiling's + 0.25 dB."""
     return (c.psd_correlation >= TARGET_PSD_CORRELATION
             and c.lsd_db <= ceil.lsd_db + TARGET_LSD_OVER_CEILING_DB)
 
 
 @dataclass(frozen=True)
 class MeansVerdict:
-    """Issue 7's targets judged on the means of several strokes (each against its own
+    """The targets judged on the means of several strokes (each against its own
     second recording): :func:`verdict_on_means`."""
 
     psd_correlation: float

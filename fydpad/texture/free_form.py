@@ -59,14 +59,14 @@ AUTO = "auto"
 TAPER_MM_S = 7.5  # chosen on seed set C (docs/texture.md); 5 and log-linear also tried
 #: ... and at most this times the distance to the next fitted speed: fitted every 5 mm/s,
 #: 7.5 mm/s tents summed three corrections at every speed (15 mm/s met 6 of 14 on two
-#: seed sets, against 11 and 10 scaled; docs/texture.md, "Left to do").
+#: seed sets, against 11 and 10 scaled).
 TAPER_PER_SPACING = 0.75
 #: IS-NMF iterations of the calibrated form's two-part base with a single fitted speed.
 #: With two or more the base takes the two-part model's own 600 (two_part.ITERATIONS):
 #: C_i makes S at each fitted speed the recorded one whatever the base, so the base
-#: decides what lies between the speeds, and there 600 iterations met more cells than
-#: the 150 of sessions 6-11 (means of 8 strokes: 93 / 94 / 93 of 98 against 90 / 93 / 93
-#: on three seed sets; docs/texture.md, "The calibrated form's base: 600 iterations").
+#: decides what lies between the speeds, and there 600 iterations met more cells than 150
+#: on the scan generator (means of 8 strokes: 93 / 94 / 93 of 98 against 90 / 93 / 93 on
+#: three seed sets).
 #: With one speed nothing lies between, and 150 keep that fit at 33 ms (600: 94 ms, at
 #: the 100 ms target for a fit of one speed).
 ONE_SPEED_BASE_ITERATIONS = 150

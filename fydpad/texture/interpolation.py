@@ -2,6 +2,8 @@
 
 Methods:
 
+- ``"nearest"``: the model of the nearest fitted speed, unchanged (the paper's per-speed
+  fits on a fine speed grid: no coefficients are interpolated).
 - ``"stretch"`` (default): the fitted model unchanged near its own speed, and between
   the fitted speeds both neighbours' spectra moved along the frequency axis with speed
   (a surface's features sound at speed / wavelength), mixed and refitted
@@ -32,9 +34,9 @@ from fydpad.texture.speed_warp import SpeedWarp
 from fydpad.texture.two_part import TwoPartSpectrum
 
 Array = NDArray[np.float64]
-METHODS = ("stretch", "lsf", "reflection", "linear")
-#: What every path renders unless told otherwise: the station, the commands, evaluation.
-DEFAULT_METHOD = "stretch"
+METHODS = ("nearest", "stretch", "lsf", "reflection", "linear")
+#: What every path renders unless told otherwise: None, the model file's ``interpolation``.
+DEFAULT_METHOD: str | None = None
 HOLD_FRACTION = 0.3
 
 
@@ -53,8 +55,9 @@ def bracket(speeds_mm_s: Array, speed_mm_s: float) -> tuple[int, int, float]:
 class SpeedInterpolator:
     """Interpolated (A, sigma^2) at any speed from a model's table, by ``method``."""
 
-    def __init__(self, model: TextureModel, method: str = "stretch",
+    def __init__(self, model: TextureModel, method: str | None = None,
                  hold_mm_s: float | None = None):
+        method = model.interpolation if method is None else method
         if method not in METHODS:
             raise ValueError(f"interpolation method must be one of {METHODS}, not {method!r}")
         self.model = model
@@ -99,6 +102,9 @@ class SpeedInterpolator:
         if self.method == "stretch":
             return self._warp(speed_mm_s)
         m = self.model
+        if self.method == "nearest":
+            i = int(np.argmin(np.abs(m.speeds_mm_s - speed_mm_s)))
+            return self.polys[i].copy(), float(m.sigma2[i])
         i, j, w = bracket(m.speeds_mm_s, speed_mm_s)
         if i == j or w == 0.0:
             return self.polys[i].copy(), float(m.sigma2[i])
@@ -131,7 +137,7 @@ class SpeedTable:
         return 0 if i < 0 else (self.h.shape[0] - 1 if i >= self.h.shape[0] else i)
 
 
-def table_range(model: TextureModel, method: str = "stretch") -> tuple[float, float]:
+def table_range(model: TextureModel, method: str | None = None) -> tuple[float, float]:
     """The speeds a table covers (clamped beyond). A speed-resolved spectrum (two-part,
     free-form) is rendered at every speed its fit saw: down to where the renderer starts
     fading (the slowest speed less the fit tolerance, at least half of it) and up to the
@@ -142,13 +148,14 @@ def table_range(model: TextureModel, method: str = "stretch") -> tuple[float, fl
     on 12 s held-out strokes at 40 mm/s, seed set A: felt +2.42 -> +0.33 dB over the
     ceiling, cork +1.96 -> -0.01, brick +4.01 -> +1.10)."""
     lo, hi = float(model.speeds_mm_s[0]), float(model.speeds_mm_s[-1])
+    method = model.interpolation if method is None else method
     if method == "stretch" and (model.free_form is not None or model.two_part is not None):
         tol = float(model.tolerance_mm_s)
         return max(lo - tol, 0.5 * lo), hi + tol
     return lo, hi
 
 
-def build_table(model: TextureModel, method: str = "stretch", step_mm_s: float = 0.25,
+def build_table(model: TextureModel, method: str | None = None, step_mm_s: float = 0.25,
                 hold_mm_s: float | None = None) -> SpeedTable:
     """Interpolate the model at every ``step_mm_s`` over :func:`table_range` (the grid is
     anchored at the slowest fitted speed)."""

@@ -20,7 +20,9 @@ def autocorrelation(x: ArrayLike, maxlag: int) -> Array:
     """Biased autocorrelation r[0..maxlag] (sum over the segment, not divided by n)."""
     x = np.asarray(x, float)
     n = x.size
-    nfft = 1 << int(np.ceil(np.log2(2 * n - 1)))
+    # n + maxlag, not 2n - 1: a segment shorter than maxlag would otherwise read its
+    # negative lags, wrapped round, as lags above n (no longer positive definite).
+    nfft = 1 << int(np.ceil(np.log2(max(n + maxlag, 2))))
     spec = np.fft.rfft(x, nfft)
     r = np.fft.irfft(spec.real**2 + spec.imag**2, nfft)[: maxlag + 1]
     if r.size < maxlag + 1:
@@ -57,11 +59,12 @@ def levinson(r: ArrayLike, order: int) -> tuple[Array, float, Array]:
     return a, float(err), k
 
 
-def lpc_autocorrelation(segments: Sequence[ArrayLike], order: int) -> tuple[Array, float]:
+def lpc_autocorrelation(segments: Sequence[ArrayLike], order: int, floor: float = 1e-9
+                        ) -> tuple[Array, float]:
     """LPC over several segments: their autocorrelations summed (no seams), then Levinson.
 
     Returns (A, sigma^2) with sigma^2 in the signal's units squared. A small white-noise
-    floor (1e-9 of r[0]) keeps the Toeplitz matrix well conditioned at order 200.
+    floor (``floor`` of r[0]) keeps the Toeplitz matrix well conditioned at order 200.
     """
     total = np.zeros(order + 1)
     n = 0
@@ -72,7 +75,7 @@ def lpc_autocorrelation(segments: Sequence[ArrayLike], order: int) -> tuple[Arra
     if n <= order:
         raise ValueError(f"{n} samples cannot fit an order-{order} model")
     r = total / n
-    r[0] *= 1.0 + 1e-9
+    r[0] *= 1.0 + floor
     a, err, _ = levinson(r, order)
     return a, err
 

@@ -46,6 +46,11 @@ class TextureModel:
     #: lines.LineSpectrum.to_json(): a periodic surface's harmonics, rendered beside the
     #: process of models[] (which is then fitted on what the lines leave).
     lines: dict[str, Any] | None = None
+    #: How the renderer goes between ``models[]`` (interpolation.METHODS): "nearest" for
+    #: the paper's per-speed fits on a speed grid, "stretch" for the spectral forms.
+    interpolation: str = "stretch"
+    #: What ``fydpad texture fit`` validated: the winner and every candidate's figures.
+    selection: dict[str, Any] | None = None
 
     @property
     def order(self) -> int:
@@ -68,6 +73,7 @@ def model_to_json(model: TextureModel) -> dict[str, Any]:
         "drive_band_hz": None if model.drive_band_hz is None else list(model.drive_band_hz),
         "gain": model.gain,
         "speed_tolerance_mm_s": model.tolerance_mm_s,
+        "interpolation": model.interpolation,
         "coefficient_convention": "a(k) = e(k) + sum_i h[i] * a(k-1-i), e ~ N(0, sigma2)",
         "units": {"sigma2": "(m/s^2)^2", "speed_mm_s": "mm/s"},
         "models": [
@@ -78,12 +84,14 @@ def model_to_json(model: TextureModel) -> dict[str, Any]:
         **({} if model.two_part is None else {"two_part": model.two_part}),
         **({} if model.free_form is None else {"free_form": model.free_form}),
         **({} if model.lines is None else {"lines": model.lines}),
+        **({} if model.selection is None else {"selection": model.selection}),
     }
 
 
 def save_model(model: TextureModel, path: str | Path) -> Path:
     path = Path(path)
-    path.write_text(json.dumps(model_to_json(model), indent=1) + "\n", encoding="utf-8")
+    text = json.dumps(model_to_json(model), indent=1, allow_nan=False)  # strict JSON
+    path.write_text(text + "\n", encoding="utf-8")
     return path
 
 
@@ -145,7 +153,20 @@ def _header(data: dict[str, Any], where: str) -> tuple[float, dict[str, Any]]:
         "gain": _number(data, "gain", where, 1.0, minimum=0.0),
         "tolerance_mm_s": _number(data, "speed_tolerance_mm_s", where, 5.0, minimum=0.0),
         "provenance": dict(provenance),
+        "interpolation": _interpolation(data, where),
     }
+
+
+#: Interpolations a file may name; one no longer rendered fails with a request to refit.
+INTERPOLATIONS = ("nearest", "stretch", "lsf", "reflection", "linear")
+
+
+def _interpolation(data: dict[str, Any], where: str) -> str:
+    v = data.get("interpolation", "stretch")  # files without the key: the spectral default
+    if v not in INTERPOLATIONS:
+        raise UserError(f"{where}: key 'interpolation' {_short(v)} is not rendered by this "
+                        "fydpad; refit the model with 'fydpad texture fit'")
+    return str(v)
 
 
 def _check_entry(speed_mm_s: float, sigma2: float, h: Array, where: str) -> None:
@@ -217,7 +238,14 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
         two_part=_two_part(data.get("two_part"), where),
         free_form=_free_form(data.get("free_form"), data.get("two_part"), where),
         lines=_lines(data.get("lines"), version, where),
+        selection=_selection(data.get("selection"), where),
     )
+
+
+def _selection(d: Any, where: str) -> dict[str, Any] | None:
+    if d is not None and not isinstance(d, dict):
+        raise UserError(f"{where}: key 'selection' must be an object, not {_short(d)}")
+    return d
 
 
 def _lines(d: Any, version: Any, where: str) -> dict[str, Any] | None:

@@ -19,7 +19,7 @@ A hand drags a tool (tip + accelerometer) over a surface. Per stroke:
   stiffness of the surface), and the accelerometer adds white noise;
 - the hand's slow motion and gravity (with a slowly tilting hand) appear on all axes.
 
-With ``friction=True`` (issue 9) the scan also carries ``force_n`` and ``friction_n``
+With ``friction=True`` the scan also carries ``force_n`` and ``friction_n``
 from a separate physical model (:func:`friction_forces`; the acceleration columns are the
 same with or without it): the hand's varying normal load (the one the preload follows),
 Coulomb friction on the local slope of the same profile h(x) with a material coefficient
@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import functools
 import zlib
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -45,6 +46,7 @@ import numpy as np
 import scipy.signal as ss
 from numpy.typing import NDArray
 
+from fydpad.texture.penn import PennModelSet
 from fydpad.texture.scan_io import Scan, write_scan
 
 Array = NDArray[np.float64]
@@ -382,7 +384,7 @@ def save_generated(scan: Scan, path: str | Path) -> Path:
 # --------------------------------------------------------------------------- friction
 @dataclass(frozen=True)
 class FrictionParams:
-    """Friction of a surface against the tool (issue 9's friction scans)."""
+    """Friction of a surface against the tool (the friction family's scans)."""
 
     mu_kinetic: float = 0.45
     static_ratio: float = 1.15  # mu_s / mu_k: the stick-slip sawtooth's height
@@ -478,3 +480,59 @@ def friction_forces(tex: Texture, x_mm: Array, relative_load: Array) -> tuple[Ar
         f = fk + k * r
     out[0] = out[1]
     return load, np.asarray(out)
+
+
+def plateau_speed(plateaus_mm_s: Sequence[float], seconds: float, fs: float,
+                  rng: np.random.Generator, ramp_s: float = 1.0,
+                  variation: float = 1.0) -> Array:
+    """A hand stroke through speed plateaus: equal shares of ``seconds``, a cosine ramp of
+    ``ramp_s`` between neighbours, and the hand's sway and drift (:func:`hand_speed`)."""
+    n = round(seconds * fs)
+    t = np.arange(n) / fs
+    each = seconds / len(plateaus_mm_s)
+    target = np.full(n, float(plateaus_mm_s[0]))
+    for k in range(1, len(plateaus_mm_s)):
+        w = np.clip((t - k * each + ramp_s / 2) / ramp_s, 0.0, 1.0)
+        target += (plateaus_mm_s[k] - plateaus_mm_s[k - 1]) * (0.5 - 0.5 * np.cos(np.pi * w))
+    return target * hand_speed(1.0, seconds, fs, rng, variation)[:n]
+
+
+def penn_scan(ms: PennModelSet, speed_mm_s: Array, seed: int, force_n: float = 1.0,
+              block_s: float = 0.05) -> Scan:
+    """A stroke rendered from a HaTT model (:mod:`penn`) along ``speed_mm_s`` at the
+    model's rate, with what the model does not hold: the hand's load wandering the force,
+    contact impacts (one per 0.5-2 mm travelled), a tool resonance (seeded by the
+    material's name, 250-420 Hz), the three axes' coupling, the hand's slow motion and
+    gravity through a tilting hand, and sensor noise."""
+    from fydpad.texture.penn import PennRenderer
+
+    fs = ms.fs_hz
+    v = np.asarray(speed_mm_s, float)
+    n = v.size
+    rng = np.random.default_rng([seed, zlib.crc32(ms.name.encode())])
+    surf = np.random.default_rng(zlib.crc32(ms.name.encode()))  # the tool on this surface
+    f_res, zeta = surf.uniform(250.0, 420.0), surf.uniform(0.08, 0.2)
+    load = force_n * hand_load(n, fs, rng)
+    step = max(1, round(block_s * fs))
+    r = PennRenderer(ms, seed=int(rng.integers(2**31)))
+    y = np.concatenate([r.block(float(np.mean(v[k:k + step])), float(np.mean(load[k:k + step])),
+                                min(step, n - k)) for k in range(0, n, step)])
+    rms = float(np.std(y)) + 1e-9
+    dist = np.cumsum(v) / fs
+    at = np.cumsum(rng.uniform(0.5, 2.0, int(dist[-1] / 0.5) + 2))
+    k = np.searchsorted(dist, at[at < dist[-1]])
+    np.add.at(y, k, 3.0 * rms * rng.uniform(0.5, 1.5, k.size) * np.sqrt(v[k] / 20.0))
+    az = ss.sosfilt(_resonance_sos(f_res, zeta, fs), y)
+    tang = ss.sosfilt(_resonance_sos(0.85 * f_res, zeta, fs), y)
+    acc = np.column_stack([0.3 * tang, 0.15 * tang, az])
+    t = np.arange(n) / fs
+    slow = ss.sosfiltfilt(ss.butter(2, 2.0, fs=fs, output="sos"), rng.standard_normal((n, 3)),
+                          axis=0)
+    slow *= 0.3 / (np.std(slow, axis=0) + 1e-12)
+    tilt = 0.08 * np.sin(2 * np.pi * 0.2 * t + rng.uniform(0, 6.3))
+    roll = 0.05 * np.sin(2 * np.pi * 0.13 * t + rng.uniform(0, 6.3))
+    grav = G * np.column_stack([np.sin(tilt), np.sin(roll), np.cos(tilt) * np.cos(roll)])
+    acc = acc + slow + grav + 0.01 * rng.standard_normal(acc.shape)
+    return Scan(path=f"{ms.name}_s{seed}.csv", fs_hz=fs, t_s=t, acc=acc, speed_mm_s=v,
+                force_n=load, meta={"surface": ms.name, "tool": "hatt-render",
+                                    "seed": str(seed)})

@@ -86,7 +86,7 @@ class TextureRenderer:
     jump_cap = 1.0
 
     def __init__(
-        self, model: TextureModel, *, method: str = "stretch", step_mm_s: float = 0.25,
+        self, model: TextureModel, *, method: str | None = None, step_mm_s: float = 0.25,
         seed: int | None = None, still_mm_s: float = 1.0, ramp_s: float = 0.005,
         gain: float | None = None, drive_filter: bool = False,
         drive_band_hz: tuple[float, float] | None = None, drive_order: int = 2,
@@ -97,6 +97,7 @@ class TextureRenderer:
             raise ValueError("model sample rate must be positive")
         self.model = model
         self.fs_hz = float(model.fs_hz)
+        method = model.interpolation if method is None else method
         self.table: SpeedTable = build_table(model, method, step_mm_s)
         if not self.table.stable.all():
             bad = self.table.speeds_mm_s[~self.table.stable]
@@ -604,7 +605,7 @@ class TextureRenderer:
 
 def synthesize(
     model: TextureModel, speed_mm_s: ArrayLike, *, seed: int | None = None,
-    method: str = "stretch", warmup_s: float = 0.5, n: int | None = None,
+    method: str | None = None, warmup_s: float = 0.5, n: int | None = None,
 ) -> Array:
     """Offline synthesis along a speed trace (contact throughout), after a warm-up."""
     v = np.asarray(speed_mm_s, float)

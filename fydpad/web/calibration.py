@@ -1,4 +1,4 @@
-"""The workspace calibration from the web page (the sensing issue's 9 presses), as pure
+"""The workspace calibration from the web page (9 presses on a 3 x 3 grid), as pure
 state over the live tracker's output.
 
 The page shows the marked points (``vision.calibration.default_targets_mm``: a square

@@ -26,6 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
+from vision.errors import UserError
+from vision.strict_json import finite
+
 #: CSV columns, one row per answer (docs/experiment.md).
 CSV_FIELDS = ("participant", "trial", "presented", "answer", "correct", "seed", "time_utc")
 
@@ -56,7 +59,7 @@ PAPER_REPEATS = 3
 _PARTICIPANT_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 
 
-class ExperimentError(ValueError):
+class ExperimentError(UserError, ValueError):
     """A bad experiment setting, answer or results file."""
 
 
@@ -213,7 +216,7 @@ class SessionPlan:
     def to_json(self) -> str:
         d = asdict(self)
         d["format"] = "fydpad-experiment-1"
-        return json.dumps(d, indent=2) + "\n"
+        return json.dumps(finite(d), indent=2, allow_nan=False) + "\n"
 
     @classmethod
     def from_json(cls, text: str, where: str) -> SessionPlan:

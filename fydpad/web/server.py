@@ -13,6 +13,7 @@ import asyncio
 import collections
 import dataclasses
 import ipaddress
+import json
 import math
 import secrets
 import threading
@@ -33,8 +34,10 @@ from fydpad.web.experiment import (
     plot_png,
     report,
 )
+from fydpad.web.indentation_guide import indentation_guide
 from fydpad.web.staircase import StaircaseSession
 from vision.calibration import CalibratedMapping, CalibrationError
+from vision.strict_json import finite
 
 STATIC = Path(__file__).parent / "static"
 #: Samples kept for the plots (10 s at up to 60 fps, plus slack).
@@ -42,6 +45,12 @@ SAMPLE_CAPACITY = 1200
 JPEG_MIN_INTERVAL_S = 0.1  # <= 10 fps
 FLIPS = ("none", "horizontal", "vertical", "both")
 
+
+
+def _json_response(data: object, status: int = 200) -> web.Response:
+    """A JSON answer the page's JSON.parse accepts: NaN and inf (no value yet) as null."""
+    return web.json_response(data, status=status,
+                             dumps=lambda obj: json.dumps(finite(obj), allow_nan=False))
 
 def _num(v) -> float | None:
     try:
@@ -220,7 +229,7 @@ class WebView:
                      "u_px": view.contact.u_px if view.contact else None,
                      "v_px": view.contact.v_px if view.contact else None}
         stats = dict(self.station.live_stats)
-        return web.json_response({
+        return _json_response({
             "frame": frame,
             "samples": samples,
             "stats": {k: stats.get(k) for k in ("render", "vision", "frame_to_command_ms")},
@@ -228,6 +237,7 @@ class WebView:
             "texture": stats.get("texture"),
             # The tele-operation link posts {"mae_mm": [...], ...} here when it lands.
             "link": stats.get("link"),
+            "operator_hold": bool(getattr(self.station, "operator_hold", False)),
             "settings": self.settings(),
             "stimulus": dataclasses.asdict(self.stimulus.current)
             if self.stimulus.current else None,
@@ -260,8 +270,8 @@ class WebView:
             body = await request.json()
             msg = self.apply_settings(body)
         except (ValueError, TypeError, KeyError) as exc:
-            return web.json_response({"error": str(exc)}, status=400)
-        return web.json_response({"ok": True, "message": msg, "settings": self.settings()})
+            return _json_response({"error": str(exc)}, status=400)
+        return _json_response({"ok": True, "message": msg, "settings": self.settings()})
 
     def apply_settings(self, body: dict) -> str:
         old = self.station.tracker
@@ -307,20 +317,35 @@ class WebView:
             self.station.set_control(**control)
         return "applied"
 
+    async def post_hold(self, request):
+        """The operator hold: ``{"on": true|false}`` sets it, ``{}`` toggles it."""
+        try:
+            body = await request.json()
+        except ValueError:
+            body = {}
+        if not isinstance(body, dict) or ("on" in body and not isinstance(body["on"], bool)):
+            return web.json_response({"error": 'expected {"on": true|false} or {}'},
+                                     status=400)
+        if "on" in body:
+            held = self.station.set_operator_hold(body["on"], "web")
+        else:
+            held = self.station.toggle_operator_hold("web")
+        return web.json_response({"ok": True, "operator_hold": held})
+
     async def save(self, request):
         if self.config_path is None:
-            return web.json_response({"error": "the station was started without --config "
+            return _json_response({"error": "the station was started without --config "
                                       "FILE: there is no configuration file to save to"},
                                      status=400)
         save_config(self.config, self.config_path)
-        return web.json_response({"ok": True, "message": f"saved {self.config_path}"})
+        return _json_response({"ok": True, "message": f"saved {self.config_path}"})
 
     # -- experiment -----------------------------------------------------------------------
 
     async def exp_status(self, request):
         if self.session is None:
-            return web.json_response({"session": None, "results_dir": str(self.results_dir)})
-        return web.json_response({"session": self.session.status(),
+            return _json_response({"session": None, "results_dir": str(self.results_dir)})
+        return _json_response({"session": self.session.status(),
                                   "results_dir": str(self.results_dir)})
 
     async def exp_start(self, request):
@@ -332,18 +357,18 @@ class WebView:
                 repeats=int(body.get("repeats", 3)),
                 seed=None if seed in (None, "") else int(seed), present=self.stimulus)
         except (ExperimentError, ValueError, TypeError) as exc:
-            return web.json_response({"error": str(exc)}, status=400)
-        return web.json_response({"session": self.session.status()})
+            return _json_response({"error": str(exc)}, status=400)
+        return _json_response({"session": self.session.status()})
 
     async def exp_answer(self, request):
         if self.session is None:
-            return web.json_response({"error": "no session"}, status=400)
+            return _json_response({"error": "no session"}, status=400)
         try:
             body = await request.json()
             self.session.answer(str(body["answer"]), body.get("trial"))
         except (ExperimentError, ValueError, TypeError, KeyError) as exc:
-            return web.json_response({"error": str(exc)}, status=400)
-        return web.json_response({"session": self.session.status()})
+            return _json_response({"error": str(exc)}, status=400)
+        return _json_response({"session": self.session.status()})
 
     async def exp_plot(self, request):
         which = request.query.get("scope", "session")
@@ -365,8 +390,8 @@ class WebView:
         try:
             conf, parts = report(self.results_dir)
         except ExperimentError as exc:
-            return web.json_response({"error": str(exc)}, status=404)
-        return web.json_response({"participants": parts, "confusion": conf.as_dict()})
+            return _json_response({"error": str(exc)}, status=404)
+        return _json_response({"participants": parts, "confusion": conf.as_dict()})
 
     # -- the friction-gain staircase -----------------------------------------------------
 
@@ -380,7 +405,7 @@ class WebView:
                                  vibration_enabled=1.0)
 
     async def stairs_status(self, request):
-        return web.json_response({
+        return _json_response({
             "staircase": self.staircase.status() if self.staircase is not None else None,
             # The friction model b goes to, or (unavailable) why the staircase cannot run.
             "friction_model": self.friction_model if self.friction_slot is not None else None,
@@ -388,7 +413,7 @@ class WebView:
 
     async def stairs_start(self, request):
         if self.friction_slot is None:
-            return web.json_response({"error": self.friction_model}, status=400)
+            return _json_response({"error": self.friction_model}, status=400)
         try:
             body = await request.json()
             self.staircase = StaircaseSession.open(
@@ -396,18 +421,18 @@ class WebView:
                 start=float(body.get("start", 400.0)), step=float(body.get("step", 10.0)),
                 present=self._apply_b)
         except (ExperimentError, ValueError, TypeError) as exc:
-            return web.json_response({"error": str(exc)}, status=400)
-        return web.json_response({"staircase": self.staircase.status()})
+            return _json_response({"error": str(exc)}, status=400)
+        return _json_response({"staircase": self.staircase.status()})
 
     async def stairs_answer(self, request):
         if self.staircase is None:
-            return web.json_response({"error": "no staircase"}, status=400)
+            return _json_response({"error": "no staircase"}, status=400)
         try:
             body = await request.json()
             self.staircase.answer(str(body["rougher"]), body.get("trial"))
         except (ExperimentError, ValueError, TypeError, KeyError) as exc:
-            return web.json_response({"error": str(exc)}, status=400)
-        return web.json_response({"staircase": self.staircase.status()})
+            return _json_response({"error": str(exc)}, status=400)
+        return _json_response({"staircase": self.staircase.status()})
 
     # -- the workspace calibration ---------------------------------------------------------
 
@@ -418,9 +443,9 @@ class WebView:
                 self.station.tracker.workspace_mm, int(body.get("points", 9)),
                 float(body.get("min_hold_s", 0.4)), float(body.get("clear_s", 1.0)))
         except (CalibrationError, ValueError, TypeError) as exc:
-            return web.json_response({"error": str(exc)}, status=400)
+            return _json_response({"error": str(exc)}, status=400)
         self._calibration_fit = None
-        return web.json_response({"calibration": self.cal_state()})
+        return _json_response({"calibration": self.cal_state()})
 
     def cal_state(self) -> dict | None:
         cal = self.calibration
@@ -443,17 +468,17 @@ class WebView:
         return out
 
     async def cal_status(self, request):
-        return web.json_response({"calibration": self.cal_state()})
+        return _json_response({"calibration": self.cal_state()})
 
     async def cal_cancel(self, request):
         self.calibration, self._calibration_fit = None, None
-        return web.json_response({"calibration": None})
+        return _json_response({"calibration": None})
 
     async def cal_save(self, request):
         """Apply the fitted homography live and write it to the configuration file."""
         fit = self._calibration_fit
         if fit is None or "hom" not in fit:
-            return web.json_response({"error": "no fitted calibration to save"}, status=400)
+            return _json_response({"error": "no fitted calibration to save"}, status=400)
         hom = fit["hom"]
         tr = self.station.tracker
         self.station.tracker = tr.with_settings(calibration=CalibratedMapping(
@@ -461,10 +486,10 @@ class WebView:
         self.config.camera = dataclasses.replace(self.config.camera,
                                                  workspace_homography=hom)
         if self.config_path is None:
-            return web.json_response({"ok": True, "message": "applied; not saved: the "
+            return _json_response({"ok": True, "message": "applied; not saved: the "
                                       "station was started without --config FILE"})
         save_config(self.config, self.config_path)
-        return web.json_response({"ok": True, "message": f"applied and saved "
+        return _json_response({"ok": True, "message": f"applied and saved "
                                   f"{self.config_path} [camera.workspace_homography]"})
 
     def app(self) -> web.Application:
@@ -472,9 +497,11 @@ class WebView:
         app.router.add_get("/", self.index)
         app.router.add_get("/experiment", self.experiment_page)
         app.router.add_get("/calibrate", self.calibrate_page)
+        app.router.add_get("/indentation-guide", indentation_guide)
         app.router.add_get("/api/state", self.state)
         app.router.add_get("/api/frame.jpg", self.frame_jpg)
         app.router.add_post("/api/settings", self.post_settings)
+        app.router.add_post("/api/hold", self.post_hold)
         app.router.add_post("/api/save", self.save)
         app.router.add_get("/api/experiment", self.exp_status)
         app.router.add_post("/api/experiment/start", self.exp_start)

@@ -1,6 +1,6 @@
 """The experiment's stimuli: the paper's four with grating texture models, or a file.
 
-By default each stimulus renders a rectangular grating model (paper 002 4.2, the
+By default each stimulus renders a rectangular grating model (Ito 2019 4.2, the
 FYD-pad's specimens: 90 % ridge, the default 8:2 vibrotactile/friction ratio) of its
 period, written to ``RESULTS/textures/grating-<period>mm.json`` so the plan and the
 render process name a real file (rewritten, atomically, whenever its content would
@@ -20,6 +20,7 @@ from pathlib import Path
 
 from fydpad.errors import UserError, read_json
 from fydpad.web.experiment import PAPER_STIMULI, Stimulus
+from vision.strict_json import finite
 
 
 def grating_textures(stimuli: tuple[Stimulus, ...] | list[Stimulus], texture_dir: Path
@@ -33,7 +34,7 @@ def grating_textures(stimuli: tuple[Stimulus, ...] | list[Stimulus], texture_dir
         path = texture_dir / f"grating-{s.grating_mm:g}mm.json"
         model = fit_grating(wavelength_mm=s.grating_mm, profile="rect", ridge_fraction=0.9)
         # As fydpad.texture.families.save_model_json writes it.
-        _write_if_changed(path, json.dumps(model, indent=1) + "\n")
+        _write_if_changed(path, json.dumps(finite(model), indent=1, allow_nan=False) + "\n")
         out.append(replace(s, texture=f"grating:{path}"))
     return out
 

@@ -1,4 +1,4 @@
-"""Robot arms the slave loop drives, behind one Protocol (DESIGN.md: device backends).
+"""Robot arms the slave loop drives, behind one Protocol (docs/architecture.md).
 
 Every arm takes positions in its base frame in millimetres; the attitude is fixed with
 the tool perpendicular to the surface (paper IV-B).
@@ -10,9 +10,14 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from vision.errors import DeviceFault
 
-class ArmFault(RuntimeError):
+
+class ArmFault(DeviceFault, RuntimeError):
     """The arm cannot follow (protective stop, lost connection): the message says what to check."""
+
+    device = "robot arm"
+    check = "the robot's connection and whether it is in a protective stop"
 
 
 @runtime_checkable

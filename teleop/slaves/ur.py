@@ -23,6 +23,8 @@ log = logging.getLogger(__name__)
 
 # ur-rtde's own limits (rtde_control_interface.h): outside them servoL raises.
 LOOKAHEAD_RANGE_S = (0.03, 0.2)
+#: ``--ur-host sim``: a simulated UR controller (the mujoco extra) instead of a robot.
+SIM_HOST = "sim"
 GAIN_RANGE = (100.0, 2000.0)
 
 CHECK_CONNECTION = ("check the network cable and address {host}, that the robot is powered "
@@ -32,6 +34,10 @@ CHECK_PSTOP = ("protective stop on {host}: check the teach pendant for the cause
 
 
 def _connect_rtde(host: str, frequency_hz: float) -> tuple[Any, Any]:
+    if host == SIM_HOST:  # the UR5e in MuJoCo behind the same calls (teleop/slaves/ur_sim.py)
+        from teleop.slaves.ur_sim import connect_sim
+
+        return connect_sim(frequency_hz)
     import rtde_control
     import rtde_receive
 

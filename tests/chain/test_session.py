@@ -22,8 +22,8 @@ from fydpad.accel.emulator import AccelEmulator
 from fydpad.chain import ChainError
 from fydpad.chain.session import LoadCellThread
 from fydpad.cli import main
+from fydpad.motors.drive import characterise_plant
 from fydpad.motors.qb_emulator import QbEmulator
-from fydpad.motors.sim import characterise_plant
 from fydpad.softness import save_table
 from vision.board_emulator import BoardEmulator
 from vision.config import ForceConfig

@@ -1,7 +1,7 @@
 """`fydpad replay` against a real `teleop slave` process, and `fydpad demo`, over loopback.
 
 These prove the chain runs end to end over real sockets and writes the report of
-RECORDING_FORMAT.md, with the simulated arm following the finger (errors far below the
+docs/recording_format.md, with the simulated arm following the finger (errors far below the
 workspace's size). The accuracy targets themselves are checked in virtual time, where a
 shared machine's scheduling cannot blur them (tests/teleop/test_tracking.py).
 """
@@ -73,10 +73,27 @@ def test_replay_without_a_slave_is_one_line(stroke_rec: Path, tmp_path: Path, ca
     assert "no slave answered" in capsys.readouterr().err
 
 
-def test_demo_on_a_bundled_recording(tmp_path: Path, capsys):
-    rc = main(["demo", "--recordings", "tapping", "--out", str(tmp_path)])
+def test_demo_on_a_bundled_recording(tmp_path: Path, capsys, monkeypatch):
+    """The demo explains itself: it names where it writes, writes its plot there by default
+    (titled with the recording and its MAE), ends with the table and one sentence."""
+    monkeypatch.chdir(tmp_path)
+    rc = main(["demo", "--recordings", "tapping"])
     assert rc == 0
-    report = json.loads((tmp_path / "tapping.json").read_text())
+    out = capsys.readouterr().out
+    assert "plots and reports go to fydpad-demo/" in out
+    report = json.loads((tmp_path / "fydpad-demo" / "tapping.json").read_text())
     assert REPORT_KEYS <= set(report)
     assert report["mae_mm"]["z"] < 10.0  # the arm follows the taps (they reach 15-45 mm)
-    assert "tapping: MAE" in capsys.readouterr().out
+    assert (tmp_path / "fydpad-demo" / "tapping.png").stat().st_size > 10_000
+    assert "tapping: MAE" in out
+    table = out[out.index("recording  this run"):].splitlines()
+    assert "paper's condition" in table[0] and "paper's figure" in table[0]
+    row = table[1].split()
+    assert row[0] == "tapping"
+    mae = report["mae_mm"]
+    assert row[1:6] == [f"{mae['x']:.2f}", "/", f"{mae['y']:.2f}", "/", f"{mae['z']:.2f}"]
+    assert "~3 / ~3 / ~3" in table[1]  # Bianchi et al. 2015, section IV-B
+    assert f"{report['baseline_mae_mm']['z']:.2f}" in table[1]
+    assert "dominate" in table[2]  # the sentence under the table
+    if "truth_breakdown_mm" in report:
+        assert "largest part" in out

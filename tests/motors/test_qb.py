@@ -26,8 +26,11 @@ def emu():
 
 
 def board(emu, **kw) -> QbMotors:
-    cfg = QbBoardConfig(port=emu.port, device_id=3, timeout_s=TIMEOUT_S,
-                        tick_timeout_s=0.05, **kw)
+    # The watchdog off unless a test arms it: this test thread, not paced and not
+    # real-time, may pause past its 20 ms on a loaded machine, and the board would stop.
+    kw.setdefault("watchdog_cs", 0)
+    kw.setdefault("tick_timeout_s", 0.05)
+    cfg = QbBoardConfig(port=emu.port, device_id=3, timeout_s=TIMEOUT_S, **kw)
     return QbMotors(cfg)
 
 
@@ -133,9 +136,64 @@ def test_pipelined_reads_follow_the_plant(emu):
         assert m.stats()["timeouts"] == 0
 
 
-def test_watchdog_is_armed_on_activation(emu):
-    with board(emu, watchdog=100):
+def test_watchdog_is_armed_on_activation_at_the_shortest_period_by_default(emu):
+    cfg = QbBoardConfig(port=emu.port, device_id=3)
+    assert cfg.watchdog_cs == 2
+    with QbMotors(cfg):
+        assert _wait(lambda: emu.watchdog == 1)  # commSetWatchDog(2 cs) sends 2 / 2
+    with board(emu, watchdog_cs=100):
         assert _wait(lambda: emu.watchdog == 50)
+
+
+@pytest.mark.parametrize("cs", [1, 501, -2])
+def test_a_watchdog_the_firmware_cannot_count_is_refused(emu, cs):
+    with pytest.raises(MotorError, match=r"watchdog_cs must be 0 .off. or 2-500"):
+        board(emu, watchdog_cs=cs)
+
+
+def test_the_board_stops_by_itself_when_commands_stop(emu):
+    """A host that stops sending (hung, killed) leaves the board at rest: the watchdog
+    deactivates it at its deadline, 20 ms after the last frame, by the board's clock."""
+    m = board(emu, watchdog_cs=2)
+    m.activate()
+    for _ in range(50):
+        m.set_pwm(0.4, -0.4)
+        m.read_positions_rad()
+    assert _wait(lambda: emu.received.count(qp.CMD_SET_INPUTS) >= 51)
+    # Nothing more is sent: no deactivate, no close.
+    assert _wait(emu.at_rest, timeout_s=5.0)
+    # At rest by the period after the host's last frame, on the board's clock (a stall
+    # of this unpaced test thread may have stopped it earlier, and it stayed stopped).
+    stops = emu.watchdog_stops
+    assert stops and stops[-1][1] <= emu.last_frame_s + 0.02 + 1e-9
+    assert all(stop - last == pytest.approx(0.02) for last, stop in stops)
+    assert list(emu.plant.duty) == [0.0, 0.0] and not emu.plant.powered
+    m.close()
+
+
+def test_late_replies_reuse_the_last_reading_and_never_hold_the_read(emu):
+    """Replies 200 ms late: each read gives up after its tick_timeout_s (5 ms here),
+    reusing the last reading, and takes the late replies when they come."""
+    m = board(emu, max_missed_replies=10_000, tick_timeout_s=0.005)
+    m.activate()
+    m.set_pwm(0.3, 0.3)
+    m.read_positions_rad()
+    emu.reply_delay_s = 0.2
+    kinds = []  # per read: "reused" (no reply in time) or "fresh"
+    deadline = time.monotonic() + 60
+    while "reused" not in kinds or kinds[-1] != "fresh" or kinds.count("fresh") < 3:
+        m.set_pwm(0.3, 0.3)  # the plant moves on each SET_INPUTS
+        before = m.reused_readings
+        last = m._last
+        th = m.read_positions_rad()
+        kinds.append("reused" if m.reused_readings > before else "fresh")
+        if kinds[-1] == "reused":
+            assert th == last  # the last reading, as it was
+        assert time.monotonic() < deadline, "no late reply was ever taken"
+    # Reads went on while the replies were 40 reads' time late, and took them later.
+    assert kinds.count("reused") >= 10
+    m.deactivate()
+    m.close()
 
 
 def test_bad_checksum_reply_is_rejected_and_reported(emu):

@@ -170,7 +170,11 @@ def test_calibrate_indentation_fits_the_correction_from_recordings(tmp_path: Pat
     text = capsys.readouterr().out
     assert "RMSE against the true depth: plane" in text
     section = tomllib.loads(out.read_text())["ir"]
+    assert section["correction_per_sensor"] is True
     cfg = IRConfig(correction_coef=tuple(section["correction_coef"]),
+                   correction_per_sensor=True,
+                   correction_xy_degree=section["correction_xy_degree"],
+                   correction_depth_degree=section["correction_depth_degree"],
                    baseline_mm=(99.0, 101.0, 100.5))
     # Scored on new presses, never seen by the fit.
     x, y, d = random_presses(2000, rng)
@@ -192,3 +196,21 @@ def test_calibrate_indentation_needs_truth(tmp_path: Path, capsys):
     assert cli.main(["calibrate", "indentation", str(rec)]) == 2
     err = capsys.readouterr().err
     assert "truth.csv: missing" in err and len(err.strip().splitlines()) == 1
+
+
+def test_calibrate_indentation_protocol_takes_two_minutes_and_covers_the_workspace(capsys):
+    """--protocol prints the presses: where (over the whole workspace, edges included)
+    and how deep (the slides' and the taps' ranges), in about two minutes of recording;
+    without recordings or --protocol the command says what it needs."""
+    from fydpad.indentation_protocol import duration_s, presses
+
+    assert cli.main(["calibrate", "indentation", "--protocol"]) == 0
+    out = capsys.readouterr().out
+    ps = presses()
+    assert len(ps) == 36 and 60 <= duration_s() <= 120
+    assert f"{ps[0].x_mm:+.0f}" in out and "depth mm" in out and "load cell" in out
+    xs, ys = [p.x_mm for p in ps], [p.y_mm for p in ps]
+    assert min(xs) < -35 and max(xs) > 35 and min(ys) < -24 and max(ys) > 24
+    assert {p.depth_mm for p in ps} == {4.0, 10.0, 20.0, 35.0}
+    assert cli.main(["calibrate", "indentation"]) == 2
+    assert "--protocol" in capsys.readouterr().err

@@ -35,7 +35,7 @@ class GatedChannel:
     def __init__(self) -> None:
         self.gate = threading.Event()
         self.entered = threading.Event()  # a write has started
-        self.blocks: list[float] = []
+        self.samples: list[float] = []
         self.writing = False
         self.closed = False
         self.closed_during_write = False
@@ -44,7 +44,7 @@ class GatedChannel:
         self.writing = True
         self.entered.set()
         self.gate.wait(30)
-        self.blocks.append(float(block[0]))
+        self.samples.extend(block.tolist())
         self.writing = False
 
     def close(self) -> None:
@@ -56,9 +56,10 @@ class GatedChannel:
 def test_file_writer_never_closes_under_a_write_and_drains_as_asked(drain: bool):
     ch = GatedChannel()
     fw = FileWriter(ch)
-    for k in range(5):
+    fw.write(np.full(10, 0.0))
+    assert ch.entered.wait(30)  # block 0 is being written
+    for k in range(1, 5):  # 1-4 wait in the ring
         fw.write(np.full(10, float(k)))
-    assert ch.entered.wait(30)  # block 0 is being written, 1-4 are queued
     with pytest.raises(ChannelError, match=r"still writing after 0\.2 s"):
         fw.close(drain=drain, timeout_s=0.2)
     assert not ch.closed  # not under the stalled write
@@ -66,10 +67,11 @@ def test_file_writer_never_closes_under_a_write_and_drains_as_asked(drain: bool)
     fw._thread.join(30)
     assert not fw._thread.is_alive()
     assert ch.closed and not ch.closed_during_write  # closed once the writes were done
+    sent = np.repeat(np.arange(5.0), 10).tolist()
     if drain:
-        assert ch.blocks == [0.0, 1.0, 2.0, 3.0, 4.0]
-    else:  # the write in progress finishes; the queued ones are dropped and counted
-        assert ch.blocks == [0.0] and fw.stats["dropped_blocks"] == 4
+        assert ch.samples == sent
+    else:  # the write in progress finishes; what is still buffered is dropped, counted
+        assert ch.samples == sent[:10] and fw.stats["discarded_samples"] == 40
     fw.close(drain=drain)  # closing again: nothing left to report
 
 

@@ -1,8 +1,8 @@
-"""``fydpad run --channel``: the station's texture signals on output channels (issue 8).
+"""``fydpad run --channel``: the station's texture signals on output channels.
 
 A replayed blob circling the pad, the simulated motors and a friction model: the 1 kHz
 vibration term goes to WAV and CSV files, the friction family's electrostatic channel
-(V = b mu(x) Y(t), paper 001 eq. 2) to a 48 kHz WAV. Checked against what the motors got
+(V = b mu(x) Y(t), Jiao 2018 eq. 2) to a 48 kHz WAV. Checked against what the motors got
 (the commands log), against the model (mu(x) at the positions the station saw, the 240 Hz
 carrier) and against the contact in the session's track. The sound-card path runs the real
 PortAudio stream on an ALSA null device in a child process (as tests/channels/test_audio.py).

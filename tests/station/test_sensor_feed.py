@@ -217,3 +217,58 @@ def test_board_clock_offset_follows_a_drifting_board_clock():
     assert np.max(np.abs(err[host_s > 1.0])) < 0.003
     session_min = board_s + np.minimum.accumulate(arrival_s - board_s)
     assert np.max(np.abs(session_min - host_s)) > 1.0
+
+
+def test_deadman_pedal_released_holds_and_only_the_pedal_releases(tmp_path: Path):
+    """The board's deadman pedal (7th data field) over a real pty: released, the station
+    holds (the link told, the vibration silenced); while it is released no other input
+    releases; pressed again, the hold is released. Each change is in events.csv."""
+    c = CFG.camera
+    pad = SyntheticPad(SynthConfig(trajectory="tapping", seconds=60.0, roi_px=c.roi_px,
+                                   workspace_mm=c.workspace_mm, image_flip=c.image_flip))
+    link_calls: list[bool] = []
+    web_release: list[bool] = []
+    with BoardEmulator(rate_hz=100.0).start() as emu:
+        emu.pedal = True  # pressed: the operator is at the station
+        board = SerialBoard(emu.port, ir_config=CFG.ir, force_config=CFG.force)
+        feed = SerialSensorFeed(board)
+        step = [0]
+
+        def drive(status: dict) -> None:  # the station's status callback, every 50 ms
+            if step[0] == 0 and feed.samples > 20:
+                emu.pedal = False  # released
+                step[0] = 1
+            elif step[0] == 1 and status["operator_hold"]:
+                web_release.append(station.set_operator_hold(False, "web"))
+                emu.pedal = True
+                step[0] = 2
+            elif step[0] == 2 and not status["operator_hold"]:
+                step[0] = 3
+                station.stop_event.set()
+
+        station = make_station(pad, feed, tmp_path, "pedal", status=drive,
+                               operator_hold=link_calls.append)
+        station.run()
+    assert step[0] == 3
+    assert link_calls == [True, False]  # held on release, released on press
+    assert web_release == [True]  # refused: the pedal was still released
+    assert station.stats["operator_hold"] == {"changes": 2, "held_at_stop": False}
+    assert station.stats["sensors"]["pedal"] is True
+    events = (tmp_path / "pedal" / "events.csv").read_text().splitlines()
+    assert [tuple(e.split(",")[1:]) for e in events[1:]] == [("hold", "pedal"),
+                                                               ("release", "pedal")]
+    # The render process was told: vibration silenced while held, then back.
+    assert station.control_values()["operator_hold"] == 0.0
+
+
+def test_board_lines_with_a_bad_pedal_field_are_counted_not_taken():
+    from vision.sensors import parse_line
+    from vision.serial_line import LineError
+
+    assert parse_line(data_line(5, (1, 2, 3), 7, True)[:-1]).pedal is True
+    assert parse_line(data_line(5, (1, 2, 3), 7, False)[:-1]).pedal is False
+    assert parse_line(data_line(5, (1, 2, 3), 7)[:-1]).pedal is None
+    from vision.serial_line import frame_line
+
+    with pytest.raises(LineError, match="pedal field '2' is not 0 or 1"):
+        parse_line(frame_line("D,5,1,2,3,7,2")[:-1])

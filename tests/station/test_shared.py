@@ -175,7 +175,7 @@ def test_render_process_stops_though_the_control_record_is_stuck_mid_write():
     state = SharedFingerState()
     state.publish(FingerState(t_s=0.0, contact=False), arrival_s=0.0, frame=0)
     control = SharedRecord(CONTROL_FIELDS)
-    control.write([1.0, math.nan, 1.0, 0.0, 0.0, math.nan])
+    control.write([1.0, math.nan, 1.0, 0.0, 0.0, math.nan, 0.0])
     stop, ready, results = ctx.Event(), ctx.Event(), ctx.Queue()
     p = ctx.Process(target=render_main, args=(RenderSpec(realtime=False), state, control,
                                               stop, results, ready), daemon=True)

@@ -120,7 +120,7 @@ def test_softness_request_drives_the_simulated_motors(circle_rec: Path, tmp_path
     """--motors sim --softness: the render process turns the stiffness request into the
     motor position the simulated plant's own softness table gives, and stops at rest."""
     from fydpad.config import StationConfig
-    from fydpad.motors.sim import characterise_plant
+    from fydpad.motors.drive import characterise_plant
 
     r = PadRecording(circle_rec)
     m = r.meta

@@ -1,4 +1,4 @@
-"""Each real-footage condition (issue 4) changes what it should, and they combine."""
+"""Each real-footage condition changes what it should, and they combine."""
 
 from __future__ import annotations
 

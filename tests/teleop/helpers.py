@@ -3,6 +3,7 @@ linger 0, every receive with a timeout)."""
 
 from __future__ import annotations
 
+import itertools
 import os
 import subprocess
 import sys
@@ -67,3 +68,94 @@ def recv_states(sock: zmq.Socket, duration_s: float) -> list[P.State]:
         if sock.poll(max(1, int((t_end - time.monotonic()) * 1e3))):
             out.append(P.decode_state(sock.recv()))
     return out
+
+
+def wait_for(pred, timeout_s: float = 10.0, step_s: float = 0.01) -> bool:
+    """Wait on behaviour, not time: True as soon as ``pred()`` holds, False at the timeout."""
+    t_end = time.monotonic() + timeout_s
+    while time.monotonic() < t_end:
+        if pred():
+            return True
+        time.sleep(step_s)
+    return bool(pred())
+
+
+class Master:
+    """A master in a thread of the test process: its own DEALER (random routing id, as
+    MasterSocket), a finger held at ``x_mm`` (contact), streamed at ``rate_hz`` with a clock
+    ``time.monotonic() + clock_offset_s`` (or from 0 at start: ``clock_from_zero``).
+    Every state received is kept as (arrival, state)."""
+
+    def __init__(self, endpoint: str, x_mm: float = 0.0, rate_hz: float = 100.0,
+                 clock_offset_s: float = 0.0, clock_from_zero: bool = False,
+                 routing_id: bytes | None = None, first_seq: int = 1) -> None:
+        import threading
+
+        from teleop.link import master_routing_id
+        self.ctx = zmq.Context()
+        self.sock = self.ctx.socket(zmq.DEALER)
+        self.sock.linger = 0
+        self.routing_id = routing_id or master_routing_id()
+        self.sock.setsockopt(zmq.ROUTING_ID, self.routing_id)
+        self.sock.connect(endpoint)
+        self.x_mm = x_mm
+        self.operator_hold = False  # the samples' operator-hold flag, from now on
+        self.paused = False  # True: send nothing, keep reading states
+        self.injected: list[bytes] = []  # sent once each on this socket, before the next sample
+        self.period_s = 1.0 / rate_hz
+        t0 = time.monotonic()
+        self.offset_s = (-t0 if clock_from_zero else clock_offset_s)
+        self.seq = first_seq
+        self.sent: list[bytes] = []
+        self.states: list[tuple[float, P.State]] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def clock(self) -> float:
+        return time.monotonic() + self.offset_s
+
+    def _run(self) -> None:
+        t_next = time.monotonic()
+        while not self._stop.is_set():
+            t = self.clock()
+            msg = P.encode_sample(P.Sample(self.seq, t, t, self.x_mm, 0.0, 1.0, 1.0, True,
+                                           operator_hold=self.operator_hold))
+            while self.injected:
+                self.sock.send(self.injected.pop(0))
+            if not self.paused:
+                self.seq += 1
+                self.sent.append(msg)
+                self.sock.send(msg)
+            t_next += self.period_s
+            while True:
+                wait_ms = max(0, int((t_next - time.monotonic()) * 1e3))
+                if not self.sock.poll(wait_ms):
+                    break
+                self.states.append((time.monotonic(), P.decode_state(self.sock.recv())))
+            if time.monotonic() - t_next > 0.1:  # starved: no burst
+                t_next = time.monotonic()
+
+    def acks(self, reason: int) -> list[P.State]:
+        return [st for _, st in list(self.states) if st.reason == reason]
+
+    def ticks(self) -> list[P.State]:
+        return self.acks(P.REASON_TICK)
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join(5.0)
+        self.sock.close(linger=0)
+        self.ctx.term()
+
+
+def max_cmd_speed_mm_s(states: list[P.State]) -> float:
+    """Largest |d cmd| / d t_slave between consecutive periodic states (the slave's clock:
+    independent of how fast this machine runs)."""
+    v = 0.0
+    for a, b in itertools.pairwise(states):
+        dt = b.t_slave_s - a.t_slave_s
+        if dt > 0:
+            d = sum((p - q) ** 2 for p, q in zip(b.cmd_mm, a.cmd_mm, strict=True)) ** 0.5
+            v = max(v, d / dt)
+    return v

@@ -1,4 +1,4 @@
-"""Fault tests over real sockets and processes (issue 5): each test says what it proves."""
+"""Fault tests over real sockets and processes: each test says what it proves."""
 
 from __future__ import annotations
 
@@ -35,14 +35,17 @@ def test_master_killed_mid_stream_slave_holds_within_250_ms():
                                   stdout=subprocess.PIPE, text=True)
         try:
             assert wait_for(lambda: sl.loop.counts["accepted"] > 20, 15.0)
-            assert sl.loop.status == P.STATUS_TRACKING
+            # A master starved by a loaded machine may trip the watchdog before the kill.
+            assert wait_for(lambda: sl.loop.status == P.STATUS_TRACKING, 5.0)
             master.kill()
             master.wait(5)
+            n0 = len(sl.loop.watchdog.trip_delays_s)
             assert wait_for(lambda: sl.loop.status == P.STATUS_WATCHDOG_HOLD, 5.0)
-            delays = sl.loop.watchdog.trip_delays_s
+            assert wait_for(lambda: len(sl.loop.watchdog.trip_delays_s) > n0, 5.0)
+            delays = sl.loop.watchdog.trip_delays_s[n0:]
             assert len(delays) == 1
             assert delays[0] >= 0.25
-            assert sl.loop.watchdog.pre_trip_checks_s[0] <= 0.25  # first tick past the deadline
+            assert sl.loop.watchdog.pre_trip_checks_s[n0] <= 0.25  # first tick past the deadline
             if delays[0] > 0.25 + 2 * sl.cfg.slave.period_s + 0.02:
                 import warnings
                 warnings.warn(f"slave thread starved: hold came {delays[0]:.3f} s after the "
@@ -77,8 +80,8 @@ def test_garbage_and_truncated_messages_are_counted_and_do_not_move_the_robot():
 
 
 def test_reordered_and_replayed_samples_are_dropped_and_counted():
-    """Replays (same seq) and reordered samples (older seq or capture time) never reach the
-    arm; the state reports how many were dropped."""
+    """Replays (a seq already accepted) are duplicates, a sample overtaken by a newer one is
+    out of order; neither reaches the arm; the state reports how many were dropped."""
     with SlaveThread() as sl:
         s = dealer(sl.endpoint)
         t0 = time.monotonic()
@@ -87,7 +90,7 @@ def test_reordered_and_replayed_samples_are_dropped_and_counted():
         for seq, dt in order:
             s.send(sample(seq, t0 + dt, x=seq))
         assert wait_for(lambda: sl.loop.counts["received"] == len(order))
-        assert dict(sl.loop.gate.dropped) == {"duplicate": 1, "out_of_order": 2}
+        assert dict(sl.loop.admission.dropped) == {"duplicate": 2, "out_of_order": 1}
         assert sl.loop.counts["accepted"] == 5
         assert sl.loop._latest.seq == 6
         states = recv_states(s, 0.2)
@@ -102,7 +105,7 @@ def test_stale_samples_are_dropped():
         now = time.monotonic()
         s.send(P.encode_sample(P.Sample(1, now - 1.0, now, 1.0, 0.0, 1.0, 1.0, True)))
         assert wait_for(lambda: sl.loop.counts["received"] == 1)
-        assert dict(sl.loop.gate.dropped) == {"stale": 1}
+        assert dict(sl.loop.admission.dropped) == {"stale": 1}
         s.close()
 
 

@@ -1,4 +1,4 @@
-"""The report's figures as RECORDING_FORMAT.md defines them (eq. 6), on hand-made logs."""
+"""The report's figures as docs/recording_format.md defines them (eq. 6), on hand-made logs."""
 
 from __future__ import annotations
 
@@ -69,3 +69,26 @@ def test_limiter_never_breaks_its_limits(targets, hold_ticks):
     # acceleration bound is checked where the box did not act.
     inside = (np.abs(c[1:-1]) < 100 - 1e-6).all(axis=1) & (np.abs(c[2:]) < 100 - 1e-6).all(axis=1)
     assert (np.linalg.norm(a[inside], axis=1) <= cfg.max_accel_mm_s2 * (1 + 1e-6)).all()
+
+
+def test_truth_breakdown_separates_sensing_from_the_link_per_axis():
+    """Master off the truth by 0.3 mm in x and 2 mm in z, the slave off the master by
+    0.1 mm in y: each part lands where it belongs and the end to end adds them."""
+    from teleop.report import breakdown_lines, truth_breakdown
+
+    t = np.arange(0, 2, 1 / 30)
+    contact = np.ones(t.size, bool)
+    contact[:5] = False
+    truth = np.column_stack([10 * np.sin(t), 5 * np.cos(t), 3 + np.sin(2 * t)])
+    master = truth + np.array([0.3, 0.0, 2.0])
+    master[~contact, :2] = np.nan
+    tl = np.arange(-0.1, 2.1, 0.001)
+    slave = np.column_stack([10 * np.sin(tl) + 0.3, 5 * np.cos(tl) + 0.1,
+                             5 + np.sin(2 * tl)])
+    b = truth_breakdown(t, master, contact, tl, slave, t, truth, contact)
+    assert b["master_vs_truth"] == pytest.approx({"x": 0.3, "y": 0.0, "z": 2.0}, abs=1e-3)
+    assert b["slave_vs_master"] == pytest.approx({"x": 0.0, "y": 0.1, "z": 0.0}, abs=1e-3)
+    assert b["slave_vs_truth"] == pytest.approx({"x": 0.3, "y": 0.1, "z": 2.0}, abs=1e-3)
+    lines = breakdown_lines({"truth_breakdown_mm": b})
+    assert len(lines) == 5 and lines[-1].endswith("largest part: indentation, 2.00 mm")
+    assert breakdown_lines({"mae_mm": {}}) == []

@@ -1,4 +1,4 @@
-"""Tracking accuracy (issue 5 targets) against ground truth, on analytic finger paths at
+"""Tracking accuracy against ground truth, on analytic finger paths at
 30 fps with 0.1 mm measurement noise, through the real slave loop, safety chain and the
 PyBullet iiwa.
 
@@ -46,10 +46,8 @@ def test_tapping_xy_meets_target(sessions):
     assert rep["mae_mm"]["x"] <= 0.5 and rep["mae_mm"]["y"] <= 0.5, rep
 
 
-@pytest.mark.xfail(strict=True, reason="measured 0.55 mm (three-model IMM; 0.64 with the "
-                   "former two models, 0.67 with the quadratic) vs 0.5 mm: at 80 mm/s a 30 fps "
-                   "touch-down and the tap's turn cannot be predicted to 0.5 mm "
-                   "(docs/teleop.md)")
+@pytest.mark.xfail(strict=True, reason="z MAE 0.55 mm vs 0.5 mm: a 30 fps touch-down at "
+                   "80 mm/s is not predictable to 0.5 mm (docs/teleop.md)")
 def test_tapping_depth_meets_target(sessions):
     assert sessions["tapping"].report["mae_mm"]["z"] <= 0.5
 

@@ -137,7 +137,8 @@ def test_servo_parameters_outside_ur_rtde_ranges_are_refused_up_front():
 
 
 def test_slave_loop_holds_on_a_ur_fault():
-    """A protective stop during streaming: the slave reports FAULT and stops commanding."""
+    """A protective stop during streaming: the slave reports FAULT, stops the robot
+    (servoStop, stopScript) and never commands it again."""
     from teleop import protocol as P
     from teleop.config import TeleopConfig
     from teleop.slave import SlaveLoop
@@ -157,4 +158,5 @@ def test_slave_loop_holds_on_a_ur_fault():
     assert loop.status == P.STATUS_FAULT and loop.counts["arm_faults"] == 1
     loop.tick(0.004, 0.002)
     assert ctrl.calls.count("servoL") == n + 1  # the refused one, then nothing
-    assert ctrl.calls[-1] == "servoStop"
+    assert ctrl.calls[-3:] == ["servoStop", "stopScript", "disconnect"]
+    assert loop.status == P.STATUS_FAULT

@@ -1,4 +1,4 @@
-"""The held-out protocol of test_targets.py's ``figures`` set-up, shared by the tests
+"""A held-out protocol on the scan generator, shared by the tests
 that score a model form on it: held-out 8 s stroke seed 100, second recording seed 200."""
 
 from __future__ import annotations

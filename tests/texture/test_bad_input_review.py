@@ -1,4 +1,4 @@
-"""Issue 7, "Bad input", review findings: a model at another rate, malformed model
+"""Bad input: a model at another rate, malformed model
 headers, unchecked fit options, unwritable outputs, a scan too short to identify, scan
 line numbers, fit warnings and a non-finite speed. Each error one line naming the file
 and the key, option or line."""

@@ -206,7 +206,7 @@ def test_cli_fit_free_form_flag(tmp_path):
 
 @pytest.fixture(scope="module")
 def target_figures():
-    """test_targets.py's ``figures`` set-up (one 8 s training stroke per speed, held-out
+    """The generator's held-out set-up (one 8 s training stroke per speed, held-out
     8 s strokes seed 100, ceiling seed 200) for the calibrated form:
     {(texture, speed): (corr, lsd, ceiling)}."""
     from fydpad.texture.evaluate import evaluate_scan
@@ -236,15 +236,12 @@ def _check_targets(figures, speed: float) -> None:
 
 def test_targets_between_modelled_speeds_calibrated(target_figures):
     """fit_texture(free_form='calibrated') on the whole signal at 25 mm/s: LSD above the
-    ceiling R1 -0.46, R2 +0.08, felt -0.35, glass +0.08 dB, corr 0.975-0.986 (measured).
-    Missed until session 14's hand, whose strokes wander 9 % RMS (R1 +0.52, R2 +0.60)."""
+    ceiling R1 -0.46, R2 +0.08, felt -0.35, glass +0.08 dB, corr 0.975-0.986 (measured)."""
     _check_targets(target_figures, 25.0)
 
 
-@pytest.mark.xfail(strict=True, reason="measured with fit_texture(free_form='calibrated') at "
-                   "20 mm/s: R2's LSD +0.26 dB above the ceiling (R1 +0.16, felt -0.45, glass "
-                   "+0.09; corr >= 0.980; session 14; before its hand R2 and glass +0.28); the "
-                   "default fit (R2's lines) meets it (docs/texture.md)")
+@pytest.mark.xfail(strict=True, reason="R2 at 20 mm/s: LSD +0.26 dB over the "
+                   "ceiling (measured)")
 def test_targets_at_a_modelled_speed_calibrated(target_figures):
     _check_targets(target_figures, 20.0)
 

@@ -104,12 +104,8 @@ def test_between_the_strokes_speeds_the_factor_model_holds(comb):
     assert np.median(np.abs(err)) < 1.0, err
 
 
-@pytest.mark.xfail(strict=True, reason="measured: the 16th harmonic (141 Hz, at the tool "
-                   "mode's flank) 2.15 dB under the truth; on the strokes' seeds 3-4, 5-6 and "
-                   "7-8 the worst is 4.37, 2.24 and 1.86 dB, harmonics that rise into the mode "
-                   "inside the gap, which the table fades towards the 10 mm/s strokes' top "
-                   "row where they do not clear the noise. Before session 14's hand (strokes "
-                   "that wandered less) 1.30, 1.11, 2.28 and 2.57 dB (docs/texture.md)")
+@pytest.mark.xfail(strict=True, reason="the 16th harmonic (141 Hz) 2.15 dB under the "
+                   "truth (measured)")
 def test_between_the_strokes_speeds_every_strong_harmonic_is_within_2_db(comb):
     err = _errors_at_15(comb)
     assert np.max(np.abs(err)) < 2.0, err
@@ -242,10 +238,8 @@ def test_a_ribs_residual_is_a_surface_and_gets_the_spectral_form():
 def test_a_combs_residual_gets_the_spectral_form_too():
     """aluminum_knurl: 97 % of the power in its lines; what they leave is fitted by the
     default spectral form as a rib's is. Ground truth at 15 mm/s, between strokes at 10
-    and 20 mm/s (seed set A of benchmarks/texture_causes.py): the held-out stroke meets
-    the target with it, closer than with the residual pooled (measured -0.67 and -0.33
-    dB over the ceiling; before session 14's hand, whose strokes wandered less, -0.17
-    and +0.56: the pooled residual missed)."""
+    and 20 mm/s: the held-out stroke meets the target with it, closer than with the
+    residual pooled (measured -0.67 and -0.33 dB over the ceiling)."""
     from fydpad.texture.evaluate import evaluate_scan
     from tests.texture.heldout import held_out
 

@@ -218,17 +218,8 @@ def sandpaper_calibrated() -> TextureModel:
     return model
 
 
-@pytest.mark.xfail(strict=True, reason="measured with the default (calibrated) fit: LSD 2.24 dB "
-                   "(2.33 with noise seed 2), +1.9 dB at 320-420 Hz over the filters' average "
-                   "(+0.0 with seed 2; session 14's hand, whose stroke here spans 20-29 mm/s; "
-                   "before it 2.57 / 2.49 dB and +3.7, with the base at 150 iterations 2.35 / "
-                   "2.30 dB and +3.4) "
-                   "(the pooled fit's table +0.4-0.8): its table changes faster with speed, "
-                   "and the FIR's filter of now on past noise leaks the strong low band into "
-                   "the weak top one. Every lag at the mean speed over it, without slack, "
-                   "meets it (0.87 / 0.89 dB) at O(response length) per sample; the warp "
-                   "as rendered leaves a hand's wander alone (docs/texture.md, 'Speed changes "
-                   "in the FIR structure')")
+@pytest.mark.xfail(strict=True, reason="calibrated fit along a hand's stroke: LSD 2.24 dB "
+                   "(measured)")
 def test_fir_spectrum_of_the_default_fit_along_a_hands_stroke(sandpaper_calibrated):
     test_fir_spectrum_along_a_hands_stroke_has_no_switching_leak(sandpaper_calibrated)
 

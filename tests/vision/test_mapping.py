@@ -1,4 +1,4 @@
-"""Image-workspace geometry of RECORDING_FORMAT.md."""
+"""Image-workspace geometry of docs/recording_format.md."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ def test_roi_corners_are_the_workspace_corners():
 
 
 def test_a_processing_cell_is_not_square():
-    # At 160 x 120 a cell is 0.625 x 0.583 mm (RECORDING_FORMAT.md).
+    # At 160 x 120 a cell is 0.625 x 0.583 mm (docs/recording_format.md).
     assert WS[0] / 160 == pytest.approx(0.625)
     assert WS[1] / 120 == pytest.approx(0.5833, abs=1e-4)
 

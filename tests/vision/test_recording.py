@@ -1,4 +1,4 @@
-"""Readers and writers of RECORDING_FORMAT.md, and their errors naming file and key/line."""
+"""Readers and writers of docs/recording_format.md, and their errors naming file and key/line."""
 
 from __future__ import annotations
 

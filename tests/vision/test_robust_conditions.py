@@ -1,5 +1,5 @@
 """The robust tracker against truth on synthetic footage with the conditions of real
-footage (issue 4): every condition alone, a mirrored camera, and the paper's method
+footage: every condition alone, a mirrored camera, and the paper's method
 beside it. Recordings are rendered by the synthetic pad, written as MJPG video and
 decoded back by OpenCV.
 

@@ -1,4 +1,4 @@
-"""The web view's flows of issue 10 in a real browser (Debian's Chromium, Playwright):
+"""The web view's flows in a real browser (Debian's Chromium, Playwright):
 
 - the workspace calibration through the page against the synthetic pad pressing the 9
   marked points (``fydpad run --synthetic presses``), checked against the pad's true

@@ -1,4 +1,4 @@
-"""The logic behind the web view's flows (issue 10): the calibration's press collector,
+"""The logic behind the web view's flows: the calibration's press collector,
 the staircase session and its log, the experiment's stimuli file, and the render chain
 switching texture models live (the simulated motors, in-process)."""
 

@@ -25,7 +25,8 @@ from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import welch_psd
 from fydpad.texture.family import Array, FamilyBase, FingerBlock, Kind
 from fydpad.texture.fit import fit_texture, lines_option, modelled_speed_range
-from fydpad.texture.interpolation import DEFAULT_METHOD, METHODS
+from fydpad.texture.free_form import AUTO
+from fydpad.texture.interpolation import DEFAULT_METHOD, METHODS, SpeedInterpolator
 from fydpad.texture.line_voice import LineVoice
 from fydpad.texture.lines import LineSpectrum
 from fydpad.texture.lpc import ar_psd
@@ -33,6 +34,7 @@ from fydpad.texture.model_file import TextureModel, model_to_json, parse_model
 from fydpad.texture.plots import SpeedCoverage, plot_spectra
 from fydpad.texture.scan_io import Scan, read_scan
 from fydpad.texture.segment import segment_by_speed
+from fydpad.texture.select import fit_candidate, select_model, selection_table
 from fydpad.texture.synthesis import TextureRenderer
 from vision.recording import RecordingError
 
@@ -63,7 +65,7 @@ class LpcFamily(FamilyBase):
         self._renderer: TextureRenderer | None = None
 
     def set_parameter(self, name: str, value: Any) -> None:
-        if name == "method" and value not in METHODS:
+        if name == "method" and value is not None and value not in METHODS:
             raise UserError(f"{self.path}: interpolation {value!r} is not one of "
                             f"{', '.join(METHODS)}")
         super().set_parameter(name, value)
@@ -150,7 +152,7 @@ def _fit(scans: list, **options: Any) -> dict[str, Any]:
 #: The ``fydpad texture fit`` options the LPC fit takes.
 FIT_OPTIONS = ("order", "speeds", "tolerance", "min_seconds", "highpass_hz", "method",
                "surface", "drive_band", "prewhiten_order", "speed_normalise", "two_part",
-               "free_form", "lines", "wrap", "wrap_iterations")
+               "free_form", "lines", "form", "wrap", "wrap_iterations")
 
 
 def fitted_form(model: TextureModel) -> str:
@@ -208,6 +210,9 @@ def fit_command(scan_paths: list[str], opts: dict[str, Any], out: str,
         notes.append(f"the scans are of {len(set(labels))} surfaces (# surface=: {counts}), "
                      f"pooled into one model labelled {labels[0]}; fit each surface on its "
                      "own, or name the mix with --surface")
+    if selects(opts):
+        data, out_lines = fit_selected(scans, opts, plot)
+        return data, out_lines, notes
     wrap = opts.get("wrap", _no_wrap)
     model, reports = fit_texture(
         scans, order=opts["order"], speeds_mm_s=opts["speeds"],
@@ -274,6 +279,55 @@ def plot_fit(path: str, model: TextureModel, scans: list[Scan], opts: dict[str, 
     plot_spectra(path, panels, f"{model.surface}: recorded vs LPC model"
                  + (" + lines" if lines is not None else ""),
                  coverage=SpeedCoverage(edges, seconds, list(model.speeds_mm_s), gaps))
+
+
+def selects(opts: dict[str, Any]) -> bool:
+    """No option of the older forms given: the validated choice (or ``form``'s)."""
+    return (opts["free_form"] == AUTO and not opts["two_part"]
+            and not opts["speed_normalise"] and opts["method"] == "autocorrelation"
+            and opts["prewhiten_order"] == 8)
+
+
+def fit_selected(scans: list[Scan], opts: dict[str, Any], plot: str | None
+                 ) -> tuple[dict[str, Any], list[str]]:
+    """The form validation picks on the scans (``form`` "auto"), or the one named."""
+    kw = dict(order=opts["order"], tolerance_mm_s=opts["tolerance"],
+              highpass_hz=opts["highpass_hz"], surface=opts["surface"],
+              drive_band_hz=tuple(opts["drive_band"]))
+    if opts["form"] == "auto":
+        model, sel = select_model(scans, speeds_mm_s=opts["speeds"], **kw,
+                                  wrap=opts.get("wrap_iterations", _no_wrap))
+        table = selection_table(sel)
+    else:
+        model = fit_candidate(opts["form"], scans, opts["speeds"], **kw)
+        table = [f"  form {opts['form']} as asked (--form): not validated"]
+    lines = [f"surface {model.surface}, order {model.order}, {model.fs_hz:g} Hz, "
+             f"form {model.provenance.get('form', 'calibrated')}, {len(model.speeds_mm_s)} "
+             f"models at {model.speeds_mm_s[0]:g}-{model.speeds_mm_s[-1]:g} mm/s, "
+             f"interpolation {model.interpolation}", *table]
+    if plot:
+        plot_selected(plot, scans, model, opts)
+    return model_to_json(model), lines
+
+
+def plot_selected(path: str, scans: list[Scan], model: TextureModel,
+                  opts: dict[str, Any]) -> None:
+    """Recorded spectrum at each target speed (its samples within the tolerance) against
+    the model rendered there (the all-pole part; a periodic surface's lines apart)."""
+    interp = SpeedInterpolator(model)
+    x = np.concatenate([preprocess(sc.acc, sc.fs_hz, model.highpass_hz) for sc in scans])
+    v = np.concatenate([sc.speed_mm_s for sc in scans])
+    panels = []
+    for s in opts["speeds"]:
+        mask = np.abs(v - s) <= opts["tolerance"]
+        try:
+            f, pr = welch_psd(x, model.fs_hz, mask)
+        except ValueError:
+            continue  # too little near this speed for a spectrum
+        a, s2 = interp(float(s))
+        panels.append((f"{s:g} mm/s", f, pr, ar_psd(a, s2, f, model.fs_hz)))
+    plot_spectra(path, panels, f"{model.surface}: recorded vs model "
+                 f"({model.provenance.get('form', 'calibrated')}, {model.interpolation})")
 
 
 def read_scan_or_fail(path: str) -> Scan:

@@ -70,6 +70,7 @@ async function poll() {
       $("status").textContent = frameInfo ? `frame ${frameInfo.index}` : "waiting for frames";
       showStats(j.stats);
       $("link").textContent = j.link ? JSON.stringify(j.link) : "no link";
+      showHold(j.operator_hold);
       const s = j.settings;
       $("render").textContent = `softness ${fmt(s.stiffness_n_per_mm, 2)} N/mm; texture ${s.texture || "none"} ` +
         `(${s.vibration_enabled ? "on" : "off"}, gain ${fmt(s.vibration_gain, 2)})` +
@@ -129,6 +130,17 @@ async function apply() {
   try { const j = await post("api/settings", body); fillSettings(j.settings, true); msg("applied"); }
   catch (e) { msg(e.message, true); }
 }
+// The operator hold: the robot holds still and the vibration is silenced until released.
+function showHold(held) {
+  const b = $("hold");
+  b.textContent = held ? "Release robot" : "Hold robot";
+  b.classList.toggle("held", !!held);
+  b.dataset.held = held ? "1" : "0";
+}
+$("hold").onclick = async () => {
+  try { const j = await post("api/hold", { on: $("hold").dataset.held !== "1" }); showHold(j.operator_hold); }
+  catch (e) { msg(e.message, true); }
+};
 $("apply").onclick = apply;
 $("save").onclick = async () => {
   try { await apply(); const j = await post("api/save"); msg(j.message); } catch (e) { msg(e.message, true); }

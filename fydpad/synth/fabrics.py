@@ -1,0 +1,57 @@
+"""Test pads unlike the default one, for the indentation calibration: a stiffer and a
+softer fabric (tension and how far the sag spreads across the stretch), a different sag
+shape (shorter span between the rollers, a sag that narrows and widens more with
+depth) and IR sensors mounted off the places the recording states.
+
+``indentation_samples`` gives what ``fydpad calibrate indentation`` fits on, from a
+synthetic session's IR and truth (no video needed): the plane estimate, the sensors'
+deflections, the true centroid and depth over the contact frames with valid readings.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from fydpad.fabric import Fabric
+from fydpad.synth.pad import SynthConfig, SyntheticPad
+from fydpad.synth.sensors import IRParams
+from vision.indentation import IndentationEstimator, indentation_at_frames
+
+#: name -> SynthConfig fields of the pad.
+TEST_PADS: dict[str, dict[str, Any]] = {
+    "default": {},
+    "stiffer": {"fabric": Fabric(tension_rest_n=18.0, axial_n_per_mm=1.6, decay_mm=42.0,
+                                 decay_per_mm_depth=0.2)},
+    "softer": {"fabric": Fabric(tension_rest_n=5.0, axial_n_per_mm=0.5, decay_mm=20.0,
+                                decay_per_mm_depth=0.5)},
+    "sag_shape": {"fabric": Fabric(span_mm=120.0, decay_mm=16.0, decay_per_mm_depth=0.8)},
+    "sensors_off": {"ir": IRParams(position_error_mm=((3.0, -2.0), (-2.5, 3.0),
+                                                      (2.0, 2.5)))},
+}
+
+
+def indentation_samples(pad_name: str, trajectory: str, seed: int, seconds: float = 20.0,
+                        fps: float = 30.0) -> dict[str, np.ndarray]:
+    """Contact frames of a session on a test pad: ``plane``, ``e`` (n, 3), ``x``, ``y``,
+    ``depth`` (truth) and ``press`` (the number of the contact each frame is in);
+    ``sensors`` the sensor positions the recording states."""
+    pad = SyntheticPad(SynthConfig(trajectory=trajectory, seconds=seconds, seed=seed,
+                                   fps=fps, **TEST_PADS[pad_name]))
+    t_ir, volts = pad.ir()
+    truth = [pad.truth(k) for k in range(pad.frame_count)]
+    t = np.array([q.t_s for q in truth])
+    c = np.array([q.contact for q in truth])
+    x = np.array([q.x_mm for q in truth])
+    y = np.array([q.y_mm for q in truth])
+    depth = np.array([q.indentation_mm for q in truth])
+    m = pad.meta()
+    est = IndentationEstimator(sensors_mm=m.ir_sensors_mm, base_to_fabric_mm=m.base_to_fabric_mm)
+    r, _ = indentation_at_frames(est, t_ir, volts, t, c, x, y)
+    ok = c & r.valid
+    press = np.cumsum(np.diff(np.concatenate([[0], c.astype(int)])) == 1)
+    assert r.deflection_mm is not None
+    return {"plane": r.plane_mm[ok], "e": r.deflection_mm[ok], "x": x[ok], "y": y[ok],
+            "depth": depth[ok], "press": press[ok],
+            "sensors": np.asarray(m.ir_sensors_mm, np.float64)}

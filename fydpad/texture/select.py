@@ -1,0 +1,238 @@
+"""Choosing the LPC model form on the user's own scans by held-out validation.
+
+Folds (one 30 s stroke with four plateaus is enough):
+
+- *time blocks*: each speed plateau (the longest run within the tolerance of a target
+  speed) is cut into ``BLOCKS`` equal blocks; fold k holds out block k of every plateau;
+- *between plateaus*: each inner plateau (neither the slowest nor the fastest) is held
+  out whole, with every sample within the tolerance of its speed, so the speeds between
+  the remaining plateaus are judged as a user's finger meets them.
+
+Every candidate is fitted on the rest of each fold and scored on each held-out block by
+the log-spectral distance of :func:`evaluate.compare` (its synthesis along the block's
+own speed trace against the block's DFT321 signal, 4 Hz bins over 20-500 Hz). The
+score is the mean over all blocks; the noise is the standard error of the paired
+difference to the best candidate over the blocks. The winner is the simplest candidate
+(:data:`CANDIDATES` order) within that noise of the best, refitted on all the scans.
+Where the scans cannot be validated (fewer than two plateaus of ``MIN_PLATEAU_S``) the
+plain paper method is fitted, and the reason recorded.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fydpad.texture.dft321 import preprocess
+from fydpad.texture.evaluate import compare
+from fydpad.texture.fit import fit_paper, fit_texture
+from fydpad.texture.model_file import TextureModel
+from fydpad.texture.scan_io import Scan
+from fydpad.texture.segment import DEFAULT_SPEEDS_MM_S, DEFAULT_TOLERANCE_MM_S, runs
+from fydpad.texture.synthesis import TextureRenderer
+
+Array = NDArray[np.float64]
+#: Simplest first: a tie within the noise goes to the earlier one.
+CANDIDATES = ("paper", "calibrated")
+BLOCKS = 2
+MIN_PLATEAU_S = 4.5  # shorter: blocks under 2.25 s, too few 4 Hz Welch segments
+#: The scoring renderer's speed table step (the station's is 0.25): half the cost of
+#: building each fold's table; a block's speed lies within 0.25 mm/s of an entry.
+SCORE_STEP_MM_S = 0.5
+MIN_PIECE_S = 1.0  # training pieces shorter than this are dropped (too short for DFT321)
+
+
+@dataclass
+class CandidateScore:
+    name: str
+    block_lsd_db: list[float]  # time blocks, fold by fold, plateau by plateau
+    between_lsd_db: list[float]  # inner plateaus held out whole
+
+    @property
+    def scores(self) -> Array:
+        return np.asarray(self.block_lsd_db + self.between_lsd_db)
+
+    @property
+    def mean_lsd_db(self) -> float:
+        return float(np.mean(self.scores))
+
+    @property
+    def spread_db(self) -> float:
+        return float(np.std(self.scores, ddof=1)) if self.scores.size > 1 else 0.0
+
+
+@dataclass
+class Selection:
+    winner: str
+    validated: bool
+    reason: str
+    candidates: list[CandidateScore] = field(default_factory=list)
+    noise_db: dict[str, float] = field(default_factory=dict)  # paired s.e. against the best
+    plateaus_mm_s: list[float] = field(default_factory=list)
+
+    def to_json(self) -> dict:
+        r3 = lambda x: round(float(x), 3)  # noqa: E731
+        return {
+            "winner": self.winner, "validated": self.validated, "reason": self.reason,
+            "score": "mean log-spectral distance (dB, 20-500 Hz, 4 Hz bins) on held-out blocks",
+            "plateaus_mm_s": [r3(v) for v in self.plateaus_mm_s],
+            "candidates": [
+                {"name": c.name, "mean_lsd_db": r3(c.mean_lsd_db), "spread_db": r3(c.spread_db),
+                 "time_block_lsd_db": [r3(x) for x in c.block_lsd_db],
+                 "between_plateaus_lsd_db": [r3(x) for x in c.between_lsd_db],
+                 "noise_to_best_db": r3(self.noise_db.get(c.name, 0.0))}
+                for c in self.candidates],
+        }
+
+
+def fit_candidate(name: str, scans: Sequence[Scan], speeds_mm_s: Sequence[float], *,
+                  order: int = 200, tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S,
+                  highpass_hz: float = 10.0, surface: str | None = None,
+                  drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
+                  wrap_iterations: Callable[[Iterable], Iterable] = lambda it: it,
+                  ) -> TextureModel:
+    """One candidate form fitted on ``scans``."""
+    if name == "paper":
+        return fit_paper(scans, order=order, window_mm_s=tolerance_mm_s,
+                         highpass_hz=highpass_hz, surface=surface, drive_band_hz=drive_band_hz)
+    if name == "calibrated":
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # speeds a fold lacks: said by the final fit
+            model, _ = fit_texture(scans, order=order, speeds_mm_s=speeds_mm_s,
+                                   tolerance_mm_s=tolerance_mm_s, highpass_hz=highpass_hz,
+                                   surface=surface, drive_band_hz=drive_band_hz,
+                                   wrap_iterations=wrap_iterations)
+        model.provenance["form"] = name
+        return model
+    raise ValueError(f"unknown candidate {name!r}; one of {CANDIDATES}")
+
+
+def plateaus(scans: Sequence[Scan], speeds_mm_s: Sequence[float], tolerance_mm_s: float
+             ) -> list[tuple[float, int, int, int]]:
+    """(target speed, scan index, start, stop) of each target's longest run within the
+    tolerance, for the targets that have one of at least ``MIN_PLATEAU_S``."""
+    out = []
+    for s in sorted(float(v) for v in speeds_mm_s):
+        best = None
+        for i, sc in enumerate(scans):
+            # A hand sways about 10 % around a plateau: widened to 20 % of its speed.
+            for a, b in runs(np.abs(sc.speed_mm_s - s) <= max(tolerance_mm_s, 0.2 * s),
+                             round(MIN_PLATEAU_S * sc.fs_hz)):
+                if best is None or b - a > best[2] - best[1]:
+                    best = (i, a, b)
+        if best is not None:
+            out.append((s, *best))
+    return out
+
+
+def _piece(scan: Scan, a: int, b: int, tag: str) -> Scan:
+    return replace(scan, path=f"{scan.path}[{tag}]", t_s=scan.t_s[a:b], acc=scan.acc[a:b],
+                   speed_mm_s=scan.speed_mm_s[a:b],
+                   force_n=None if scan.force_n is None else scan.force_n[a:b])
+
+
+def _without(scans: Sequence[Scan], drop: list[NDArray[np.bool_]]) -> list[Scan]:
+    """The scans cut into the pieces outside ``drop`` (one mask per scan)."""
+    out = []
+    for sc, d in zip(scans, drop, strict=True):
+        for a, b in runs(~d, round(MIN_PIECE_S * sc.fs_hz)):
+            out.append(_piece(sc, a, b, f"{a}:{b}"))
+    return out
+
+
+def held_out_lsd_db(model: TextureModel, blocks: Sequence[Scan], seed: int = 0
+                    ) -> list[float]:
+    """Each block's LSD: the model synthesized along the block's speed trace (one
+    renderer, reseeded per block) against the block's DFT321 signal."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a block beyond a fold's fitted speeds is clamped
+        r = TextureRenderer(model, ramp_s=1e-6, step_mm_s=SCORE_STEP_MM_S)
+        out = []
+        for blk in blocks:
+            r.reset()
+            r.reseed(seed)
+            r.warmup(float(blk.speed_mm_s[0]), 0.5)
+            syn = r.block(blk.speed_mm_s, True)
+            c, *_ = compare(preprocess(blk.acc, blk.fs_hz, model.highpass_hz), syn, blk.fs_hz)
+            out.append(c.lsd_db)
+    return out
+
+
+def select_model(
+    scans: Sequence[Scan], *, speeds_mm_s: Sequence[float] = DEFAULT_SPEEDS_MM_S,
+    tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S, order: int = 200,
+    highpass_hz: float = 10.0, surface: str | None = None,
+    drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
+    candidates: Sequence[str] = CANDIDATES, seed: int = 0,
+    wrap: Callable[[Iterable], Iterable] = lambda it: it,
+) -> tuple[TextureModel, Selection]:
+    """The validated winner refitted on all ``scans`` and the validation (module doc).
+    ``wrap`` wraps the list of (fold, candidate) fits (a progress bar)."""
+    scans = list(scans)
+    kw = dict(order=order, tolerance_mm_s=tolerance_mm_s, highpass_hz=highpass_hz,
+              surface=surface or scans[0].surface, drive_band_hz=drive_band_hz)
+    found = plateaus(scans, speeds_mm_s, tolerance_mm_s)
+    if len(found) < 2:
+        reason = (f"{len(found)} speed plateau(s) of at least {MIN_PLATEAU_S:g} s within "
+                  f"{tolerance_mm_s:g} mm/s of {', '.join(f'{v:g}' for v in speeds_mm_s)} "
+                  "mm/s: cannot validate, the plain paper method is fitted")
+        model = fit_candidate("paper", scans, speeds_mm_s, **kw)
+        sel = Selection("paper", False, reason)
+        model.selection = sel.to_json()
+        return model, sel
+    folds = []  # (kind, training scans, speeds to fit, held-out blocks)
+    for k in range(BLOCKS):
+        drop = [np.zeros(sc.speed_mm_s.size, bool) for sc in scans]
+        held = []
+        for _, i, a, b in found:
+            lo = a + (b - a) * k // BLOCKS
+            hi = a + (b - a) * (k + 1) // BLOCKS
+            drop[i][lo:hi] = True
+            held.append(_piece(scans[i], lo, hi, f"block{k}"))
+        folds.append(("block", _without(scans, drop), [s for s, *_ in found], held))
+    for j in range(1, len(found) - 1):
+        s, i, a, b = found[j]
+        drop = [np.abs(sc.speed_mm_s - s) <= tolerance_mm_s for sc in scans]
+        folds.append(("between", _without(scans, drop),
+                      [v for v, *_ in found if v != s], [_piece(scans[i], a, b, f"{s:g}")]))
+    scores = {c: CandidateScore(c, [], []) for c in candidates}
+    jobs = [(f, c) for f in folds for c in candidates]
+    for (kind, train, speeds, held), c in wrap(jobs):
+        model = fit_candidate(c, train, speeds, **kw)
+        got = held_out_lsd_db(model, held, seed)
+        (scores[c].block_lsd_db if kind == "block" else scores[c].between_lsd_db).extend(got)
+    table = [scores[c] for c in candidates]
+    best = min(table, key=lambda t: t.mean_lsd_db)
+    noise = {}
+    for t in table:
+        d = t.scores - best.scores
+        noise[t.name] = float(np.std(d, ddof=1) / np.sqrt(d.size)) if d.size > 1 else 0.0
+    winner = next(t for t in table if t.mean_lsd_db - best.mean_lsd_db <= noise[t.name])
+    reason = (f"lowest held-out LSD within the noise, simplest first "
+              f"({len(folds)} folds, {best.scores.size} held-out blocks)")
+    model = fit_candidate(winner.name, scans, [s for s, *_ in found], **kw)
+    sel = Selection(winner.name, True, reason, table, noise, [s for s, *_ in found])
+    model.selection = sel.to_json()
+    return model, sel
+
+
+def selection_table(sel: Selection) -> list[str]:
+    """The validation as printed by ``fydpad texture fit``."""
+    if not sel.validated:
+        return [f"  validation: {sel.reason}"]
+    lines = [f"  validation on plateaus {', '.join(f'{v:g}' for v in sel.plateaus_mm_s)} "
+             "mm/s: mean held-out LSD (dB)",
+             f"  {'candidate':<12}{'time blocks':>12}{'between':>9}{'mean':>7}{'spread':>8}"
+             f"{'vs best +- noise':>18}"]
+    best = min(c.mean_lsd_db for c in sel.candidates)
+    for c in sel.candidates:
+        between = f"{np.mean(c.between_lsd_db):9.2f}" if c.between_lsd_db else f"{'-':>9}"
+        mark = "  <- chosen" if c.name == sel.winner else ""
+        lines.append(f"  {c.name:<12}{np.mean(c.block_lsd_db):12.2f}{between}"
+                     f"{c.mean_lsd_db:7.2f}{c.spread_db:8.2f}"
+                     f"{c.mean_lsd_db - best:+10.2f} +- {sel.noise_db[c.name]:.2f}{mark}")
+    return lines
