@@ -190,7 +190,7 @@ IDENTIFY_SURFACES = ("R1", "R2", "canvas", "corduroy", "cork", "felt", "sandpape
 
 def identification() -> list[tuple[str, dict, float]]:
     """docs/texture_families.md's comparison (same surfaces, strokes and identifier:
-    ``families_compare``) for the networks: one 6 s training stroke at 20 mm/s per
+    ``fydpad.texture.compare``) for the networks: one 6 s training stroke at 20 mm/s per
     surface (seed 1), three test strokes each (seeds 101-103)."""
     from fydpad.texture.compare import by_surface, fit_per_surface, identify_families
 

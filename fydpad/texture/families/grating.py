@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from fydpad.errors import UserError
+from fydpad.texture.dft321 import preprocess
 from fydpad.texture.family import (
     Array,
     FamilyBase,
@@ -202,8 +203,6 @@ def estimate_wavelength(scans: list, band_mm: tuple[float, float] = (0.3, 10.0),
     (a harmonic sum: the rectangle's lines, weighted by the tip's d^2/dt^2, need not
     have the fundamental strongest); then the longest multiple of it whose in-between
     lines also stand 10 dB out."""
-    from fydpad.texture.dft321 import preprocess
-
     logs = []
     for sc in scans:
         x = getattr(sc, "x_mm", None)
