@@ -126,9 +126,10 @@ class Synthesis:
 
 
 def set_render_parameters(family: TextureFamily, **values: Any) -> None:
-    """The given render parameters the family has (others do not apply to it)."""
+    """The given render parameters the family has (others do not apply to it; None: not
+    given, the model's own)."""
     for name, value in values.items():
-        if name in family.parameters:
+        if value is not None and name in family.parameters:
             family.set_parameter(name, value)
 
 

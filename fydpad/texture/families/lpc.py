@@ -26,7 +26,7 @@ from fydpad.texture.evaluate import welch_psd
 from fydpad.texture.family import Array, FamilyBase, FingerBlock, Kind
 from fydpad.texture.fit import fit_texture, lines_option, modelled_speed_range
 from fydpad.texture.free_form import AUTO
-from fydpad.texture.interpolation import DEFAULT_METHOD, METHODS, SpeedInterpolator
+from fydpad.texture.interpolation import METHODS, SpeedInterpolator
 from fydpad.texture.line_voice import LineVoice
 from fydpad.texture.lines import LineSpectrum
 from fydpad.texture.lpc import ar_psd
@@ -56,16 +56,17 @@ class LpcFamily(FamilyBase):
         self.surface = model.surface
         self.channels = {"vibration": float(model.fs_hz)}
         self.highpass_hz = float(model.highpass_hz)
-        #: method: interpolation between fitted speeds; drive_filter: band-pass the
+        #: method: interpolation between fitted speeds (the file's own unless set);
+        #: drive_filter: band-pass the
         #: output through the model's drive band; seed: the excitation noise's.
-        self.parameters = {"method": DEFAULT_METHOD, "drive_filter": False, "seed": None}
+        self.parameters = {"method": model.interpolation, "drive_filter": False, "seed": None}
         self.limit = math.inf
         self.resets = 0
         self.tick_renderer: TextureRenderer | None = None
         self._renderer: TextureRenderer | None = None
 
     def set_parameter(self, name: str, value: Any) -> None:
-        if name == "method" and value is not None and value not in METHODS:
+        if name == "method" and value not in METHODS:
             raise UserError(f"{self.path}: interpolation {value!r} is not one of "
                             f"{', '.join(METHODS)}")
         super().set_parameter(name, value)
