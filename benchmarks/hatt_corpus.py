@@ -167,6 +167,8 @@ def main(argv: list[str] | None = None) -> int:
     if not args.no_identify:
         # fydpad texture identify's library call on the files fit wrote.
         scans = [read_scan(args.work / "held20" / f"{r['surface']}.csv") for r in rows]
+        for sc, r in zip(scans, rows, strict=True):  # a '# surface=' value ends at a space
+            sc.meta["surface"] = r["surface"]
         for fit in ("default", "paper"):
             models = [load_model(args.work / fit / f"{r['surface']}.json") for r in rows]
             ident = identify(models, scans)

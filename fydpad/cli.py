@@ -10,13 +10,25 @@ from collections.abc import Sequence
 
 from fydpad import __version__
 from fydpad.errors import FydpadError, one_line_warnings
-from vision.recording import PadRecording
 
-#: Subcommand modules, in the order ``--help`` lists them.
-COMMANDS = (
-    "demo", "track", "run", "replay", "synth", "calibrate", "softness", "texture", "experiment",
-    "chain", "config", "export",
-)
+#: Subcommand modules, in the order ``--help`` lists them, with the one line it shows for
+#: each: ``fydpad --help`` imports none of them, ``fydpad COMMAND`` only its own
+#: (tests/cli/test_fast_help.py checks these lines against each module's own).
+COMMANDS = {
+    "demo": "the whole chain on the bundled recordings with the simulated robot",
+    "track": "track the finger's contact in a recording or a live camera",
+    "run": "run the master station (live camera or a replayed recording)",
+    "replay": "stream a recording's finger track to a slave robot and report the error",
+    "synth": "write a synthetic pad session recording with ground truth",
+    "calibrate": "calibrate the IR sensors, the load cell, the camera or the workspace",
+    "softness": "characterise the fabric's stiffness table and specimens",
+    "texture": "texture models: fit from scans, synthesize, evaluate, identify",
+    "experiment": "the absolute identification experiment: report the results",
+    "chain": "identify the actuator chain's transfer function, check compensation",
+    "config": "show the effective device configuration",
+    "export": "export a recording into other tools' formats (a ROS 2 bag)",
+}
+ALL = "*"
 
 
 def add_config_argument(parser: argparse.ArgumentParser) -> None:
@@ -38,7 +50,22 @@ def add_truncation_argument(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def build_parser() -> argparse.ArgumentParser:
+def chosen_command(argv: Sequence[str]) -> str | None:
+    """The subcommand ``argv`` names (None: none, e.g. ``fydpad --help``)."""
+    args = iter(argv)
+    for arg in args:
+        if arg == "--config":
+            next(args, None)
+        elif arg in COMMANDS:
+            return arg
+        elif not arg.startswith("-"):
+            return None
+    return None
+
+
+def build_parser(only: str | None = ALL) -> argparse.ArgumentParser:
+    """The parser; ``only``: the one subcommand whose module is imported and registered
+    (the others get their one help line), ``ALL`` for every one, None for none."""
     parser = argparse.ArgumentParser(
         prog="fydpad",
         description=(
@@ -53,14 +80,20 @@ def build_parser() -> argparse.ArgumentParser:
         help="device configuration (TOML) overriding the paper's defaults",
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for name in COMMANDS:
-        importlib.import_module(f"fydpad.commands.{name}").register(sub)
+    for name, help_text in COMMANDS.items():
+        if only in (ALL, name):
+            importlib.import_module(f"fydpad.commands.{name}").register(sub)
+        else:
+            sub.add_parser(name, help=help_text, add_help=False)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(only=chosen_command(argv))
     args = parser.parse_args(argv)
+    from vision.recording import PadRecording  # OpenCV: not for --help, which exits above
+
     shown = warnings.formatwarning
     one_line_warnings(f"fydpad {args.command}")
     PadRecording.allow_truncated = bool(getattr(args, "allow_truncated", False))

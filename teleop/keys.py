@@ -12,6 +12,8 @@ from pathlib import Path
 
 import zmq.auth
 
+from vision.errors import UserError
+
 
 def generate(keys_dir: Path) -> list[Path]:
     """Create a server and a client key pair and authorise the client; returns the files."""
@@ -33,7 +35,7 @@ def generate(keys_dir: Path) -> list[Path]:
     return out
 
 
-class KeyFileMissing(FileNotFoundError):
+class KeyFileMissing(UserError, FileNotFoundError):
     """A CurveZMQ key file is not where the link looks; the message says which command
     makes it and where it goes."""
 

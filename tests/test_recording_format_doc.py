@@ -57,6 +57,20 @@ def _header(path: Path) -> list[str]:
     return path.read_text(encoding="utf-8").splitlines()[0].split(",")
 
 
+def _station_events_columns() -> tuple[str, ...]:
+    """The columns the station gives its ``events.csv`` writer, read from its source."""
+    import ast
+
+    import fydpad.station.station as station
+
+    tree = ast.parse(Path(station.__file__).read_text(encoding="utf-8"))
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Call) and len(node.args) == 2
+                and "events.csv" in ast.unparse(node.args[0])):
+            return tuple(ast.literal_eval(node.args[1]))
+    raise AssertionError("fydpad/station/station.py writes no events.csv")
+
+
 @pytest.fixture(scope="module")
 def written(tmp_path_factory) -> Path:
     """A recording with every optional file, written by the code's own writer."""
@@ -74,15 +88,18 @@ def written(tmp_path_factory) -> Path:
 
 def test_session_files_have_the_documented_columns(written):
     rows = {_names(r["file"])[0]: r for r in _table("Pad session recording (a directory)")}
+    # events.csv is written by the live station only (fydpad run --record): checked below.
     assert set(rows) == {"meta.json", "video.avi", "frames.csv", "ir.csv", "force.csv",
-                         "truth.csv"}
+                         "truth.csv", "events.csv"}
     for name, row in rows.items():
-        if name.endswith(".csv"):
+        if name.endswith(".csv") and name != "events.csv":
             assert _header(written / name) == _names(row["columns"]), name
+        if name.endswith(".csv"):
             assert row["required"] == "no", name
     assert rows["meta.json"]["required"] == rows["video.avi"]["required"] == "yes"
-    assert sorted(p.name for p in written.iterdir()) == sorted(rows)
+    assert sorted(p.name for p in written.iterdir()) == sorted(set(rows) - {"events.csv"})
     rec = PadRecording(written)  # and the reader takes what the writer wrote
+    assert _names(rows["events.csv"]["columns"]) == list(_station_events_columns())
     assert rec.read_truth() is not None and rec.read_ir() is not None
 
 

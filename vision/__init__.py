@@ -3,7 +3,22 @@
 This package imports nothing from the rest of the project (docs/architecture.md).
 """
 
-from vision.contact import Contact, ContactTracker
-from vision.state import FingerState
+from __future__ import annotations
+
+from typing import Any
 
 __all__ = ["Contact", "ContactTracker", "FingerState"]
+
+
+def __getattr__(name: str) -> Any:
+    # Loaded when first asked for, not on ``import vision``: vision.contact loads OpenCV,
+    # which every ``import vision.errors`` (the commands' start) would otherwise pay for.
+    if name in ("Contact", "ContactTracker"):
+        from vision import contact
+
+        return getattr(contact, name)
+    if name == "FingerState":
+        from vision.state import FingerState
+
+        return FingerState
+    raise AttributeError(f"module 'vision' has no attribute {name!r}")

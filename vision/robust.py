@@ -79,8 +79,8 @@ class RobustParams:
     #: already on the fabric.
     bootstrap_fill_mm: float = 36.0
     #: ... and a fingertip found there must be darkest within this many core radii of
-    #: its centroid (a dried drop, darkest on its rim, is not).
-    bootstrap_max_offcentre: float = 0.5
+    #: its centroid (a dried drop, darkest on its rim, is not; nor a flat ink dot).
+    bootstrap_max_offcentre: float = 0.25
 
 
 @dataclass(frozen=True, slots=True)
@@ -239,9 +239,10 @@ class RobustTracker:
         finger may be: a grey closing over ``bootstrap_fill_mm`` (a local maximum, then
         a minimum) fills every dark feature narrower than that from the fabric around
         it; the frame is then looked at against that filled background with the
-        tracker's own checks, and where they find a fingertip, its dark region (grown by
-        ``bg_guard_mm``) takes the filled value. Marks and shadows that do not pass as a
-        fingertip stay in the background as they are."""
+        tracker's own checks, and where they find a fingertip that peaks in its middle,
+        its dark region (grown by ``bg_guard_mm``) takes the filled value. Marks and
+        shadows that do not pass as such a fingertip stay in the background as they
+        are."""
         p = self.params
         kw = 2 * round(p.bootstrap_fill_mm / self._cell_w_mm / 2) + 1
         kh = 2 * round(p.bootstrap_fill_mm / self._cell_h_mm / 2) + 1
@@ -251,9 +252,12 @@ class RobustTracker:
         found = self._detect(img)
         self.in_contact = False  # the first frame's answer is the next call's
         bg = img.copy()
-        # A fingertip pressed on the fabric is darkest near its middle; a mark that
-        # passes the other checks (a dried drop, darkest on its rim) is not: it stays.
-        if found is not None and self._best_offcentre <= p.bootstrap_max_offcentre:
+        # A fingertip pressed on the fabric peaks in its middle (darkest near its
+        # centroid, little of its core near the peak: the test of a contact kept by
+        # hysteresis); a mark that passes the other checks does not (a dried drop is
+        # darkest on its rim, an ink dot is flat-topped): it stays in the background.
+        if (found is not None and self._best_offcentre <= p.bootstrap_max_offcentre
+                and found.flatness <= p.max_hold_flatness):
             x0, y0, bw, bh = self._best_box
             region = np.zeros(self._shape, np.uint8)
             region[y0 : y0 + bh, x0 : x0 + bw] = self._dark[y0 : y0 + bh, x0 : x0 + bw]

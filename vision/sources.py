@@ -5,7 +5,6 @@ from __future__ import annotations
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Protocol, runtime_checkable
 
 import cv2
@@ -150,7 +149,3 @@ class CameraSource:
 
     def __str__(self) -> str:
         return f"camera {self.config.device!r}"
-
-
-def open_recording_source(recdir: str | Path) -> VideoSource:
-    return VideoSource(PadRecording(recdir))

@@ -13,6 +13,7 @@ import numpy as np
 
 from fydpad.chain.check import CheckResult
 from fydpad.chain.tf_file import TfSet
+from fydpad.plots import clip_log_axis, label, legend_outside
 
 
 def plot_tf_set(path: str | Path, tfs: TfSet) -> Path:
@@ -23,17 +24,17 @@ def plot_tf_set(path: str | Path, tfs: TfSet) -> Path:
         est = e.estimate
         sel = (est.freqs_hz >= lo) & (est.freqs_hz <= hi)
         f = est.freqs_hz[sel]
-        label = f"k = {e.stiffness_n_per_mm:g} N/mm"
-        axes[0].plot(f, 20 * np.log10(np.abs(est.tf[sel])), label=label)
+        axes[0].plot(f, 20 * np.log10(np.abs(est.tf[sel])),
+                     label=f"k = {e.stiffness_n_per_mm:g} N/mm")
         axes[1].plot(f, np.degrees(np.unwrap(np.angle(est.tf[sel]))))
         axes[2].plot(f, est.coherence[sel])
-    axes[0].set_ylabel(f"|TF| [dB re 1 {tfs.output_unit}/{tfs.input_unit}]")
-    axes[1].set_ylabel("phase [deg]")
+    axes[0].set_ylabel(label("|TF|", f"dB re 1 {tfs.output_unit}/{tfs.input_unit}"))
+    axes[1].set_ylabel(label("phase", "deg"))
     axes[2].set_ylabel("coherence")
     axes[2].axhline(0.9, color="k", lw=0.8, ls="--")
     axes[2].set_ylim(0, 1.02)
-    axes[2].set_xlabel("frequency [Hz]")
-    axes[0].legend(fontsize=8)
+    axes[2].set_xlabel(label("frequency", "Hz"))
+    legend_outside(axes[0])
     axes[0].set_title(f"chain TF, channel '{tfs.channel}' at {tfs.rate_hz:g} Hz "
                       "(CPSD_yx / PSD_x, Welch)")
     for ax in axes:
@@ -61,10 +62,15 @@ def plot_check(path: str | Path, res: CheckResult, title: str = "") -> Path:
                            f"{fig_['compensated_max_error_db']:.1f} dB, uncompensated "
                            f"{fig_['uncompensated_error_at_resonance_db']:+.1f} dB at "
                            "resonance"))
-    ax.set_xlabel("frequency [Hz]")
-    ax.set_ylabel("PSD [(m/s^2)^2/Hz]")
+    ax.set_xlabel(label("frequency", "Hz"))
+    ax.set_ylabel(label("PSD", "(m/s^2)^2/Hz"))
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+    # The band that matters: the compared bins' levels, a decade of room below; outside
+    # it the target falls by many decades and would squeeze the comparison.
+    band = res.compared if res.compared.any() else np.ones_like(f, bool)
+    clip_log_axis(ax, res.target_psd[band], res.uncompensated_psd[band],
+                  res.compensated_psd[band])
+    legend_outside(ax)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return Path(path)

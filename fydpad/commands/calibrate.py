@@ -10,6 +10,7 @@ add one, put its ``register(sub)`` in ``SUBCOMMANDS``.
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 import importlib
 import importlib.util
@@ -17,25 +18,17 @@ from collections.abc import Callable
 from dataclasses import replace
 from datetime import date
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from fydpad.cli import add_truncation_argument
 from fydpad.errors import UserError
-from vision.config import ForceConfig, IRConfig
-from vision.force import ForceCalibration, ForceCalibrationError, calibrate_force
-from vision.indentation import (
-    IndentationEstimator,
-    IRCalibrationError,
-    IRFit,
-    PlaneCorrection,
-    fit_ir_polynomial,
-    indentation_at_frames,
-    rmse,
-)
-from vision.ir import PAPER_POLY_CM
-from vision.recording import PadRecording, read_csv_columns
+
+if TYPE_CHECKING:  # annotations only: the modules load inside the functions
+    import numpy as np
+
+    from vision.config import IRConfig
+    from vision.force import ForceCalibration
+    from vision.indentation import IRFit
 
 Register = Callable[[argparse._SubParsersAction], None]
 
@@ -53,7 +46,10 @@ def register_ir(sub: argparse._SubParsersAction) -> None:
             "voltages it was fitted on)."
         ),
     )
-    p.add_argument("data", metavar="DATA.csv", help="distance_mm,v0,v1,v2 pairs")
+    p.add_argument("data", metavar="DATA.csv", nargs="?", help="distance_mm,v0,v1,v2 pairs")
+    p.add_argument("--example", metavar="DIR",
+                   help="write a sample input (DIR/ir_pairs.csv: three sensors off the "
+                   "paper's curve by a few percent, with noise) and say how to fit it")
     p.add_argument("--out", metavar="TOML", help="configuration file to write (default: print)")
     p.add_argument("--plot", metavar="PNG", help="draw the data, the fits and the residuals")
     p.add_argument("--degree", type=int, default=5, help="polynomial degree (default: 5)")
@@ -72,7 +68,10 @@ def register_force(sub: argparse._SubParsersAction) -> None:
             "section."
         ),
     )
-    p.add_argument("data", metavar="DATA.csv", help="mass_g,raw readings")
+    p.add_argument("data", metavar="DATA.csv", nargs="?", help="mass_g,raw readings")
+    p.add_argument("--example", metavar="DIR",
+                   help="write a sample input (DIR/force_weights.csv: readings under six "
+                   "weights, with noise) and say how to fit it")
     p.add_argument("--out", metavar="TOML", help="configuration file to write (default: print)")
     p.add_argument("--plot", metavar="PNG", help="draw the readings, the fit and residuals")
     p.add_argument("--full-scale-g", type=float, default=780.0,
@@ -209,7 +208,28 @@ def _toml(v: Any) -> str:
 # --------------------------------------------------------------------------- ir
 
 
+def _example(args: argparse.Namespace, command: str, write: Callable[[Path], Path]) -> bool:
+    """--example DIR: write the sample input and say what to run on it (True), or check a
+    data file was given (False)."""
+    if args.example:
+        path = write(Path(args.example))
+        print(f"wrote {path}: fit it with `fydpad calibrate {command} {path}`")
+        return True
+    if args.data is None:
+        raise UserError(f"calibrate {command}: give DATA.csv (or --example DIR for a sample)")
+    return False
+
+
 def run_ir(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from fydpad.calibration_examples import write_ir_example
+    from vision.config import IRConfig
+    from vision.indentation import IRCalibrationError, fit_ir_polynomial
+    from vision.recording import read_csv_columns
+
+    if _example(args, "ir", write_ir_example):
+        return 0
     path = Path(args.data)
     cols = read_csv_columns(path, ("distance_mm",), optional=("v0", "v1", "v2"),
                             empty_ok=("v0", "v1", "v2"))
@@ -263,7 +283,10 @@ def run_ir(args: argparse.Namespace) -> int:
 
 def _plot_ir(path: str, d_mm: np.ndarray, cols: dict[str, np.ndarray],
              fits: dict[int, IRFit]) -> None:
+    import numpy as np
+
     from fydpad.plots import plt
+    from vision.ir import PAPER_POLY_CM
 
     fig, (ax, axr) = plt.subplots(2, 1, figsize=(8, 7), sharex=True,
                                   gridspec_kw={"height_ratios": (2, 1)}, constrained_layout=True)
@@ -276,11 +299,11 @@ def _plot_ir(path: str, d_mm: np.ndarray, cols: dict[str, np.ndarray],
                           f"(R$^2$ {fit.r2:.4f})")
         ax.plot(v, d_mm, ".", color=line.get_color(), ms=4)
         axr.plot(v, d_mm - np.polyval(fit.poly_cm, v) * 10, ".", color=line.get_color(), ms=4)
-    ax.set_ylabel("distance [mm]")
+    ax.set_ylabel("distance (mm)")
     ax.legend()
     axr.axhline(0, color="k", lw=0.8)
-    axr.set_xlabel("voltage [V]")
-    axr.set_ylabel("residual [mm]")
+    axr.set_xlabel("voltage (V)")
+    axr.set_ylabel("residual (mm)")
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -289,6 +312,11 @@ def _plot_ir(path: str, d_mm: np.ndarray, cols: dict[str, np.ndarray],
 
 
 def _press_samples(path: str, ir_config: IRConfig) -> dict[str, np.ndarray]:
+    import numpy as np
+
+    from vision.indentation import IndentationEstimator, indentation_at_frames
+    from vision.recording import PadRecording
+
     rec = PadRecording(path)
     ir, truth = rec.read_ir(), rec.read_truth()
     for name, data in (("ir.csv", ir), ("truth.csv", truth)):
@@ -310,6 +338,11 @@ def _press_samples(path: str, ir_config: IRConfig) -> dict[str, np.ndarray]:
 
 
 def run_indentation(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from vision.config import IRConfig
+    from vision.indentation import PlaneCorrection, rmse
+
     if args.protocol:
         from fydpad.indentation_protocol import protocol_text
 
@@ -369,6 +402,15 @@ def run_indentation(args: argparse.Namespace) -> int:
 
 
 def run_force(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from fydpad.calibration_examples import write_force_example
+    from vision.config import ForceConfig
+    from vision.force import ForceCalibrationError, calibrate_force
+    from vision.recording import read_csv_columns
+
+    if _example(args, "force", write_force_example):
+        return 0
     path = Path(args.data)
     cols = read_csv_columns(path, ("mass_g", "raw"))
     lines = _line_numbers(path)
@@ -401,6 +443,8 @@ def run_force(args: argparse.Namespace) -> int:
 
 
 def _plot_force(path: str, mass_g: np.ndarray, raw: np.ndarray, cal: ForceCalibration) -> None:
+    import numpy as np
+
     from fydpad.plots import plt
     from vision.config import G_M_S2
 
@@ -409,7 +453,7 @@ def _plot_force(path: str, mass_g: np.ndarray, raw: np.ndarray, cal: ForceCalibr
     g = np.linspace(raw.min(), raw.max(), 2)
     ax.plot(g, cal.gain_n_per_count * (g - cal.offset_counts), "-",
             label=f"fit (R$^2$ {cal.r2:.5f})")
-    ax.set_ylabel("force [N]")
+    ax.set_ylabel("force (N)")
     ax.legend()
     axr.plot(raw, cal.residuals_n * 1000, ".")
     axr.axhline(0, color="k", lw=0.8)

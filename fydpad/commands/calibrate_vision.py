@@ -3,29 +3,22 @@ the image-to-workspace homography, saved into the device configuration."""
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
-
-import cv2
-import numpy as np
+from typing import TYPE_CHECKING
 
 from fydpad.cli import add_config_argument, add_truncation_argument
-from fydpad.config import StationConfig, load_config, save_config
 from fydpad.errors import UserError
-from fydpad.opening import open_source
-from fydpad.progress import progress
-from vision.calibration import (
-    CalibrationError,
-    CharucoBoardSpec,
-    calibrate_charuco,
-    default_targets_mm,
-    homography_from_presses,
-    press_centroids,
-)
-from vision.contact import ContactTracker
-from vision.sources import CameraSource, FrameSource, SourceError
+
+if TYPE_CHECKING:  # annotations only: the modules load inside the functions
+    import numpy as np
+
+    from fydpad.config import StationConfig
+    from vision.calibration import CharucoBoardSpec
+    from vision.sources import FrameSource
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 
@@ -87,6 +80,8 @@ def register_workspace(sub: argparse._SubParsersAction) -> None:
 
 
 def _board_spec(args: argparse.Namespace) -> CharucoBoardSpec:
+    from vision.calibration import CharucoBoardSpec
+
     try:
         cols, rows = (int(v) for v in args.board.lower().split("x"))
     except ValueError:
@@ -97,6 +92,10 @@ def _board_spec(args: argparse.Namespace) -> CharucoBoardSpec:
 
 
 def _calibration_images(source: Path, every: int) -> Iterator[np.ndarray]:
+    import cv2
+
+    from fydpad.progress import progress
+
     if source.is_dir():
         files = sorted(p for p in source.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
         if not files:
@@ -126,6 +125,9 @@ def _calibration_images(source: Path, every: int) -> Iterator[np.ndarray]:
 
 
 def run_camera(args: argparse.Namespace) -> int:
+    from fydpad.config import load_config, save_config
+    from vision.calibration import CalibrationError, calibrate_charuco
+
     config = load_config(args.config)
     spec = _board_spec(args)
     try:
@@ -148,6 +150,10 @@ def run_camera(args: argparse.Namespace) -> int:
 
 
 def run_workspace(args: argparse.Namespace) -> int:
+    from fydpad.config import load_config, save_config
+    from fydpad.opening import open_source
+    from vision.calibration import CalibrationError, default_targets_mm
+
     config = load_config(args.config)
     opened = open_source(config, args.recdir, args.camera)
     m = opened.meta
@@ -174,6 +180,39 @@ def run_workspace(args: argparse.Namespace) -> int:
     return 0
 
 
+def match_presses(t, c, u, v, x, y, targets: np.ndarray,
+                  min_hold_s: float) -> list[tuple[float, float]]:
+    """Each marked point's press in the image (flipped-frame pixels), in target order.
+
+    Every press held ``min_hold_s`` is given to the marked point nearest where the
+    uncalibrated (linear ROI) mapping puts it, if within half the points' spacing; a point
+    pressed in several rounds gets the median of its presses. So a session of any length
+    serves, in any order, as long as it presses every point; otherwise the error names
+    the points no press matched."""
+    import numpy as np  # loaded when the command runs (fast --help)
+
+    from vision.calibration import press_centroids
+
+    uv = press_centroids(t, c, u, v, min_hold_s)
+    xy = np.asarray(press_centroids(t, c, x, y, min_hold_s), float).reshape(-1, 2)
+    gaps = np.hypot(*(targets[:, None, :] - targets[None, :, :]).transpose(2, 0, 1))
+    radius_mm = 0.5 * gaps[gaps > 0].min() if len(targets) > 1 else np.inf
+    groups: list[list[tuple[float, float]]] = [[] for _ in targets]
+    for press_uv, press_xy in zip(uv, xy, strict=True):
+        d = np.hypot(*(targets - press_xy).T)
+        i = int(np.argmin(d))
+        if d[i] <= radius_mm:
+            groups[i].append(press_uv)
+    missing = [i for i, g in enumerate(groups) if not g]
+    if missing:
+        names = ", ".join(f"{i + 1} (x {targets[i][0]:+.1f}, y {targets[i][1]:+.1f} mm)"
+                          for i in missing)
+        raise UserError(
+            f"found {len(uv)} presses held >= {min_hold_s} s, but none at point(s) {names} "
+            f"of {len(targets)}: press each marked point and hold it still")
+    return [tuple(np.median(np.asarray(g), axis=0)) for g in groups]
+
+
 def fit_from_presses(
     source: FrameSource,
     camera,
@@ -183,10 +222,17 @@ def fit_from_presses(
     total: int | None = None,
 ):
     """Track the presses in ``source`` and fit the homography to ``targets`` (in order)."""
+    import numpy as np
+
+    from fydpad.progress import progress
+    from vision.calibration import CalibrationError, homography_from_presses, press_centroids
+    from vision.contact import ContactTracker
+    from vision.sources import CameraSource, SourceError
+
     tracker = ContactTracker(roi_px=camera.roi_px, workspace_mm=camera.workspace_mm,
                              image_flip=camera.image_flip, method=config.tracker.method,
                              robust=config.tracker.robust)
-    t, c, u, v = [], [], [], []
+    t, c, u, v, x, y = [], [], [], [], [], []
     frame_size = None
     try:
         for frame in progress(source.frames(), total=total, desc="presses"):
@@ -196,6 +242,8 @@ def fit_from_presses(
             c.append(contact is not None)
             u.append(np.nan if contact is None else contact.u_px)
             v.append(np.nan if contact is None else contact.v_px)
+            x.append(np.nan if contact is None else contact.x_mm)
+            y.append(np.nan if contact is None else contact.y_mm)
             # Live: stop once every point has been pressed and the finger has lifted.
             if isinstance(source, CameraSource) and not c[-1] and len(
                 press_centroids(t, c, u, v, min_hold_s)
@@ -205,12 +253,7 @@ def fit_from_presses(
         raise UserError(str(exc)) from None
     finally:
         source.close()
-    presses = press_centroids(t, c, u, v, min_hold_s)
-    if len(presses) != len(targets):
-        raise UserError(
-            f"found {len(presses)} presses held >= {min_hold_s} s, expected {len(targets)}: "
-            "press each marked point once, in order, and hold it still"
-        )
+    presses = match_presses(t, c, u, v, x, y, targets, min_hold_s)
     try:
         return homography_from_presses(presses, targets, camera.image_flip, frame_size,
                                        camera.intrinsics)

@@ -54,6 +54,23 @@ def _common(p: argparse.ArgumentParser) -> None:
     add_config_argument(p)
 
 
+def check_sentence(fig: dict) -> str:
+    """The compensation check's figures as one sentence a person reads."""
+    lo, hi = fig["compared_hz"]
+    line = (f"At k = {fig['stiffness_n_per_mm']:g} N/mm, over {lo:.0f}-{hi:.0f} Hz "
+            f"({fig['compared_bins']} bins): the compensated vibration stays within "
+            f"{fig['compensated_max_error_db']:.1f} dB of the target, the uncompensated one "
+            f"within {fig['uncompensated_max_error_db']:.1f} dB "
+            f"({fig['uncompensated_error_at_resonance_db']:+.1f} dB at the "
+            f"{fig['resonance_hz']:.0f} Hz resonance, compensated "
+            f"{fig['compensated_error_at_resonance_db']:+.1f} dB)")
+    if "offline_max_error_db" in fig:
+        line += f"; offline compensation within {fig['offline_max_error_db']:.1f} dB"
+    if fig.get("vibration_clips"):
+        line += f"; the vibration clipped {fig['vibration_clips']} times"
+    return line + "."
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "chain", help="identify the actuator chain's transfer function, check compensation",
@@ -198,10 +215,10 @@ def run_check(args: argparse.Namespace) -> int:
                                      progress=bar.update)
     finally:
         session.close()
-    text = json.dumps(finite(res.figures), indent=2, allow_nan=False)
-    print(text)
+    print(check_sentence(res.figures))
     if args.json:
-        Path(args.json).write_text(text + "\n")
+        Path(args.json).write_text(
+            json.dumps(finite(res.figures), indent=2, allow_nan=False) + "\n")
     if args.plot:
         plot_check(args.plot, res)
         print(f"wrote {args.plot}", file=sys.stderr)

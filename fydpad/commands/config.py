@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 
 from fydpad.cli import add_config_argument
-from fydpad.config import config_to_toml, load_config
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -23,5 +23,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from fydpad.config import config_to_toml, load_config
+
     print(config_to_toml(load_config(args.config)), end="")
     return 0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 import json
 import logging
@@ -9,15 +10,7 @@ import math
 import sys
 from pathlib import Path
 
-from tqdm import tqdm
-
-from fydpad.bundled import bundled_recording, recordings_dir
 from fydpad.cli import add_config_argument, add_truncation_argument
-from fydpad.config import load_config
-from fydpad.plots import plot_teleop
-from fydpad.teleop_run import format_report, recording_states, truth_rows
-from vision.recording import PadRecording
-from vision.strict_json import finite
 
 DEMO_RECORDINGS = ("circle", "lissajous", "tapping")
 DEFAULT_OUT = "fydpad-demo"
@@ -34,6 +27,8 @@ DEVICE_CONFIG = "device.toml"
 
 def demo_config_path(given: str | None) -> Path | None:
     """The device configuration of the demo: the one given, else the bundled device's."""
+    from fydpad.bundled import recordings_dir
+
     if given is not None:
         return Path(given)
     path = recordings_dir() / DEVICE_CONFIG
@@ -128,7 +123,15 @@ def dominant_error(reports: dict[str, dict]) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from fydpad.bundled import bundled_recording
+    from fydpad.config import load_config
+    from fydpad.plots import plot_teleop
+    from fydpad.teleop_run import format_report, recording_states, truth_rows
     from teleop.master import run_local_sim
+    from vision.recording import PadRecording
+    from vision.strict_json import finite
 
     if not args.verbose:
         # The in-process slave holds between passes by design: not news in a demo.

@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 import json
 from pathlib import Path
 
 from fydpad.errors import UserError
-from fydpad.web.experiment import ExperimentError, plot_confusion, report
-from vision.strict_json import finite
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -32,6 +31,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_report(args: argparse.Namespace) -> int:
+    from fydpad.web.experiment import ExperimentError, plot_confusion, report
+    from vision.strict_json import finite
+
     try:
         conf, participants = report(args.results_dir)
     except ExperimentError as exc:

@@ -2,18 +2,14 @@
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 import json
 from pathlib import Path
 
 from fydpad.cli import add_config_argument, add_truncation_argument
 from fydpad.commands.run import add_link_arguments, apply_link_arguments
-from fydpad.config import load_config
 from fydpad.errors import UserError
-from fydpad.teleop_run import format_report, recording_states, truth_rows
-from teleop.report import breakdown_lines
-from vision.recording import PadRecording
-from vision.strict_json import finite
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -49,7 +45,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from fydpad.config import load_config
+    from fydpad.teleop_run import format_report, recording_states, truth_rows
     from teleop.master import run_session
+    from teleop.report import breakdown_lines
+    from vision.recording import PadRecording
+    from vision.strict_json import finite
 
     config = load_config(args.config)
     apply_link_arguments(args, config)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 import json
 import math
@@ -9,19 +10,18 @@ import os
 import signal
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fydpad.cli import add_config_argument, add_truncation_argument
-from fydpad.commands.track import make_tracker
-from fydpad.config import load_config
 from fydpad.errors import UserError
-from fydpad.opening import open_source
-from fydpad.station.render import RenderSpec
-from fydpad.station.station import SensorFeed, Station, StationFault, StationOptions
-from fydpad.texture.family import TextureFamily
-from fydpad.texture.interpolation import METHODS
-from vision.indentation import IndentationEstimator
-from vision.stream import LiveIndentation, recording_estimator
-from vision.strict_json import finite
+
+if TYPE_CHECKING:  # annotations only: the station loads inside the command
+    from fydpad.station.station import Station
+    from fydpad.texture.family import TextureFamily
+
+#: fydpad.texture.interpolation.METHODS, written out so that --help loads no texture code
+#: (tests/cli/test_fast_help.py keeps the two equal).
+TEXTURE_METHODS = ("nearest", "stretch", "lsf", "reflection", "linear")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -46,7 +46,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     src.add_argument("--synthetic", metavar="TRAJECTORY", nargs="?", const="walk",
                      help="the simulated pad, rendered live (a trajectory of `fydpad synth`: "
                      "circle, lissajous, tapping, walk (default), fast, hover)")
-    p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    p.add_argument("--duration", type=float, metavar="S",
+                   help="stop after S seconds; a --replay shorter than that holds on its last "
+                   "frame (the robot holding still) until then, or with --loop starts again")
+    p.add_argument("--loop", action="store_true",
+                   help="with --replay and --duration: restart the recording (frames, IR and "
+                   "force) at its end until --duration")
     p.add_argument("--sensors", metavar="serial:PORT[@BAUD]",
                    help="read IR and force from the serial sensor board "
                    "(docs/sensor_board_protocol.md) instead of the source's own; default: "
@@ -90,7 +95,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_link_arguments(p)
     p.add_argument("--vibration-gain", type=float, default=1.0,
                    help="texture vibration gain (the paper: 1)")
-    p.add_argument("--texture-method", choices=METHODS, default=None,
+    p.add_argument("--texture-method", choices=TEXTURE_METHODS, default=None,
                    help="an LPC model's interpolation between its fitted speeds: stretch "
                    "(default; the one `fydpad texture evaluate` scores), lsf, reflection, or "
                    "linear (the paper's coefficient interpolation) (docs/texture.md)")
@@ -113,12 +118,84 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="serve the web view (live image, plots, setup, experiment runner); "
                    "loopback unless HOST is given, then with a token printed at start")
     p.add_argument("--web-results", metavar="DIR", default="experiment-results",
-                   help="with --web: the experiment results directory (default: %(default)s)")
+                   help="with --web: the experiment results directory, created when the "
+                   "first participant's session starts, its path printed then (default: "
+                   "%(default)s)")
     p.add_argument("--web-stimuli", metavar="FILE.json",
                    help="with --web: the experiment's stimuli (name, stiffness, texture model; "
                    "docs/experiment.md); default: the paper's SS1-SS4 with grating models")
     # -- end web view --
     p.set_defaults(func=run)
+
+
+def _model_cache() -> Path:
+    """Where derived texture models are written: $XDG_CACHE_HOME/fydpad (~/.cache/fydpad)."""
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "fydpad"
+
+
+class ExtendedReplay:
+    """A replay's frames, then (``loop``) the recording again, shifted in time, or its last
+    frame repeated at the recording's rate, until ``duration_s``: the station and its web
+    view stay up for the whole --duration."""
+
+    def __init__(self, source, period_s: float, duration_s: float | None, loop: bool):
+        self.source = source
+        self.period_s = period_s
+        self.duration_s = duration_s
+        self.loop = loop
+
+    def __getattr__(self, name: str):
+        return getattr(self.source, name)
+
+    def frames(self):
+        from vision.sources import Frame
+
+        offset_s, k, last = 0.0, 0, None
+        while True:
+            for frame in self.source.frames():
+                last = frame
+                yield Frame(k, offset_s + frame.t_s, frame.image)
+                k += 1
+            if last is None or self.duration_s is None:
+                return
+            end_s = offset_s + last.t_s + self.period_s
+            if self.loop and end_s < self.duration_s:
+                offset_s = end_s
+                continue
+            t_s = end_s
+            while t_s <= self.duration_s:  # hold on the last frame
+                yield Frame(k, t_s, last.image)
+                k += 1
+                t_s += self.period_s
+            return
+
+
+def _tiled(samples, period_s: float, times: int):
+    """(t_s, values) repeated ``times`` times, each copy ``period_s`` later."""
+    if samples is None:
+        return None
+    import numpy as np
+
+    t, v = samples
+    return (np.concatenate([t + i * period_s for i in range(times)]),
+            np.concatenate([v] * times))
+
+
+def _extended_replay(args: argparse.Namespace, rec, source):
+    """The replay's source and sensor feed for --duration and --loop."""
+    from fydpad.station.station import SensorFeed
+
+    if args.loop and args.duration is None:
+        raise UserError("--loop needs --duration S (how long to keep replaying)")
+    period_s = 1.0 / rec.fps
+    length_s = rec.frame_count * period_s
+    sensors = SensorFeed(rec.read_ir(), rec.read_force())
+    if args.loop:
+        times = max(1, math.ceil(args.duration / length_s) + 1)
+        sensors = SensorFeed(_tiled(rec.read_ir(), length_s, times),
+                             _tiled(rec.read_force(), length_s, times))
+    return ExtendedReplay(source, period_s, args.duration, args.loop), sensors
 
 
 def add_link_arguments(p: argparse.ArgumentParser) -> None:
@@ -259,6 +336,7 @@ def _status_printer():
 
 def _synthetic(args: argparse.Namespace, config):
     """The synthetic pad as the station's camera, IR board and load cell."""
+    from fydpad.station.station import SensorFeed
     from fydpad.synth import SynthConfig, SyntheticPad
     from fydpad.synth.sources import SynthFrameSource
 
@@ -325,6 +403,15 @@ def _check_channels(args: argparse.Namespace, render_hz: float) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from fydpad.commands.track import make_tracker
+    from fydpad.config import load_config
+    from fydpad.opening import open_source
+    from fydpad.station.render import RenderSpec
+    from fydpad.station.station import SensorFeed, Station, StationFault, StationOptions
+    from vision.indentation import IndentationEstimator
+    from vision.stream import LiveIndentation, recording_estimator
+    from vision.strict_json import finite
+
     config = load_config(args.config)
     camera = None
     indentation = None
@@ -335,6 +422,8 @@ def run(args: argparse.Namespace) -> int:
         opened = open_source(config, args.replay, args.camera)
         source, meta, rec, camera = opened.source, opened.meta, opened.recording, opened.camera
         sensors = SensorFeed(rec.read_ir(), rec.read_force()) if rec is not None else None
+        if rec is not None:
+            source, sensors = _extended_replay(args, rec, source)
         if rec is not None and rec.has("ir.csv"):
             indentation = LiveIndentation(recording_estimator(rec, config.ir))
     tracker = make_tracker(config.tracker, meta.roi_px, meta.workspace_mm, meta.image_flip,
@@ -357,6 +446,8 @@ def run(args: argparse.Namespace) -> int:
         require_rosbags()
     if args.record:
         Path(args.record).mkdir(parents=True, exist_ok=True)
+    if args.loop and args.replay is None:
+        raise UserError("--loop applies to --replay")
     if args.teleop is None and (args.curve or args.keys):
         raise UserError("--curve and --keys apply to the tele-operation link: give --teleop")
     if args.texture:  # a bad model file fails here, in one line, not in the render process
@@ -417,12 +508,14 @@ def run(args: argparse.Namespace) -> int:
     # -- web view --
     web = None
     if getattr(args, "web", None):
-        from fydpad.web import parse_web_address, start_web
+        from fydpad.web.server import parse_web_address, start_web
         from fydpad.web.stimuli import experiment_stimuli
 
         try:
             web_host, web_port = parse_web_address(args.web)
-            stimuli = experiment_stimuli(args.web_stimuli, args.web_results)
+            # The grating models the stimuli render are derived files: they go to the
+            # user's cache, so --web-results is created only by the first result written.
+            stimuli = experiment_stimuli(args.web_stimuli, _model_cache())
             if args.motors != "none":  # every stimulus's texture, loaded by the render process
                 render.textures = tuple(dict.fromkeys(s.texture for s in stimuli if s.texture))
             web = start_web(station, config, args.config, web_host, web_port,

@@ -5,12 +5,11 @@ Layouts of the input CSVs and of the table: ``docs/softness.md``.
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 import sys
 import warnings
 from pathlib import Path
-
-import numpy as np
 
 from fydpad.errors import UserError
 from fydpad.softness import (
@@ -24,7 +23,6 @@ from fydpad.softness import (
     fit_specimen,
     save_table,
 )
-from vision.recording import RecordingError, read_csv_columns
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -69,6 +67,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _read(path: str, required: tuple[str, ...], optional: tuple[str, ...] = ()) -> dict:
+    from vision.recording import RecordingError, read_csv_columns
+
     try:
         return read_csv_columns(path, required, optional)
     except RecordingError as exc:
@@ -84,6 +84,8 @@ def _fit_quietly(fn, *args, **kwargs):
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
+    import numpy as np
+
     cols = _read(args.data, ("indentation_mm", "force_n"), ("theta_rad", "theta_deg"))
     if "theta_rad" in cols:
         theta = cols["theta_rad"]
@@ -140,6 +142,8 @@ def plot_fabric(path: str | Path, theta_rad, indentation_mm, force_n,
                 table: SoftnessTable) -> Path:
     """Force-indentation data per motor position with the fitted lines (paper Fig. 6),
     and k(theta) with the monotonic curve the station inverts."""
+    import numpy as np
+
     from fydpad.plots import plt
 
     th = np.round(np.asarray(theta_rad, float), 6)
@@ -156,8 +160,8 @@ def plot_fabric(path: str | Path, theta_rad, indentation_mm, force_n,
         ax.scatter(d[sel], f[sel], s=8, color=color, alpha=0.6)
         ax.plot([0, dmax], [0, k * dmax], color=color, lw=1.8,
                 label=f"θ = {t:.2f} rad: k = {k:.3f} N/mm, R² = {r2:.3f}")
-    ax.set_xlabel("indentation δ [mm]")
-    ax.set_ylabel("force F [N]")
+    ax.set_xlabel("indentation δ (mm)")
+    ax.set_ylabel("force F (N)")
     ax.set_title("force-indentation at each motor position (F = k δ)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
@@ -178,6 +182,8 @@ def plot_fabric(path: str | Path, theta_rad, indentation_mm, force_n,
 def plot_specimen(path: str | Path, indentation_mm, force_n, name: str,
                   lambda_n_per_mm: float, r2: float) -> Path:
     """A specimen's data, its fitted line and the paper's two softness levels."""
+    import numpy as np
+
     from fydpad.plots import plt
 
     d = np.asarray(indentation_mm, float)
@@ -190,8 +196,8 @@ def plot_specimen(path: str | Path, indentation_mm, force_n, name: str,
     for level, style in ((0.88, "--"), (0.39, ":")):
         ax.plot([0, dmax], [0, level * dmax], style, color="0.5", lw=1,
                 label=f"paper: {level} N/mm")
-    ax.set_xlabel("indentation δ [mm]")
-    ax.set_ylabel("force F [N]")
+    ax.set_xlabel("indentation δ (mm)")
+    ax.set_ylabel("force F (N)")
     ax.set_title(f"specimen {name}: F = λ δ")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)

@@ -2,30 +2,26 @@
 
 from __future__ import annotations
 
+# Libraries are imported inside the command functions, so that --help starts fast.
 import argparse
 import json
 import sys
 from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-
-from fydpad.annotate import AnnotatedVideoWriter, annotate_frame
 from fydpad.cli import add_config_argument, add_truncation_argument
-from fydpad.config import load_config
 from fydpad.errors import UserError
-from fydpad.opening import open_source
-from fydpad.plots import plot_track
-from fydpad.progress import progress
-from vision.calibration import CalibratedMapping
-from vision.contact import METHODS, ContactTracker, TrackerConfig
-from vision.evaluation import score_tracking
-from vision.mapping import workspace_to_roi
-from vision.recording import TrackWriter, read_track
-from vision.sources import CameraConfig, FrameSource, SourceError
-from vision.stream import TrackedFrame, finger_states, live_states
-from vision.strict_json import finite
+
+if TYPE_CHECKING:  # annotations only: the modules load inside the functions
+    from vision.contact import ContactTracker, TrackerConfig
+    from vision.sources import CameraConfig, FrameSource
+    from vision.stream import TrackedFrame
+
+#: vision.contact.METHODS, written out so that --help loads no OpenCV
+#: (tests/cli/test_fast_help.py keeps the two equal).
+TRACKER_METHODS = ("robust", "paper")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -43,7 +39,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("recdir", nargs="?", metavar="RECDIR", help="pad session recording directory")
     p.add_argument("--camera", metavar="N", help="track a live camera (index or path) instead")
     p.add_argument("--out", metavar="FILE", required=True, help="tracking output CSV to write")
-    p.add_argument("--method", choices=METHODS, help="contact tracker (default: configuration)")
+    p.add_argument("--method", choices=TRACKER_METHODS,
+                   help="contact tracker (default: configuration)")
     p.add_argument("--threshold", type=int, help="grey level below which a pixel is the finger")
     p.add_argument("--beta", type=float, help="the paper's beta: sigma = (Imax - Imin) / beta")
     p.add_argument("--plot", metavar="PNG", help="draw the track over time and on the workspace")
@@ -59,6 +56,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from fydpad.config import load_config
+    from fydpad.opening import open_source
+    from vision.recording import read_track
+    from vision.stream import finger_states, live_states
+    from vision.strict_json import finite
+
     config = load_config(args.config)
     tracker_config = config.tracker
     overrides = {
@@ -107,6 +110,9 @@ def make_tracker(
     camera: CameraConfig | None = None,
 ) -> ContactTracker:
     """The configured tracker; with ``camera``, its lens and workspace calibration apply."""
+    from vision.calibration import CalibratedMapping
+    from vision.contact import ContactTracker
+
     calibration = None
     if camera is not None and camera.workspace_homography is not None:
         calibration = CalibratedMapping(camera.workspace_homography, camera.intrinsics,
@@ -129,6 +135,11 @@ def track_to_csv(
     max_frames: int | None = None,
 ) -> int:
     """Write the tracked ``stream`` into ``out``, row by row; returns the rows written."""
+    from fydpad.annotate import AnnotatedVideoWriter, annotate_frame
+    from fydpad.progress import progress
+    from vision.recording import TrackWriter
+    from vision.sources import SourceError
+
     writer = TrackWriter(out, extra_columns=("u_px", "v_px", "area_mm2", "speed_mm_s"))
     annotated = None
     n = 0
@@ -166,6 +177,8 @@ def track_to_csv(
 
 
 def _truth_uv(truth, k: int, tracker: ContactTracker) -> tuple[float, float] | None:
+    from vision.mapping import workspace_to_roi
+
     if truth is None or k >= truth.contact.size or not truth.contact[k]:
         return None
     u, v = workspace_to_roi(truth.x_mm[k], truth.y_mm[k], tracker.roi_px, tracker.workspace_mm)
@@ -173,6 +186,10 @@ def _truth_uv(truth, k: int, tracker: ContactTracker) -> tuple[float, float] | N
 
 
 def summarise(cols: dict, out: str, truth, n_written: int, tracker: ContactTracker) -> dict:
+    import numpy as np
+
+    from vision.evaluation import score_tracking
+
     summary: dict = {
         "output": str(out),
         "method": tracker.method,
@@ -205,6 +222,8 @@ def format_summary(s: dict) -> str:
 
 
 def _plot(path: Path, cols: dict, workspace_mm, truth, title: str) -> None:
+    from fydpad.plots import plot_track
+
     truth_dict = None
     if truth is not None:
         truth_dict = {"t_s": truth.t_s, "x_mm": truth.x_mm, "y_mm": truth.y_mm,

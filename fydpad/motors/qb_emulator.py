@@ -10,7 +10,7 @@ sent late (``reply_delay_s``).
 
 Like the firmware, it ignores frames with a bad checksum or another board's id, and
 enforces its watchdog (``CMD_SET_WATCHDOG``): armed with byte b, the board deactivates
-its motors (zero duty, unpowered) when no frame for it arrives for b * 2 cs. The board
+its motors (unpowered) when no frame for it arrives for b * 2 cs. The board
 clock is ``time.monotonic``; the expiry is kept at the exact deadline, as the firmware's
 hardware counter fires there (``watchdog_stops``: (last frame, stop) times), and
 applied when the emulator next looks (its thread wakes at the deadline).
@@ -157,13 +157,12 @@ class QbEmulator:
         deadline = self.last_frame_s + self.watchdog_period_s
         if time.monotonic() >= deadline:
             self.activation = 0
-            self.plant.powered = False
-            self.plant.set_duty(0.0, 0.0)
+            self.plant.powered = False  # unpowered: no drive whatever the duty register
             self._loop.reset()
             self.watchdog_stops.append((self.last_frame_s, deadline))
 
     def at_rest(self) -> bool:
-        """Motors unpowered at zero duty (the watchdog applied as of now)."""
+        """Motors unpowered (the watchdog applied as of now)."""
         with self._lock:
             self._apply_watchdog()
             return not self.activation and not self.plant.powered

@@ -9,7 +9,6 @@ sequence), so the 1 kHz render process never waits on the vision loop.
 from __future__ import annotations
 
 import math
-import multiprocessing as mp
 import time
 from multiprocessing.sharedctypes import RawArray
 
@@ -126,7 +125,3 @@ class SharedFingerState(SharedRecord):
             return 0, None
         return seq, FingerState(t_s=v[0], contact=bool(v[1]), x_mm=v[2], y_mm=v[3],
                                 indentation_mm=v[4], speed_mm_s=v[5], force_n=v[6])
-
-
-def new_event() -> mp.synchronize.Event:
-    return mp.get_context("spawn").Event()

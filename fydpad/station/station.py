@@ -270,8 +270,9 @@ class StationOptions:
     #: Called with the operator hold on each change (the link's ``set_operator_hold``).
     operator_hold: Callable[[bool], None] | None = None
     status: Callable[[dict], None] | None = None
-    #: How long the render process may take to build its chain (a board to connect).
-    render_start_timeout_s: float = 30.0
+    #: How long the render process may take to start and build its chain (a board to
+    #: connect): a bound against a hang; a loaded 2-core machine has taken over 30 s.
+    render_start_timeout_s: float = 120.0
 
 
 class Station:
@@ -357,8 +358,9 @@ class Station:
                 except Exception as exc:  # a link fault is the link's: never this input's
                     self.faults.append(f"operator hold on the link: {exc}")
                     self.stop_event.set()
-            if self._events is not None:
+            if self._events is not None:  # rare: each one on disk at once
                 self._events.write(t_s, "hold" if on else "release", source)
+                self._events.flush()
         return on
 
     def toggle_operator_hold(self, source: str = "api") -> bool:

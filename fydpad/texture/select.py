@@ -93,9 +93,11 @@ def fit_candidate(name: str, scans: Sequence[Scan], speeds_mm_s: Sequence[float]
                   order: int = 200, tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S,
                   highpass_hz: float = 10.0, surface: str | None = None,
                   drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
+                  lines: str | float | None = "auto",
                   wrap_iterations: Callable[[Iterable], Iterable] = lambda it: it,
                   ) -> TextureModel:
-    """One candidate form fitted on ``scans``."""
+    """One candidate form fitted on ``scans`` (``lines``: the calibrated form's periodic
+    lines, :func:`fit.fit_texture`)."""
     if name == "paper":
         return fit_paper(scans, order=order, window_mm_s=tolerance_mm_s,
                          highpass_hz=highpass_hz, surface=surface, drive_band_hz=drive_band_hz)
@@ -105,7 +107,7 @@ def fit_candidate(name: str, scans: Sequence[Scan], speeds_mm_s: Sequence[float]
             model, _ = fit_texture(scans, order=order, speeds_mm_s=speeds_mm_s,
                                    tolerance_mm_s=tolerance_mm_s, highpass_hz=highpass_hz,
                                    surface=surface, drive_band_hz=drive_band_hz,
-                                   wrap_iterations=wrap_iterations)
+                                   lines=lines, wrap_iterations=wrap_iterations)
         model.provenance["form"] = name
         return model
     raise ValueError(f"unknown candidate {name!r}; one of {CANDIDATES}")
@@ -167,14 +169,14 @@ def select_model(
     tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S, order: int = 200,
     highpass_hz: float = 10.0, surface: str | None = None,
     drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
-    candidates: Sequence[str] = CANDIDATES, seed: int = 0,
+    candidates: Sequence[str] = CANDIDATES, seed: int = 0, lines: str | float | None = "auto",
     wrap: Callable[[Iterable], Iterable] = lambda it: it,
 ) -> tuple[TextureModel, Selection]:
     """The validated winner refitted on all ``scans`` and the validation (module doc).
     ``wrap`` wraps the list of (fold, candidate) fits (a progress bar)."""
     scans = list(scans)
     kw = dict(order=order, tolerance_mm_s=tolerance_mm_s, highpass_hz=highpass_hz,
-              surface=surface or scans[0].surface, drive_band_hz=drive_band_hz)
+              surface=surface or scans[0].surface, drive_band_hz=drive_band_hz, lines=lines)
     found = plateaus(scans, speeds_mm_s, tolerance_mm_s)
     if len(found) < 2:
         reason = (f"{len(found)} speed plateau(s) of at least {MIN_PLATEAU_S:g} s within "

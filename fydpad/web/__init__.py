@@ -1,5 +1,5 @@
-"""The station's web view (live image, plots, setup) and the identification experiment."""
+"""The station's web view (live image, plots, setup) and the identification experiment.
 
-from fydpad.web.server import WebServer, parse_web_address, start_web
-
-__all__ = ["WebServer", "parse_web_address", "start_web"]
+The server is :mod:`fydpad.web.server` (aiohttp); this package's ``__init__`` imports
+nothing, so the experiment's and the staircase's pure logic load without aiohttp.
+"""

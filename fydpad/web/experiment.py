@@ -19,6 +19,7 @@ import io
 import json
 import os
 import re
+import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
@@ -302,7 +303,9 @@ class ExperimentSession:
         """Start a participant's session, or resume it if its files exist."""
         check_participant(participant)
         results_dir = Path(results_dir)
-        results_dir.mkdir(parents=True, exist_ok=True)
+        if not results_dir.is_dir():  # made by the first result, and said so
+            results_dir.mkdir(parents=True, exist_ok=True)
+            print(f"experiment results: {results_dir.resolve()}", file=sys.stderr, flush=True)
         plan_path = results_dir / f"{participant}.json"
         csv_path = results_dir / f"{participant}.csv"
         if plan_path.exists():

@@ -2,7 +2,8 @@
 
 By default each stimulus renders a rectangular grating model (Ito 2019 4.2, the
 FYD-pad's specimens: 90 % ridge, the default 8:2 vibrotactile/friction ratio) of its
-period, written to ``RESULTS/textures/grating-<period>mm.json`` so the plan and the
+period, written to ``<cache>/textures/grating-<period>mm.json`` (``fydpad run``: the
+user's cache, ~/.cache/fydpad) so the plan and the
 render process name a real file (rewritten, atomically, whenever its content would
 differ: a file of an older fit or a torn write is never used). ``--web-stimuli
 FILE.json`` replaces them: a JSON list of ``{"name", "stiffness_n_per_mm",
@@ -100,9 +101,10 @@ def load_stimuli(path: str | Path) -> list[Stimulus]:
     return out
 
 
-def experiment_stimuli(stimuli_file: str | Path | None, results_dir: str | Path
+def experiment_stimuli(stimuli_file: str | Path | None, model_dir: str | Path
                        ) -> list[Stimulus]:
-    """The stimuli of ``--web-stimuli``, else the paper's four with grating models."""
+    """The stimuli of ``--web-stimuli``, else the paper's four with grating models
+    written under ``model_dir``/textures."""
     if stimuli_file is not None:
         return load_stimuli(stimuli_file)
-    return grating_textures(PAPER_STIMULI, Path(results_dir) / "textures")
+    return grating_textures(PAPER_STIMULI, Path(model_dir) / "textures")

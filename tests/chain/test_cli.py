@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -27,7 +28,42 @@ def test_identify_then_check(tmp_path, capsys):
                "--plot", str(tmp_path / "check.png"), "--json", str(tmp_path / "c.json")])
     assert rc == 0
     assert (tmp_path / "check.png").stat().st_size > 10_000
-    assert '"compensated_max_error_db"' in (tmp_path / "c.json").read_text()
+    figures = json.loads((tmp_path / "c.json").read_text())
+    out = capsys.readouterr().out.strip()
+    # A sentence, not JSON: the figures rounded as a person reads them.
+    assert out.startswith("At k = 0.9 N/mm, over ") and out.endswith(".")
+    assert "{" not in out and len(out.splitlines()) == 1
+    assert f"within {figures['compensated_max_error_db']:.1f} dB of the target" in out
+
+
+def test_check_plot_is_clipped_to_the_band(tmp_path):
+    """The target falls by many decades outside the compared band: the log axis shows the
+    band's levels, a decade of room below, not the decades outside it."""
+    from fydpad.chain.check import CheckResult
+    from fydpad.chain.plots import plot_check
+
+    f = np.linspace(0, 500, 501)
+    compared = (f >= 100) & (f <= 300)
+    target = np.where(compared, 1e-2, 1e-13)
+    res = CheckResult(f, target, target * 2, target * 1.1, None, compared, 200.0,
+                      {"stiffness_n_per_mm": 0.9, "compensated_max_error_db": 0.4,
+                       "uncompensated_error_at_resonance_db": 3.0})
+    import matplotlib.pyplot as plt
+
+    captured = {}
+    real_savefig = plt.Figure.savefig
+
+    def keep(fig, *a, **k):
+        captured["ylim"] = fig.axes[0].get_ylim()
+        return real_savefig(fig, *a, **k)
+
+    plt.Figure.savefig = keep
+    try:
+        plot_check(tmp_path / "c.png", res)
+    finally:
+        plt.Figure.savefig = real_savefig
+    low, high = captured["ylim"]
+    assert low == pytest.approx(1e-3) and high == pytest.approx(4e-2)
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -64,7 +64,7 @@ def test_killed_render_process_leaves_the_board_at_rest_within_the_watchdog_peri
             assert all(stop - last == 0.02 or abs(stop - last - 0.02) < 1e-9
                        for last, stop in stops)
             assert qp.CMD_ACTIVATE not in emu.received[-1:]  # no deactivation was sent
-            assert list(emu.plant.duty) == [0.0, 0.0] and not emu.plant.powered
+            assert emu.activation == 0 and not emu.plant.powered
         finally:
             if p.is_alive():
                 p.kill()

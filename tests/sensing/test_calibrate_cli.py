@@ -15,13 +15,6 @@ from vision.indentation import sensor_distances_mm
 from vision.ir import distance_to_voltage_v
 
 
-@pytest.fixture(autouse=True)
-def _calibrate_registered(monkeypatch):
-    # Until cli.COMMANDS lists it (the integrator adds it), register it for these tests.
-    if "calibrate" not in cli.COMMANDS:
-        monkeypatch.setattr(cli, "COMMANDS", (*cli.COMMANDS, "calibrate"))
-
-
 def write_ir_csv(path: Path, scale=(1.0, 1.04, 0.96), noise_v=0.003, seed=0) -> None:
     """Three sensors whose true curves differ from eq. (1): each reads the paper's
     voltage at ``scale`` times the distance."""

@@ -101,7 +101,7 @@ def test_calibrate_indentation_on_synthetic_recordings(tmp_path: Path, capsys):
         assert r.valid[c].all()
         assert np.all(r.indentation_mm[~c] == 0.0)
         scores[name] = rmse(r.indentation_mm[c], truth.indentation_mm[c])
-    # Measured: plane 1.84 mm, corrected 1.37 mm (truth at 10 Hz, 15-45 mm taps).
+    print("end to end through the files, RMSE mm:", scores)
     assert scores["corrected"] <= 3.0
     assert scores["corrected"] < 0.85 * scores["plane"]
 

@@ -11,12 +11,6 @@ from fydpad import cli
 from fydpad.softness import load_table
 
 
-@pytest.fixture(autouse=True)
-def softness_command(monkeypatch):
-    if "softness" not in cli.COMMANDS:  # until cli.COMMANDS lists it
-        monkeypatch.setattr(cli, "COMMANDS", (*cli.COMMANDS, "softness"))
-
-
 def write_calibration(path, ks=(0.27, 0.5, 0.75, 1.04), thetas=(0.0, 0.4, 0.8, 1.2),
                       column="theta_rad", noise=0.04, seed=0):
     rng = np.random.default_rng(seed)

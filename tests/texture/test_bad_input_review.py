@@ -134,7 +134,7 @@ def test_model_header_defaults_and_null_drive_band_still_read(tmp_path):
 def test_fit_options_checked_against_the_scans(files, tmp_path, option, value, match):
     with pytest.raises(UserError, match=match):
         run("fit", str(files / "R1_10.csv"), "--out", str(tmp_path / "m.json"),
-            "--speeds", "10", "--order", "10", option, value)
+            "--speeds", "10", "--order", "10", "--form", "calibrated", option, value)
     assert not (tmp_path / "m.json").exists()
 
 
@@ -214,7 +214,7 @@ def test_scan_time_error_names_the_real_line(tmp_path, comment, blank_after, lin
 def test_fit_warnings_are_one_line_naming_the_scans(files, tmp_path, capsys):
     scan = str(files / "R1_10.csv")
     assert run("fit", scan, "--out", str(tmp_path / "m.json"), "--speeds", "10,50",
-               "--order", "10") == 0
+               "--order", "10", "--form", "calibrated") == 0
     err = capsys.readouterr().err
     lines = [ln for ln in err.splitlines() if "warning" in ln.lower()]
     assert lines == [f"fydpad texture fit: warning: {scan}: no scan has 0.25 s within 5 mm/s "

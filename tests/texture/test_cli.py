@@ -23,7 +23,7 @@ def workdir(tmp_path_factory):
     for name in ("R1", "felt"):
         assert run("fit", str(d / f"{name}_10mms_s1.csv"), str(d / f"{name}_30mms_s1.csv"),
                    "--out", str(d / f"{name}.json"), "--speeds", "10,30", "--order", "100",
-                   "--plot", str(d / f"{name}_fit.png")) == 0
+                   "--form", "calibrated", "--plot", str(d / f"{name}_fit.png")) == 0
     return d
 
 
@@ -45,11 +45,11 @@ def test_fit_lines_option(workdir, tmp_path, capsys):
     what was found; a bad value is a one-line error."""
     scans = [str(workdir / "R1_10mms_s1.csv"), str(workdir / "R1_30mms_s1.csv")]
     assert run("fit", *scans, "--out", str(tmp_path / "off.json"), "--speeds", "10,30",
-               "--order", "60", "--lines", "off") == 0
+               "--order", "60", "--form", "calibrated", "--lines", "off") == 0
     assert "lines" not in json.loads((tmp_path / "off.json").read_text())
     capsys.readouterr()
     assert run("fit", *scans, "--out", str(tmp_path / "p.json"), "--speeds", "10,30",
-               "--order", "60", "--lines", "3.92") == 0
+               "--order", "60", "--form", "calibrated", "--lines", "3.92") == 0
     said = capsys.readouterr().out
     period = re.search(r"lines: period ([0-9.]+) mm", said)
     assert period and float(period.group(1)) == pytest.approx(3.9, rel=1e-3), said
@@ -99,7 +99,8 @@ def test_bad_input_is_a_user_error(workdir, tmp_path):
     short.write_text("t_s,ax,ay,az,speed_mm_s\n" + "".join(
         f"{k / 1000:.3f},0.1,0.2,{k % 3},20\n" for k in range(300)))
     with pytest.raises(UserError, match="order-200"):
-        run("fit", str(short), "--out", str(tmp_path / "s.json"), "--speeds", "20")
+        run("fit", str(short), "--out", str(tmp_path / "s.json"), "--speeds", "20",
+            "--form", "calibrated")
 
 
 def test_evaluate_refuses_a_scan_outside_the_models_speeds(workdir, tmp_path):
@@ -115,13 +116,13 @@ def test_fit_warns_when_the_scans_are_of_several_surfaces(workdir, tmp_path, cap
     line; --surface names the mix and silences it."""
     scans = [str(workdir / "R1_10mms_s1.csv"), str(workdir / "felt_30mms_s1.csv")]
     assert run("fit", *scans, "--out", str(tmp_path / "mix.json"), "--speeds", "10,30",
-               "--order", "60") == 0
+               "--order", "60", "--form", "calibrated") == 0
     err = [ln for ln in capsys.readouterr().err.splitlines() if "surfaces" in ln]
     assert err == ["fydpad texture fit: warning: the scans are of 2 surfaces (# surface=: R1 "
                    "(1), felt (1)), pooled into one model labelled R1; fit each surface on its "
                    "own, or name the mix with --surface"]
     assert run("fit", *scans, "--out", str(tmp_path / "mix.json"), "--speeds", "10,30",
-               "--order", "60", "--surface", "R1+felt") == 0
+               "--order", "60", "--form", "calibrated", "--surface", "R1+felt") == 0
     assert "surfaces" not in capsys.readouterr().err
 
 

@@ -115,14 +115,16 @@ def felt(tmp_path_factory):
     assert run("generate-scans", "--out-dir", str(d), "--textures", "felt", "--speeds",
                "10,20,30", "--strokes", "1", "--seconds", "6") == 0
     assert run("fit", str(d / "felt_10mms_s1.csv"), str(d / "felt_30mms_s1.csv"),
-               "--out", str(d / "felt.json"), "--speeds", "10,30", "--order", "60") == 0
+               "--out", str(d / "felt.json"), "--speeds", "10,30", "--order", "60",
+               "--form", "calibrated") == 0
     return d
 
 
 def test_fit_records_and_says_where_it_interpolates(felt, tmp_path, capsys):
     out = tmp_path / "felt.json"
     assert run("fit", str(felt / "felt_10mms_s1.csv"), str(felt / "felt_30mms_s1.csv"),
-               "--out", str(out), "--speeds", "10,30", "--order", "60") == 0
+               "--out", str(out), "--speeds", "10,30", "--order", "60",
+               "--form", "calibrated") == 0
     said = capsys.readouterr().out
     prov = json.loads(out.read_text())["provenance"]
     gaps = [tuple(g) for g in prov["interpolated_mm_s"]]

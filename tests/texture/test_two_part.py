@@ -229,7 +229,8 @@ def test_cli_fit_two_part_and_speed_normalise_flags(tmp_path, capsys):
                       ("", "calibrated"), ("--pooled", "pooled")):
         out = tmp_path / f"{key}.json"
         args = parser.parse_args(["texture", "fit", *scans, "--out", str(out), "--speeds",
-                                  "10,30", "--order", "60", *([flag] if flag else [])])
+                                  "10,30", "--order", "60",
+                                  *([flag] if flag else ["--form", "calibrated"])])
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             assert args.func(args) == 0

@@ -42,3 +42,27 @@ def test_box_tophat_equals_whole_image_tophat():
         y0 = int(rng.integers(0, 104 - bh + 1))
         np.testing.assert_array_equal(t._tophat(c, x0, y0, bw, bh),
                                       whole[y0 : y0 + bh, x0 : x0 + bw])
+
+
+def test_a_stored_background_is_used_and_kept_across_reset():
+    """``set_background`` with a bare-fabric frame: a finger present in the first frame
+    tracked is found against it, and ``reset`` forgets what was learned, not it."""
+    from fydpad.synth import SynthConfig, SyntheticPad
+    from fydpad.synth.trajectory import start_time_s
+    from vision.contact import ContactTracker
+
+    long = SyntheticPad(SynthConfig(trajectory="walk", seconds=6.0, seed=5))
+    pad = SyntheticPad(SynthConfig(trajectory="walk", seconds=1.0, seed=5,
+                                   start_s=start_time_s(long.path, "down_still")))
+    bare = long.frame(0)  # the finger 45 mm above the fabric
+    cfg = pad.cfg
+    t = ContactTracker(roi_px=cfg.roi_px, workspace_mm=cfg.workspace_mm,
+                       image_flip=cfg.image_flip)
+    t._robust.set_background(bare)
+    for _ in range(2):
+        r = t.process(pad.frame(0))
+        truth = pad.truth(0)
+        assert r is not None and truth.contact
+        assert np.hypot(r.x_mm - truth.x_mm, r.y_mm - truth.y_mm) < 0.3
+        t.reset()
+    assert t._robust._stored_bg is not None

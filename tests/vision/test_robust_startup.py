@@ -98,3 +98,27 @@ def test_the_recording_starts_in_its_state(recordings, name):
     if name == "palm_resting":
         assert any(stage == "palm_rest" for stage, _ in pad.renderer.stages)
 
+
+
+@pytest.mark.parametrize("key", ["down_still-5", "down_moving-5"])
+def test_the_cases_are_hard_without_the_bootstrap(recordings, key):
+    """Taking the first frame as the bare fabric (a fill of 0 mm: no bootstrap) learns
+    the finger into the background: frames missed at the start, millimetres off while
+    the finger leaves its ghost."""
+    from vision.contact import ContactTracker
+    from vision.evaluation import score_tracking
+    from vision.recording import PadRecording
+    from vision.robust import RobustParams
+
+    path, straddling, _ = recordings[key]
+    rec = PadRecording(path)
+    m = rec.meta
+    truth = rec.read_truth()
+    t = ContactTracker(roi_px=m.roi_px, workspace_mm=m.workspace_mm, image_flip=m.image_flip,
+                       robust=RobustParams(bootstrap_fill_mm=0.0))
+    out = [t.process(f) for _, _, f in rec.frames()]
+    s = score_tracking([r is not None for r in out], [r.x_mm if r else np.nan for r in out],
+                       [r.y_mm if r else np.nan for r in out], truth.contact, truth.x_mm,
+                       truth.y_mm, straddling)
+    print(key, "without the bootstrap", s)
+    assert s.missed > 0 or s.rmse_mm > 0.3, s

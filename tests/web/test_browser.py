@@ -263,3 +263,22 @@ def test_staircase_says_why_it_cannot_run_without_a_friction_model(station, page
     error = json.loads(exc.value.read())["error"]
     assert "friction:MODEL.json" in error and "\n" not in error
     assert not (station["results"] / "staircase" / "S9.csv").exists()
+
+
+def test_live_view_reads_clean(station, page):
+    """Axis titles with units on the live plots (one axis per quantity), no image that
+    failed to load, and no "NaN" anywhere on the page."""
+    page.goto(f"{station['base']}/?token={station['token']}")
+    page.wait_for_function("() => since >= 5")
+    page.wait_for_function("() => document.getElementById('frame').naturalWidth === 640")
+    # uPlot draws axis titles on its canvas: read them from the plots the page made.
+    titles = page.evaluate("() => [...plotXY.axes, ...plotZF.axes].map(a => a.label)")
+    assert titles == ["time (s)", "position (mm)", "time (s)", "indentation (mm)", "force (N)"]
+    scales = page.evaluate("() => plotZF.series.slice(1).map(s => s.scale)")
+    assert scales == ["mm", "N"]  # indentation and force on axes of their own
+    broken = page.eval_on_selector_all(
+        "img", "els => els.filter(e => !e.hidden && e.complete && e.naturalWidth === 0)"
+               ".map(e => e.id || e.src)")
+    assert broken == []
+    assert "NaN" not in page.inner_text("body")
+    page.shot("clean")

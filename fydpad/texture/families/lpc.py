@@ -283,8 +283,10 @@ def plot_fit(path: str, model: TextureModel, scans: list[Scan], opts: dict[str, 
 
 
 def selects(opts: dict[str, Any]) -> bool:
-    """No option of the older forms given: the validated choice (or ``form``'s)."""
-    return (opts["free_form"] == AUTO and not opts["two_part"]
+    """The validated choice or form paper; form calibrated and the older forms' options
+    take the per-speed fit path with its full report."""
+    return (opts["form"] in ("auto", "paper") and opts["free_form"] == AUTO
+            and not opts["two_part"]
             and not opts["speed_normalise"] and opts["method"] == "autocorrelation"
             and opts["prewhiten_order"] == 8)
 
@@ -294,7 +296,8 @@ def fit_selected(scans: list[Scan], opts: dict[str, Any], plot: str | None
     """The form validation picks on the scans (``form`` "auto"), or the one named."""
     kw = dict(order=opts["order"], tolerance_mm_s=opts["tolerance"],
               highpass_hz=opts["highpass_hz"], surface=opts["surface"],
-              drive_band_hz=tuple(opts["drive_band"]))
+              drive_band_hz=tuple(opts["drive_band"]),
+              lines=lines_option(opts["lines"], "--lines"))
     if opts["form"] == "auto":
         model, sel = select_model(scans, speeds_mm_s=opts["speeds"], **kw,
                                   wrap=opts.get("wrap_iterations", _no_wrap))
@@ -305,7 +308,13 @@ def fit_selected(scans: list[Scan], opts: dict[str, Any], plot: str | None
     lines = [f"surface {model.surface}, order {model.order}, {model.fs_hz:g} Hz, "
              f"form {model.provenance.get('form', 'calibrated')}, {len(model.speeds_mm_s)} "
              f"models at {model.speeds_mm_s[0]:g}-{model.speeds_mm_s[-1]:g} mm/s, "
-             f"interpolation {model.interpolation}", *table]
+             f"interpolation {model.interpolation}"]
+    found = model.provenance.get("lines")
+    if found is not None:
+        lines.append(f"  lines: {found['note']}" + (
+            "; the LPC models are fitted on what they leave" if model.lines is not None
+            else ""))
+    lines += table
     if plot:
         plot_selected(plot, scans, model, opts)
     return model_to_json(model), lines

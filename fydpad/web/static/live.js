@@ -5,12 +5,19 @@ let since = -1, settings = null, frameInfo = null;
 const data = { t: [], x: [], y: [], z: [], f: [] };
 const fmt = (v, d = 1) => (v === null || v === undefined || Number.isNaN(v)) ? "—" : Number(v).toFixed(d);
 
-function mkPlot(el, series) {
-  return new uPlot({ width: 560, height: 170, scales: { x: { time: false } },
-    series: [{ label: "t (s)" }, ...series], axes: [{}, {}] }, [[], ...series.map(() => [])], el);
+// One axis per quantity, each titled with its unit; the time axis too.
+function mkPlot(el, series, axes, scales) {
+  return new uPlot({ width: 560, height: 190, scales: { x: { time: false }, ...scales },
+    series: [{ label: "t (s)" }, ...series], axes: [{ label: "time (s)" }, ...axes] },
+    [[], ...series.map(() => [])], el);
 }
-const plotXY = mkPlot($("plot-xy"), [{ label: "x mm", stroke: "#d32" }, { label: "y mm", stroke: "#26c" }]);
-const plotZF = mkPlot($("plot-zf"), [{ label: "indentation mm", stroke: "#393" }, { label: "force N", stroke: "#a3a" }]);
+const plotXY = mkPlot($("plot-xy"),
+  [{ label: "x (mm)", stroke: "#d32", scale: "mm" }, { label: "y (mm)", stroke: "#26c", scale: "mm" }],
+  [{ label: "position (mm)", scale: "mm" }], { mm: {} });
+const plotZF = mkPlot($("plot-zf"),
+  [{ label: "indentation (mm)", stroke: "#393", scale: "mm" }, { label: "force (N)", stroke: "#a3a", scale: "N" }],
+  [{ label: "indentation (mm)", scale: "mm" }, { label: "force (N)", scale: "N", side: 1, grid: { show: false } }],
+  { mm: {}, N: {} });
 
 function addSamples(samples) {
   for (const s of samples) {
@@ -88,7 +95,9 @@ function nextFrame() {
   const img = $("frame");
   const t0 = performance.now();
   const done = () => setTimeout(nextFrame, Math.max(0, 100 - (performance.now() - t0)));
-  img.onload = done; img.onerror = () => setTimeout(nextFrame, 500);
+  // Hidden until a frame has loaded: no broken image before the station has one.
+  img.onload = () => { img.hidden = false; done(); };
+  img.onerror = () => setTimeout(nextFrame, 500);
   img.src = `api/frame.jpg?n=${Date.now()}`;
 }
 
