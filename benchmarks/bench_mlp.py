@@ -6,14 +6,11 @@ Each figure is printed beside a baseline measured in the same run:
   forward pass that builds its input vector and every intermediate per tick;
 - ``MlpTexture.render`` per sample (offline, vectorised) against the tick loop;
 - one training epoch of the thesis' per-sample steepest descent against the vectorised
-  full-batch epoch on the same data;
-- the spectrum network's speed table (``SpectrumNet.texture_model``) against fitting
-  the LPC family (``fit_texture``) from the same strokes.
+  full-batch epoch on the same data.
 """
 
 from __future__ import annotations
 
-import time
 import tracemalloc
 import warnings
 
@@ -21,12 +18,9 @@ import numpy as np
 from timing import best
 
 from fydpad.texture.families import constant_stroke
-from fydpad.texture.fit import fit_texture
-from fydpad.texture.mlp import thesis_model
-from fydpad.texture.mlp_family import MlpTexture
-from fydpad.texture.mlp_lsf import fit_spectrum_net
-from fydpad.texture.mlp_train import TrainConfig, _batch_epoch, _online_epoch, init_net
-from fydpad.texture.scan_generator import generate_scan
+from fydpad.texture.families.mlp.model import thesis_model
+from fydpad.texture.families.mlp.render import MlpTexture
+from fydpad.texture.families.mlp.train import TrainConfig, _batch_epoch, _online_epoch, init_net
 
 
 def naive_tick(model, state, x_mm, y_mm, speed, force):
@@ -90,16 +84,6 @@ def main() -> None:
     print(f"  training epoch, 16k samples: per-sample (thesis) {t_on * 1e3:.0f} ms; "
           f"batch {t_ba * 1e3:.2f} ms ({t_on / t_ba:.0f}x faster); 2000 epochs per-sample "
           f"{2000 * t_on:.0f} s")
-
-    scans = [generate_scan("R1", s, 8.0, seed=1) for s in (10.0, 20.0, 30.0, 40.0)]
-    t0 = time.perf_counter()
-    net = fit_spectrum_net(scans)
-    t_fit_net = time.perf_counter() - t0
-    t_table = best(lambda: net.texture_model(), 3)
-    t_lpc = best(lambda: fit_texture(scans, free_form=None, lines="off"), 3)
-    print(f"  spectrum network: fit (window LPCs + 3000 Adam steps) {t_fit_net:.2f} s; speed "
-          f"table {t_table * 1e3:.0f} ms; LPC family fit baseline {t_lpc * 1e3:.0f} ms "
-          f"({t_fit_net / t_lpc:.1f}x)")
 
 
 if __name__ == "__main__":

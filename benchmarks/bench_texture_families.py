@@ -2,8 +2,9 @@
 ``python benchmarks/bench_texture_families.py``.
 
 The per-tick cost of each family's ``tick`` (the station's 1 kHz render process calls it
-once a tick; the budget is the 1 ms tick shared with eq. 3 and the motors) against the
-LPC family's tick (order 200, the station's path) measured in the same run as the baseline
+once a tick with the station's speed; the budget is the 1 ms tick shared with eq. 3 and
+the motors) against the LPC family's tick (order 200) measured in the same run as the
+baseline
 (the penn family: HaTT-schema files of the orders named, 10 kHz models, 10 model
 samples and the anti-alias low-pass per tick);
 and the offline ``render`` throughput (x real time) of 10 s at 1 kHz and the audio
@@ -17,10 +18,11 @@ import warnings
 
 import numpy as np
 
-from fydpad.texture.families import LpcFamily, constant_stroke
+from fydpad.texture.families.friction import fit_friction, parse_friction
+from fydpad.texture.families.grating import GratingFamily
+from fydpad.texture.families.lpc import LpcFamily
+from fydpad.texture.family import constant_stroke
 from fydpad.texture.fit import fit_texture
-from fydpad.texture.friction import fit_friction, parse_friction
-from fydpad.texture.grating import GratingFamily
 from fydpad.texture.scan_generator import generate_scan
 
 
@@ -50,7 +52,7 @@ def penn_family(order_ar: int, order_ma: int, tmp: str):
                       lsf(order_ar), lsf(order_ma), np.full(s.size, 1e-3),
                       np.ones(s.size), 250.0, 3.0)
     fam = load_family(write_penn(f"{tmp}/Models_bench_{order_ar}_{order_ma}.xml", ms))
-    fam.prepare()
+    fam.prepare(1000.0)
     return fam
 
 
@@ -62,7 +64,7 @@ def main() -> None:
     model, _ = fit_texture(scans, order=200, speeds_mm_s=[10.0, 30.0], free_form=None,
                            lines="off")
     lpc = LpcFamily(model)
-    lpc.prepare()
+    lpc.prepare(1000.0)
     fric = parse_friction(fit_friction(scans[:1]), "bench")
     fams = {"lpc (baseline)": lpc, "friction": fric,
             "grating sine": GratingFamily(2.15, profile="sine"),

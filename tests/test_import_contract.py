@@ -14,15 +14,6 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("vision", "fydpad", "teleop")
 
-# The texture package's own cycles, being broken where the texture modules are rewritten;
-# remove these once they are gone.
-KNOWN_CYCLES = {
-    frozenset({"fydpad.station.texture_source", "fydpad.texture.families"}),
-    frozenset({"fydpad.texture.mlp", "fydpad.texture.mlp_family", "fydpad.texture.mlp_lsf",
-               "fydpad.texture.mlp_train"}),
-}
-
-
 def _modules() -> dict[str, Path]:
     mods = {}
     for pkg in PACKAGES:
@@ -121,7 +112,7 @@ def test_teleop_imports_only_vision():
 
 
 def test_no_import_cycles():
-    assert _cycles() - KNOWN_CYCLES == set()
+    assert _cycles() == set()
 
 
 def test_the_checker_sees_a_cycle_and_a_crossing():

@@ -17,6 +17,7 @@ from fydpad.errors import UserError
 
 if TYPE_CHECKING:  # annotations only: the station loads inside the command
     from fydpad.station.station import Station
+    from fydpad.texture.family import TextureFamily
 
 #: fydpad.texture.interpolation.METHODS, written out so that --help loads no texture code
 #: (tests/cli/test_fast_help.py keeps the two equal).
@@ -371,14 +372,12 @@ def _stiffness(args: argparse.Namespace) -> float:
     return math.nan if args.softness is None else args.softness
 
 
-def _say_texture_gaps(family: object, spec: str) -> None:
-    """One line at start when an LPC texture's scans left speeds unscanned (its model
+def _say_texture_gaps(family: TextureFamily, spec: str) -> None:
+    """One line at start when a texture's scans left speeds unscanned (its model
     interpolates there: docs/texture.md, 'Speed coverage')."""
-    from fydpad.texture.coverage import describe, model_gaps
-    from fydpad.texture.model_file import TextureModel
+    from fydpad.texture.coverage import describe
 
-    model = getattr(family, "model", None)
-    gaps = model_gaps(model.provenance, spec) if isinstance(model, TextureModel) else None
+    gaps = family.unscanned_speeds()
     if gaps:
         print(f"texture {spec}: no scan between {describe(gaps)}; the texture felt there is "
               "the model's interpolation (docs/texture.md, 'Speed coverage')", file=sys.stderr)
@@ -452,15 +451,11 @@ def run(args: argparse.Namespace) -> int:
     if args.teleop is None and (args.curve or args.keys):
         raise UserError("--curve and --keys apply to the tele-operation link: give --teleop")
     if args.texture:  # a bad model file fails here, in one line, not in the render process
-        from fydpad.station.texture_source import check_family_rate
-        from fydpad.texture.families import load_family
+        from fydpad.station.texture_source import check_texture
 
-        family = load_family(args.texture)
-        check_family_rate(family, config.loops.render_hz, args.texture)  # else a wrong pitch
+        family = check_texture(args.texture, config.loops.render_hz, args.texture_method,
+                               args.drive_filter)  # a wrong rate would play a wrong pitch
         _say_texture_gaps(family, args.texture)
-        if (args.texture_method or args.drive_filter) and not hasattr(family, "drive_filter"):
-            raise UserError(f"{args.texture}: --texture-method and --drive-filter apply to LPC "
-                            f"texture models, this one is {family.kind!r}")
     elif args.texture_method or args.drive_filter:
         raise UserError("--texture-method and --drive-filter need --texture MODEL")
     if args.compensate:  # a TF file of another chain fails here, in one line

@@ -10,7 +10,7 @@ from fydpad.chain.live import open_compensator
 from fydpad.motors.drive import build_drive
 from fydpad.station.outputs import ChannelOutputs
 from fydpad.station.spec import RenderSpec
-from fydpad.station.texture_source import open_texture
+from fydpad.station.texture_source import open_texture, tick_speed
 
 
 class DriveChain:
@@ -38,8 +38,11 @@ class DriveChain:
         self.friction_b_v = math.nan
         #: Each friction model's b as its file gives it (None: not a friction model), for
         #: ``friction_b_v`` = NaN after a live b.
-        self._file_b = [float(m.family.b) if m is not None and hasattr(m.family, "b")
-                        else None for m in self.models]
+        self._file_b = [m.family.parameters.get("b_v") if m is not None else None
+                        for m in self.models]
+        #: The one speed input of every family (the centroid's, 10 Hz low-pass per tick).
+        self.speed = tick_speed()
+        self.dt_s = 1.0 / spec.rate_hz
         #: Failures of ``safe_stop`` (it never raises), one line each.
         self.faults: list[str] = []
         table = self.drive.table
@@ -65,13 +68,15 @@ class DriveChain:
             self.texture = self.models[i] if i >= 0 else None
             if self.texture is not None:
                 self.texture.reset()  # a fresh start: no filter state of its last use
+            # ... and from no speed, not the last one's (it would play for ~50 ms).
+            self.speed = tick_speed()
             self.switches += 1
         b_v = float(friction_b_v)
         if not _same(b_v, self.friction_b_v):  # NaN to NaN is no change
             self.friction_b_v = b_v
             for m, file_b in zip(self.models, self._file_b, strict=True):
                 if file_b is not None:  # a friction model: b, or NaN: its file's again
-                    m.family.b = b_v if b_v == b_v else file_b
+                    m.family.set_parameter("b_v", b_v if b_v == b_v else file_b)
             if self.channels is not None:
                 self.channels.set_friction_b(b_v)
 
@@ -81,7 +86,7 @@ class DriveChain:
         return {"index": self.index, "model": self.specs[self.index] if self.index >= 0
                 else None, "kind": t.family.kind if t is not None else None,
                 "switches": self.switches,
-                "friction_b_v": (getattr(t.family, "b", None) if t is not None else None)}
+                "friction_b_v": t.family.parameters.get("b_v") if t is not None else None}
 
     def tick(self, t_s, contact, x_mm, y_mm, speed_mm_s, force_n, vibration_gain,
              stiffness_n_per_mm):
@@ -91,6 +96,9 @@ class DriveChain:
         out = None
         tex = self.texture
         if tex is not None:
+            if tex.needs_speed:  # a family that reads no speed is spared the estimate
+                self.speed.sample(t_s, x_mm, y_mm, contact)
+                speed_mm_s = self.speed.tick(self.dt_s)
             out = tex.family.tick(t_s, contact, x_mm, y_mm, speed_mm_s, force_n)
             if tex.vib_i >= 0:
                 vib = out[tex.vib_i]
@@ -128,7 +136,7 @@ class DriveChain:
         """Clipping counts of eq. (3), the softness request and texture limiter resets."""
         out = self.drive.stats()
         if any(m is not None for m in self.models):
-            out["texture_limiter_resets"] = sum(getattr(m.family, "resets", 0)
+            out["texture_limiter_resets"] = sum(m.family.counters().get("limiter_resets", 0)
                                                 for m in self.models if m is not None)
         if len(self.models) > 1:
             out["texture_switches"] = self.switches
@@ -149,15 +157,15 @@ class _TickModel:
     def __init__(self, spec: str, rate_hz: float, method: str | None = None,
                  drive_filter: bool = False, lenient: bool = False):
         self.family = open_texture(spec, rate_hz, method=method, drive_filter=drive_filter,
-                                   lpc_options_only_if_lpc=lenient)
+                                   lenient=lenient)
         ch = self.family.tick_channels
+        self.needs_speed = "speed_mm_s" in self.family.needs
         # Where the family's tick puts each 1 kHz channel (-1: not rendered).
         self.vib_i = ch.index("vibration") if "vibration" in ch else -1
         self.ten_i = ch.index("tension") if "tension" in ch else -1
 
     def reset(self) -> None:
-        if hasattr(self.family, "reset"):
-            self.family.reset()
+        self.family.reset()
 
 
 def build_render_chain(spec: RenderSpec) -> DriveChain:

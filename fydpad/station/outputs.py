@@ -284,7 +284,7 @@ class _Route:
                 if r is not None:
                     r.reset()
         #: Each renderer's b as its file gives it (None: no b), for a live b set back.
-        self.file_b = [float(r.b) if r is not None and hasattr(r, "b") else None
+        self.file_b = [r.parameters.get("b_v") if r is not None else None
                        for r in self.renderers]
         self.out: Any = None
         self.n_samples = 0  # samples handed to the channel
@@ -301,7 +301,7 @@ class ChannelOutputs:
         for route in self.routes:
             for r, file_b in zip(route.renderers, route.file_b, strict=True):
                 if file_b is not None:
-                    r.b = b_v if b_v == b_v else file_b
+                    r.set_parameter("b_v", b_v if b_v == b_v else file_b)
 
     def __init__(self, specs: list[str], models: list[Any], rate_hz: float,
                  block_ticks: int = 10) -> None:

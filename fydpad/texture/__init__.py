@@ -1,6 +1,4 @@
-"""Texture rendering (issue 7): speed-indexed LPC models of real surfaces, fitted from
-scan recordings, interpolated stably over speed and synthesized at 1 kHz (paper III-B).
-
-Station API: :class:`fydpad.texture.synthesis.TextureRenderer` (``tick`` per sample,
-``block`` per block) and :class:`fydpad.texture.synthesis.CentroidSpeed`.
-"""
+"""Texture rendering: models of real surfaces fitted from scan recordings and rendered
+at 1 kHz. ``family`` is the contract every family meets, ``families`` the registry and
+the families (LPC, HaTT, friction, grating, MLP), ``operations`` what ``fydpad texture``
+runs, ``compare`` the cross-family identification."""

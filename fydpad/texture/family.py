@@ -1,26 +1,42 @@
-"""One interface for every texture family (issue 9): LPC, friction, grating, MLP.
+"""The texture-family contract: what every family (LPC, HaTT, friction, grating, MLP)
+declares and offers, and the finger stream it renders from.
 
-A texture model takes the finger-state stream and produces signals on the output
-channels it declares (:mod:`fydpad.channels.base`: ``"vibration"``, ``"tension"``,
-``"audio"``). Two paths:
+A family declares its output ``channels`` (``"vibration"``, ``"tension"``, ``"audio"``,
+``"force"``) with their native rates, the finger inputs it ``needs``, and its render
+``parameters`` (LPC: ``method``, ``drive_filter``, ``seed``; friction: ``b_v``). Every
+family takes the same speed input: ``speed_mm_s``, the finger's speed along the surface
+(offline the block's column; in the station the centroid's speed low-passed at 10 Hz
+every tick, Bianchi 2015 III-B). Two paths:
 
-- ``render(finger, channel)``: offline, a whole :class:`FingerBlock` sampled at the
-  channel's rate in, one array out (``fydpad texture synth|evaluate|identify``);
-- ``tick(...)``: one 1 kHz step of the station's render loop, no allocation, returning
-  the values of the 1 kHz channels named by ``tick_channels``, in that order.
+- ``render(finger, channel)``: a whole :class:`FingerBlock` in, one array out
+  (``fydpad texture synth|evaluate|identify|compare``);
+- ``tick(...)``: one step of the station's 1 kHz loop after ``prepare(rate_hz)``, no
+  allocation, returning the values of ``tick_channels`` in that order.
 
-Model files name their family in ``"kind"``; ``fydpad run --texture KIND:MODEL``.
+A :class:`Kind` tells the registry (:mod:`fydpad.texture.families`) how to read and fit
+one family's model files.
 """
 
 from __future__ import annotations
 
+import json
+import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from pathlib import Path
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
+from fydpad.errors import UserError, read_json
+
 Array = NDArray[np.float64]
+#: ``"format"`` of every texture model file.
+FORMAT = "fydpad-texture-model"
+#: The finger inputs a family may need ("force_change": only the force's change, so a
+#: constant force of any value renders the same).
+INPUTS = ("speed_mm_s", "x_mm", "y_mm", "force_n", "force_change")
 
 
 @dataclass(frozen=True)
@@ -37,21 +53,40 @@ class FingerBlock:
 
     def __post_init__(self) -> None:
         n = self.t_s.shape[0]
-        for name in ("contact", "x_mm", "y_mm", "speed_mm_s", "force_n"):
-            if getattr(self, name).shape != (n,):
-                raise ValueError(f"FingerBlock.{name} must have shape ({n},), "
-                                 f"got {getattr(self, name).shape}")
+        for name, a in (("contact", self.contact), ("x_mm", self.x_mm), ("y_mm", self.y_mm),
+                        ("speed_mm_s", self.speed_mm_s), ("force_n", self.force_n)):
+            if a.shape != (n,):
+                raise ValueError(f"FingerBlock.{name} must have shape ({n},), got {a.shape}")
 
 
 class TextureFamily(Protocol):
     """A fitted texture model of one family, ready to render."""
 
-    #: "lpc", "friction", "grating" or "mlp".
+    #: The family's name in model files and specs ("lpc", "friction", ...).
     kind: str
+    #: The surface the model was fitted on ("" when unknown).
+    surface: str
     #: Declared output channels -> their native rate in Hz.
     channels: dict[str, float]
     #: The 1 kHz channels ``tick`` returns, in order (a subset of ``channels``).
     tick_channels: tuple[str, ...]
+    #: The finger inputs it reads (a subset of :data:`INPUTS`).
+    needs: frozenset[str]
+    #: Where a stroke starts (mm; a position-indexed model's own origin, else 0).
+    x0_mm: float
+    #: Its render parameters and their current values (set with ``set_parameter``).
+    parameters: dict[str, Any]
+    #: The high-pass (Hz) a recording is compared through (the fit's, for LPC).
+    highpass_hz: float
+
+    def set_parameter(self, name: str, value: Any) -> None:
+        """Set a render parameter; UserError for a name not in ``parameters``."""
+
+    def check_rate(self, rate_hz: float) -> None:
+        """A UserError naming its file when it cannot tick at ``rate_hz``."""
+
+    def prepare(self, rate_hz: float) -> None:
+        """``check_rate`` and build the tick path, before the station's loop starts."""
 
     def render(self, finger: FingerBlock, channel: str) -> Array:
         """The signal on ``channel`` for the whole block (sampled at ``finger.fs_hz``)."""
@@ -63,6 +98,78 @@ class TextureFamily(Protocol):
     def reset(self) -> None:
         """Forget the signal history (a new stroke)."""
 
+    def counters(self) -> dict[str, int]:
+        """Events counted while rendering (the LPC limiter's ``limiter_resets``)."""
+
+    def covers(self, speed_mm_s: Array) -> NDArray[np.bool_]:
+        """The samples whose speed the model renders from its data (evaluation compares
+        the recording there)."""
+
+    def unscanned_speeds(self) -> list[tuple[float, float]]:
+        """Speed spans (mm/s) within its range that no scan of its fit went at: it
+        interpolates there."""
+
+
+@dataclass(frozen=True)
+class Kind:
+    """One family in the registry: how to build it from a parsed model file, how to fit
+    one from scans, or (HaTT) how to read its own file format."""
+
+    name: str
+    from_json: Callable[[dict[str, Any], str], TextureFamily]
+    #: ``fit(scans, **options)`` -> the model file's JSON.
+    fit: Callable[..., dict[str, Any]] | None
+    summary: str = ""
+    from_file: Callable[[str], TextureFamily] | None = None
+    #: The ``fydpad texture fit`` options it takes (argument names), passed to ``fit``.
+    fit_options: tuple[str, ...] = ()
+    #: ``describe(data, where)``: the lines ``fydpad texture fit`` prints about a fit.
+    describe: Callable[[dict[str, Any], str], list[str]] | None = None
+    #: ``fit_command(scan_paths, options, out, plot)`` -> (JSON, lines, warnings): a fit
+    #: with its own report (the LPC fit's per-speed figures and plot); else ``fit`` and
+    #: ``describe``.
+    fit_command: Callable[..., tuple[dict[str, Any], list[str], list[str]]] | None = None
+    #: ``identify``'s default distance: "shape" (levels and tilt removed: families whose
+    #: level is a gain) or "bands" (third-octave levels: models of recorded accelerations).
+    distance: str = "shape"
+
+
+class FamilyBase:
+    """Defaults of the contract for a family without parameters, counters or notes."""
+
+    surface = ""
+    x0_mm = 0.0
+    highpass_hz = 10.0
+
+    def __init__(self) -> None:
+        self.parameters: dict[str, Any] = {}
+
+    def set_parameter(self, name: str, value: Any) -> None:
+        if name not in self.parameters:
+            raise UserError(f"a {self.kind} model has no render parameter {name!r} "  # type: ignore[attr-defined]
+                            f"(it has: {', '.join(self.parameters) or 'none'})")
+        self.parameters[name] = value
+
+    def check_rate(self, rate_hz: float) -> None:
+        pass
+
+    def prepare(self, rate_hz: float) -> None:
+        self.check_rate(rate_hz)
+
+    def counters(self) -> dict[str, int]:
+        return {}
+
+    def covers(self, speed_mm_s: Array) -> NDArray[np.bool_]:
+        return np.asarray(speed_mm_s, float) > 1.0
+
+    def unscanned_speeds(self) -> list[tuple[float, float]]:
+        return []
+
+    def check_channel(self, channel: str) -> None:
+        if channel not in self.channels:  # type: ignore[attr-defined]
+            raise UserError(f"a {self.kind} model renders "  # type: ignore[attr-defined]
+                            f"{', '.join(self.channels)}; not {channel!r}")  # type: ignore[attr-defined]
+
 
 class TickPosition:
     """The finger's x between camera frames, for position-indexed families at 1 kHz.
@@ -73,9 +180,8 @@ class TickPosition:
     late); between frames the position is extrapolated along the velocity over the last
     ``frames`` frames (a longer base than one frame: the 1-tick stamping jitter, 3 % of a
     33 ms frame, shrinks ``frames`` times), for at most ``hold_s``. A centroid that has
-    not changed for ``stop_s`` (more than two frames at the paper's 10 Hz) is a finger at
-    rest: the position is then the centroid itself, not where the last velocity would
-    have carried it. No allocation.
+    not changed for ``stop_s`` (more than two frames at 10 Hz) is a finger at rest: the
+    position is then the centroid itself. No allocation.
     """
 
     def __init__(self, hold_s: float = 0.1, frames: int = 3, stop_s: float = 0.25) -> None:
@@ -122,3 +228,79 @@ def hold_finite(x: Array, first: float) -> Array:
     idx = np.where(ok, np.arange(x.size), -1)
     np.maximum.accumulate(idx, out=idx)
     return np.where(idx >= 0, x[np.maximum(idx, 0)], first)
+
+
+# ------------------------------------------------------------------ finger streams
+def finger_from_scan(scan: Any, fs_hz: float | None = None) -> FingerBlock:
+    """The finger stream of a scan (contact throughout; x from ``x_mm`` or the speed;
+    force from ``force_n`` or 1 N)."""
+    n = scan.t_s.size
+    # x_mm is attached by fydpad.texture.families.read_scans when the scan has it.
+    x = getattr(scan, "x_mm", None)
+    x = x if x is not None else np.cumsum(scan.speed_mm_s) / scan.fs_hz
+    force = scan.force_n if scan.force_n is not None else np.ones(n)
+    fb = FingerBlock(scan.fs_hz, np.asarray(scan.t_s, float), np.ones(n, bool),
+                     np.asarray(x, float), np.zeros(n), np.asarray(scan.speed_mm_s, float),
+                     np.asarray(force, float))
+    return fb if fs_hz is None else resample_finger(fb, fs_hz)
+
+
+def resample_finger(finger: FingerBlock, fs_hz: float) -> FingerBlock:
+    """The finger stream at another rate (linear interpolation; contact: nearest)."""
+    t = np.arange(round((finger.t_s[-1] - finger.t_s[0]) * fs_hz) + 1) / fs_hz + finger.t_s[0]
+
+    def lin(a: Array) -> Array:
+        return np.interp(t, finger.t_s, a)
+
+    k = np.clip(np.searchsorted(finger.t_s, t), 0, finger.t_s.size - 1)
+    return FingerBlock(fs_hz, t, finger.contact[k], lin(finger.x_mm), lin(finger.y_mm),
+                       lin(finger.speed_mm_s), lin(finger.force_n))
+
+
+def constant_stroke(speed_mm_s: float, seconds: float, fs_hz: float, x0_mm: float = 0.0,
+                    force_n: float = 1.0) -> FingerBlock:
+    """A finger at a constant speed along +x, in contact (``fydpad texture synth``)."""
+    n = round(seconds * fs_hz)
+    t = np.arange(n) / fs_hz
+    return FingerBlock(fs_hz, t, np.ones(n, bool), x0_mm + speed_mm_s * t, np.zeros(n),
+                       np.full(n, float(speed_mm_s)), np.full(n, float(force_n)))
+
+
+# ------------------------------------------------------------------ model files
+def read_model_json(path: str | Path) -> dict[str, Any]:
+    path = Path(path)
+    data = read_json(path, "JSON model")
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise UserError(f"{path}: not a fydpad texture model (key 'format' must be '{FORMAT}')")
+    return data
+
+
+def save_model_json(data: dict[str, Any], path: str | Path) -> Path:
+    """Strict JSON (no NaN or Infinity): a non-finite number is a UserError naming it."""
+    path = Path(path)
+    try:
+        text = json.dumps(data, indent=1, allow_nan=False)
+    except ValueError:
+        raise UserError(f"{path}: the model holds a non-finite number; not written") from None
+    path.write_text(text + "\n", encoding="utf-8")
+    return path
+
+
+def require(d: Any, key: str, where: str, kind: type | tuple[type, ...] = (int, float)) -> Any:
+    """``d[key]`` checked for type; a UserError names the file and the key otherwise."""
+    if not isinstance(d, dict) or key not in d:
+        raise UserError(f"{where}: missing key '{key}'")
+    v = d[key]
+    if not isinstance(v, kind) or (isinstance(v, bool) and kind is not bool):
+        raise UserError(f"{where}: key '{key}' has the wrong type ({type(v).__name__})")
+    if isinstance(v, float) and not math.isfinite(v):
+        raise UserError(f"{where}: key '{key}' is not a finite number")
+    return v
+
+
+def require_version(data: dict[str, Any], where: str, kind: str, version: int) -> None:
+    if data.get("kind") != kind:
+        raise UserError(f"{where}: key 'kind' is {data.get('kind')!r}, expected {kind!r}")
+    if data.get("format_version") != version:
+        raise UserError(f"{where}: key 'format_version' is {data.get('format_version')!r}; "
+                        f"this fydpad reads {kind} models of version {version} only")

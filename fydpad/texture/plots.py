@@ -5,16 +5,26 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
-from matplotlib.axes import Axes
 from numpy.typing import NDArray
 
 from fydpad.texture.coverage import MIN_SECONDS_PER_BIN
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
+
+def pyplot() -> Any:
+    """matplotlib's pyplot on the Agg backend, loaded when a figure is drawn: the
+    families' modules import this one, and the station's render process never draws."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
 
 
 @dataclass
@@ -38,6 +48,7 @@ def plot_spectra(path: str | Path, panels: Sequence[tuple[str, NDArray, NDArray,
     cols = min(2, n)
     rows = (n + cols - 1) // cols
     extra = 1 if coverage is not None else 0
+    plt = pyplot()
     fig = plt.figure(figsize=(6 * cols, 3 * (rows + extra)), constrained_layout=True)
     grid = fig.add_gridspec(rows + extra, cols)
     axes = [fig.add_subplot(grid[i // cols, i % cols]) for i in range(rows * cols)]
@@ -90,6 +101,7 @@ def plot_against_ceiling(path: str | Path, f_hz: NDArray, recorded: NDArray, mod
     the recording than another recording of the surface does)."""
     sel = (f_hz >= band[0]) & (f_hz <= band[1])
     f = f_hz[sel]
+    plt = pyplot()
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True,
                                       constrained_layout=True,
                                       gridspec_kw={"height_ratios": [2, 1]})

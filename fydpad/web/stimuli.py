@@ -27,7 +27,7 @@ from vision.strict_json import finite
 def grating_textures(stimuli: tuple[Stimulus, ...] | list[Stimulus], texture_dir: Path
                      ) -> list[Stimulus]:
     """``stimuli`` with ``texture`` set to a grating model of each ``grating_mm``."""
-    from fydpad.texture.grating import fit_grating
+    from fydpad.texture.families.grating import fit_grating
 
     texture_dir.mkdir(parents=True, exist_ok=True)
     out = []

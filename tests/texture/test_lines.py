@@ -452,15 +452,20 @@ def test_the_comb_follows_the_speed_and_falls_silent_without_contact(r2_model):
 
 
 def test_the_station_renders_the_lines_from_the_centroid(r2_model):
-    """The station's texture term (TextureSource: centroid -> 10 Hz speed -> renderer) on
-    a finger moving at 20 mm/s: its strongest line on a multiple of 9.30 Hz."""
-    from fydpad.station.texture_source import TextureSource
+    """The station's texture term (centroid -> the station's 10 Hz speed -> the LPC
+    family's tick) on a finger moving at 20 mm/s: its strongest line on a multiple of
+    9.30 Hz."""
+    from fydpad.station.texture_source import tick_speed
+    from fydpad.texture.families.lpc import LpcFamily
 
-    src = TextureSource(r2_model[1])
+    src = LpcFamily(r2_model[1])
+    src.prepare(FS)
+    speed = tick_speed()
     out = []
     for k in range(6000):
         t = k / FS
-        out.append(src.tick(t, True, 20.0 * t, 0.0))
+        speed.sample(t, 20.0 * t, 0.0, True)
+        out.append(src.tick(t, True, 20.0 * t, 0.0, speed.tick(1 / FS), 1.0)[0])
     f, p = ss.welch(np.asarray(out[2000:]), FS, nperseg=2000)
     top = f[int(np.argmax(p))]
     assert abs(top / (20.0 / 2.15) - round(top / (20.0 / 2.15))) < 0.06, top

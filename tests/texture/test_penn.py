@@ -93,7 +93,7 @@ def _toolkit_lsf2poly(lsf: np.ndarray) -> np.ndarray:
 
 @pytest.mark.parametrize("order", [6, 7])
 def test_lsf_conversion_matches_the_toolkits(order):
-    from fydpad.texture.penn_family import lsf_to_poly_rows
+    from fydpad.texture.families.penn import lsf_to_poly_rows
 
     rng = np.random.default_rng(order)
     lsf = np.sort(rng.uniform(0.05, 3.0, (3, order)), axis=1)

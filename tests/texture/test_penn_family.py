@@ -12,10 +12,10 @@ import scipy.signal as ss
 
 from fydpad.errors import UserError
 from fydpad.texture.families import constant_stroke, load_family, spec_kind
+from fydpad.texture.families.penn import PennTexture
 from fydpad.texture.lpc import reflection_to_poly
 from fydpad.texture.lsf import poly_to_lsf
 from fydpad.texture.penn import PennModelSet, write_penn
-from fydpad.texture.penn_family import PennTexture
 
 FS = 10_000.0
 
@@ -79,7 +79,7 @@ def test_tick_step_is_the_recursion_then_the_low_pass(penn_xml):
     """One matrix per grid point equals the toolkit's recursion (lfilter) followed by the
     anti-alias low-pass (sosfilt) and every 10th sample, to rounding."""
     fam = load_family(penn_xml)
-    fam.prepare()
+    fam.prepare(1000.0)
     cell = int(fam.cells(np.array([120.0]), np.array([1.7]))[0])
     r, d = fam.ratio, fam._d
     assert r == 10
@@ -100,7 +100,7 @@ def test_tick_and_render_agree_in_spectrum(penn_xml):
     """At a grid speed and force: Welch PSDs (30 s, 256-sample segments) of tick and
     render within 1 dB RMS of each other and of the ARMA x low-pass spectrum, 20-450 Hz."""
     fam = load_family(penn_xml)
-    fam.prepare()
+    fam.prepare(1000.0)
     v, force = float(fam.speed_grid_mm_s[32]), float(fam.force_grid_n[12])
     cell = int(fam.cells(np.array([v]), np.array([force]))[0])
     ticked = _tick_stroke(fam, v, force, 31.0)[1000:]
@@ -120,7 +120,7 @@ def test_tick_decimation_is_anti_aliased(tmp_path):
     model sample without the low-pass would fold the resonance onto 400 Hz."""
     path = write_penn(tmp_path / "hi.xml", _model_set((1400, 1400, 1400, 1400), "hi"))
     fam = load_family(path)
-    fam.prepare()
+    fam.prepare(1000.0)
     cell = int(fam.cells(np.array([fam.speed_grid_mm_s[20]]), np.array([1.0]))[0])
     y = _tick_stroke(fam, float(fam.speed_grid_mm_s[20]), 1.0, 21.0)[1000:]
     f, p = ss.welch(y, 1000.0, nperseg=256)
@@ -139,7 +139,7 @@ def test_force_step_carries_the_state_without_a_click(penn_xml):
     on, so no sample near the step stands out of either side's level (a reset or a
     mis-mapped state would silence or burst), and the level changes to the new model's."""
     fam = load_family(penn_xml)
-    fam.prepare()
+    fam.prepare(1000.0)
     v = float(fam.speed_grid_mm_s[40])
     force = np.where(np.arange(6000) < 3000, 0.6, 2.8)
     y = _tick_stroke(fam, v, force, 6.0)
@@ -166,7 +166,7 @@ def test_render_blocks_continue_across_calls(penn_xml):
 
 def test_silent_without_contact_or_when_still(penn_xml):
     fam = load_family(penn_xml)
-    fam.prepare()
+    fam.prepare(1000.0)
     assert np.abs(_tick_stroke(fam, 100.0, 1.0, 1.0)[500:]).max() > 0
     off = _tick_stroke(fam, 100.0, 1.0, 0.5, t0_s=1.0, contact=False)
     assert np.abs(off[100:]).max() < 1e-6 * np.abs(off[:5]).max() + 1e-12
@@ -192,9 +192,8 @@ def test_other_rates(penn_xml):
     f, p1 = ss.welch(y1, 1000.0, nperseg=256)
     _, p48 = ss.welch(y48, 48_000.0, nperseg=256 * 48)
     assert _db_rms(p1, p48[:f.size], f, (20.0, 400.0)) < 1.5
-    fam.rate_hz = 3000.0
     with pytest.raises(UserError, match=r"Models_Tex\.xml: <SampleRate> 10000 Hz is not"):
-        fam.prepare()
+        fam.prepare(3000.0)
 
 
 def _cli(*argv: str) -> subprocess.CompletedProcess:
@@ -213,7 +212,7 @@ def test_cli_synth(tmp_path, penn_xml):
     np.testing.assert_allclose(np.diff(t), 1e-3, atol=1e-9)
     fam = load_family(penn_xml)
     cell = int(fam.cells(np.array([100.0]), np.array([1.5]))[0])
-    fam.prepare()
+    fam.prepare(1000.0)
     f = np.linspace(0, 500, 2001)
     want = np.sqrt(np.trapezoid(_theory_psd(fam, cell, f), f))
     assert a.std() == pytest.approx(want, rel=0.2)  # steady from the first sample
@@ -248,7 +247,7 @@ def test_station_render_chain_plays_a_hatt_file(penn_xml):
             v, *_ = chain.tick(t, True, 10.0 + 100.0 * np.floor(t * 30) / 30, 5.0, 100.0,
                                1.5, 1.0, 0.6)
             vib.append(v)
-        cell = int(fam.cells(np.array([fam.speed.tick(0.0)]), np.array([1.5]))[0])
+        cell = int(fam.cells(np.array([chain.speed.tick(0.0)]), np.array([1.5]))[0])
         f = np.linspace(0, 500, 2001)
         want = np.sqrt(np.trapezoid(_theory_psd(fam, cell, f), f))
         assert np.std(vib[1000:]) == pytest.approx(want, rel=0.2)
@@ -262,7 +261,7 @@ def test_a_set_at_the_tick_rate_needs_no_low_pass(tmp_path):
     ms = _model_set((120, 260, 180, 340))
     ms.fs_hz = 1000.0
     fam = load_family(write_penn(tmp_path / "Models_1k.xml", ms))
-    fam.prepare()
+    fam.prepare(1000.0)
     assert fam.ratio == 1 and fam.sos.shape == (0, 6)
     v, force = float(fam.speed_grid_mm_s[30]), 1.0
     y = _tick_stroke(fam, v, force, 21.0)[1000:]
@@ -319,25 +318,12 @@ def _tick_transient_b(step, n: int = 2000) -> float:
     return float(np.median(peaks))
 
 
-class _FixedSpeed:
-    """A speed estimator that allocates nothing: isolates PennTexture.tick's own work."""
-
-    contact = True
-
-    def sample(self, t_s, x_mm, y_mm, contact):
-        pass
-
-    def tick(self, dt_s):
-        return 20.0
-
-
 def test_tick_creates_no_arrays(penn_xml):
     """tick's own step (grid point, noise, matrix, gate) allocates nothing: the noise
-    block and the matrices are indexed through views made in prepare. The speed
-    estimator (CentroidSpeed, synthesis.py) is replaced by a constant here."""
+    block and the matrices are indexed through views made in prepare (the speed is
+    the station's input)."""
     fam = load_family(penn_xml)
-    fam.prepare()
-    fam.speed = _FixedSpeed()
+    fam.prepare(1000.0)
     ts = (np.arange(3000) / 1000.0).tolist()
     fs = (1.0 + 0.5 * np.sin(np.arange(3000) / 300)).tolist()  # grid points change
     got = _tick_transient_b(lambda k: fam.tick(ts[k], True, 10.0, 5.0, 20.0, fs[k]))
@@ -348,7 +334,7 @@ def test_tick_creates_no_arrays(penn_xml):
 def test_table_budget_uses_the_real_low_pass(tmp_path):
     """ARMA(25, 5) at 10 kHz: the tick matrices of the full 64 x 32 grid (4 low-pass
     sections, 30.7 MB) fit the 32 MiB budget; AR(60) shrinks the grid to fit it."""
-    from fydpad.texture.penn_family import _TABLE_BYTES, decimation_sos
+    from fydpad.texture.families.penn import _TABLE_BYTES, decimation_sos
 
     assert decimation_sos(10, 1000.0).shape[0] == 4
     rng = np.random.default_rng(0)
@@ -361,7 +347,7 @@ def test_table_budget_uses_the_real_low_pass(tmp_path):
             assert fam._grid == grid
         else:
             assert fam._grid[0] * fam._grid[1] < 64 * 32
-        fam.prepare()
+        fam.prepare(1000.0)
         assert fam._W.nbytes <= _TABLE_BYTES
         assert fam._W.shape[0] == fam._grid[0] * fam._grid[1]
 
@@ -381,17 +367,16 @@ def test_cli_synth_refuses_a_non_finite_speed(tmp_path, penn_xml, capsys):
 
 def test_run_checks_the_model_rate_before_the_station_starts(tmp_path, monkeypatch, capsys):
     """A set at 10.5 kHz cannot tick at 1 kHz: ``fydpad run`` says so in one line from
-    check_family_rate, before a Station (and its render process) exists."""
+    the family's check_rate, before a Station (and its render process) exists."""
     import fydpad.commands.run as run_cmd
     from fydpad.cli import main
-    from fydpad.station.texture_source import check_family_rate
 
     ms = _model_set((120, 260, 180, 340))
     ms.fs_hz = 10_500.0
     xml = write_penn(tmp_path / "Models_Odd.xml", ms)
     with pytest.raises(UserError, match=r"Models_Odd\.xml: <SampleRate> 10500 Hz is not a whole"):
-        check_family_rate(load_family(xml), 1000.0, f"penn:{xml}")
-    check_family_rate(load_family(xml), 500.0, f"penn:{xml}")  # 21 x 500 Hz: fine
+        load_family(xml).check_rate(1000.0)
+    load_family(xml).check_rate(500.0)  # 21 x 500 Hz: fine
 
     def no_station(*a, **k):
         raise AssertionError("the station was started")

@@ -7,7 +7,7 @@ import argparse
 import numpy as np
 
 from fydpad.commands import texture
-from fydpad.texture.friction import lowpass_position
+from fydpad.texture.families.friction import lowpass_position
 from fydpad.texture.scan_generator import DX_MM, TEXTURES, friction_mu_true, friction_params
 
 

@@ -1,5 +1,5 @@
 """The cross-family comparison: a confusion matrix per family on the same textures, and
-paper 004's 2 x 2 (SS1..SS4) with the softness rendered through the simulated fabric."""
+Bianchi 2015's 2 x 2 (SS1..SS4) with the softness rendered through the simulated fabric."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 import pytest
 
-from fydpad.texture.families_compare import (
+from fydpad.texture.compare import (
     by_surface,
     compare_families,
     shape_distance_db,
@@ -116,10 +116,9 @@ def test_cli_identify_with_one_family_and_refuses_mixed_kinds(scans, tmp_path):
 
 def test_the_same_seed_gives_the_same_confusion_another_seed_other_draws(scans):
     """The LPC family synthesizes noise: identify_families draws it from its seed, so two
-    runs agree to the digit (before, each run drew its own: mlp_lsf's identification in
-    docs/texture_mlp.md read 83 % in one run and 88 % in the next), and another seed
-    gives other distances (the seed reaches the synthesis)."""
-    from fydpad.texture.families_compare import fit_per_surface, identify_families
+    runs agree to the digit, and another seed gives other distances (the seed reaches
+    the synthesis)."""
+    from fydpad.texture.compare import fit_per_surface, identify_families
 
     train, test = scans
     with warnings.catch_warnings():

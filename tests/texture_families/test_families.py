@@ -1,5 +1,6 @@
-"""One interface for the texture families: registry, the LPC adapter, model-file errors,
-and the station's render chain driving a family's vibration and tension channels."""
+"""The texture-family contract: registry, the LPC adapter, model-file errors, and the
+station's render chain driving a family's vibration and tension channels from its one
+speed input."""
 
 from __future__ import annotations
 
@@ -12,15 +13,10 @@ import pytest
 import scipy.signal as ss
 
 from fydpad.errors import UserError
-from fydpad.station.texture_source import open_texture
-from fydpad.texture.families import (
-    KINDS,
-    LpcFamily,
-    constant_stroke,
-    fit_family,
-    load_family,
-    save_model_json,
-)
+from fydpad.station.texture_source import open_texture, tick_speed
+from fydpad.texture.families import KINDS, fit_family, load_family
+from fydpad.texture.families.lpc import LpcFamily
+from fydpad.texture.family import TickPosition, constant_stroke, save_model_json
 from fydpad.texture.fit import fit_texture
 from fydpad.texture.interpolation import DEFAULT_METHOD, build_table
 from fydpad.texture.model_file import save_model
@@ -34,7 +30,7 @@ def files(tmp_path_factory):
     d = tmp_path_factory.mktemp("families")
     scans = [generate_scan("canvas", v, 3.0, seed=1, friction=True) for v in (10.0, 30.0)]
     model, _ = fit_texture(scans, order=40, speeds_mm_s=[10.0, 30.0])
-    save_model(model, d / "lpc.json")  # the issue-4 format: no "kind"
+    save_model(model, d / "lpc.json")  # an LPC file: no "kind"
     save_model_json(fit_family("friction", scans[:1]), d / "friction.json")
     save_model_json(fit_family("grating", None, wavelength_mm=2.15), d / "grating.json")
     return d
@@ -52,14 +48,13 @@ def test_registry_and_kind_from_file(files):
 
 def test_lpc_adapter_renders_what_the_renderer_does(files):
     fam = load_family(str(files / "lpc.json"))
-    fam.seed = 3
+    fam.set_parameter("seed", 3)
     fb = constant_stroke(20.0, 1.0, 1000.0)
     y = fam.render(fb, "vibration")
     r = TextureRenderer(fam.model, method=DEFAULT_METHOD, seed=3, ramp_s=1e-6)
     r.warmup(20.0, 0.5)
     np.testing.assert_array_equal(y, r.block(fb.speed_mm_s, fb.contact))
-    fam.rate_hz = 1000.0
-    fam.prepare()
+    fam.prepare(1000.0)
     vals = [fam.tick(k / 1000, True, 10 + 0.02 * k, 5.0, 20.0, 1.0)[0] for k in range(600)]
     assert np.std(vals[300:]) > 0
 
@@ -98,27 +93,35 @@ def test_spec_kind_must_match(files):
         fit_family("nope", [])
 
 
-def _ticks(source, n: int = 3000) -> np.ndarray:
-    # A finger crossing at 20 mm/s, a new camera centroid every 33 ms (30 frames/s).
+def _station_ticks(family, x_of_t, n: int = 3000) -> np.ndarray:
+    """The family ticked as the station does: the newest camera centroid (30 frames/s,
+    held between frames) and the station's one speed estimate from it."""
+    speed = tick_speed()
     out = np.empty(n)
     for k in range(n):
         t = k / 1000.0
-        frame_t = np.floor(t * 30.0) / 30.0
-        out[k] = source.tick(t, True, 5.0 + 20.0 * frame_t, 10.0, 20.0, 1.0)[0]
-    return out[1000:]
+        x = x_of_t(np.floor(t * 30.0) / 30.0)
+        speed.sample(t, x, 10.0, True)
+        out[k] = family.tick(t, True, x, 10.0, speed.tick(1e-3), 1.0)[0]
+    return out
+
+
+def _ticks(family, n: int = 3000) -> np.ndarray:
+    # A finger crossing at 20 mm/s.
+    return _station_ticks(family, lambda t: 5.0 + 20.0 * t, n)[1000:]
 
 
 def test_station_renders_the_evaluated_method_and_the_drive_band(files):
     """The station's 1 kHz path renders the interpolation the commands score (the default,
     "stretch", unless --texture-method says otherwise), and --drive-filter puts the
-    vibration in the model's drive band (165-220 Hz, paper III-B)."""
+    vibration in the model's drive band (165-220 Hz, Bianchi 2015 III-B)."""
     model_path = str(files / "lpc.json")
     plain = open_texture(model_path, 1000.0)
     table = build_table(plain.model, DEFAULT_METHOD)
-    np.testing.assert_array_equal(plain.source.renderer.table.polys, table.polys)
+    np.testing.assert_array_equal(plain.tick_renderer.table.polys, table.polys)
     linear = open_texture(model_path, 1000.0, method="linear")
-    assert linear.source.renderer.method == "linear"
-    lin = linear.source.renderer.table  # between the fitted speeds: not the same filter
+    assert linear.tick_renderer.method == "linear"
+    lin = linear.tick_renderer.table  # between the fitted speeds: not the same filter
     assert not np.allclose(lin.polys[lin.index(20.0)], table.polys[table.index(20.0)])
     band = open_texture(model_path, 1000.0, drive_filter=True)
     lo, hi = plain.model.drive_band_hz
@@ -139,15 +142,11 @@ def test_station_renders_the_evaluated_method_and_the_drive_band(files):
 
 def test_station_texture_falls_silent_when_the_finger_stops(files):
     """A finger crossing at 20 mm/s for 1 s, then held still (the camera's centroid
-    exactly unchanged, as a replay or a quantised tracker gives it): the vibration is
-    there while it moves and gone within 0.5 s of the stop (it used to run on at the
-    last frame's speed for ever)."""
+    exactly unchanged, as a replay or a quantised tracker gives it): through the
+    station's speed estimate the vibration is there while it moves and gone within 0.5 s
+    of the stop."""
     src = open_texture(str(files / "lpc.json"), 1000.0)
-    out = np.empty(3000)
-    for k in range(out.size):
-        t = k / 1000.0
-        frame_t = min(np.floor(t * 30.0) / 30.0, 1.0)
-        out[k] = src.tick(t, True, 5.0 + 20.0 * frame_t, 10.0, 20.0, 1.0)[0]
+    out = _station_ticks(src, lambda t: 5.0 + 20.0 * min(t, 1.0))
     moving = np.sqrt(np.mean(out[400:1000] ** 2))
     still = np.sqrt(np.mean(out[1500:] ** 2))
     assert moving > 0 and still < 1e-3 * moving, (moving, still)
@@ -161,7 +160,7 @@ def test_lpc_options_on_another_family_are_one_line_errors(files, capsys):
     assert main(["run", "--synthetic", "circle", "--motors", "sim", "--texture",
                  str(files / "grating.json"), "--texture-method", "linear"]) == 2
     err = capsys.readouterr().err
-    assert "grating.json: --texture-method and --drive-filter apply to LPC" in err
+    assert "grating.json: --texture-method applies to LPC" in err
     assert err.count("\n") == 1
     assert main(["run", "--synthetic", "circle", "--drive-filter"]) == 2
     assert "need --texture MODEL" in capsys.readouterr().err
@@ -179,18 +178,28 @@ def test_command_line_bad_model_is_one_line_exit_2(files, tmp_path):
     assert "m.json: missing key 'mu'" in r.stderr
 
 
-def test_reset_starts_the_next_stimulus_from_no_speed(files):
-    """Switching stimuli resets an LPC model's speed estimate too: 1 s at 40 mm/s, then
-    reset and a finger at 10 mm/s: the estimate rises towards 10, never from 40."""
-    fam = open_texture(str(files / "lpc.json"), 1000.0)
-    for k in range(1000):
-        t = k / 1000.0
-        fam.tick(t, True, 40.0 * np.floor(t * 30) / 30, 0.0, 40.0, 1.0)
-    fam.reset()
-    for k in range(1000, 1060):
-        t = k / 1000.0
-        fam.tick(t, True, 10.0 * np.floor(t * 30) / 30, 0.0, 10.0, 1.0)
-        assert fam.source.speed.tick(0.0) < 10.5
+def test_switching_stimuli_starts_the_next_from_no_speed(files):
+    """Switching stimuli resets the station's speed estimate too: 1 s at 40 mm/s, then a
+    switch and a finger at 10 mm/s: the estimate rises towards 10, never from 40."""
+    from fydpad.config import StationConfig
+    from fydpad.station.chains import build_render_chain
+    from fydpad.station.render import RenderSpec
+
+    lpc = str(files / "lpc.json")
+    chain = build_render_chain(RenderSpec(texture=lpc, textures=(lpc,), motors="sim",
+                                          config=StationConfig()))
+    try:
+        for k in range(1000):
+            t = k / 1000.0
+            chain.tick(t, True, 40.0 * np.floor(t * 30) / 30, 0.0, 40.0, 1.0, 1.0, 0.6)
+        assert chain.speed.tick(0.0) > 35.0
+        chain.apply_control(1, float("nan"))
+        for k in range(1000, 1060):
+            t = k / 1000.0
+            chain.tick(t, True, 10.0 * np.floor(t * 30) / 30, 0.0, 10.0, 1.0, 1.0, 0.6)
+            assert chain.speed.tick(0.0) < 10.5
+    finally:
+        chain.safe_stop()
 
 
 def test_lpc_options_reach_lpc_stimuli_and_pass_over_the_others(files):
@@ -208,7 +217,7 @@ def test_lpc_options_reach_lpc_stimuli_and_pass_over_the_others(files):
     try:
         lpc0, grating, lpc2 = (m.family for m in chain.models)
         for fam in (lpc0, lpc2):
-            assert fam.source.renderer.method == "linear" and fam.source.renderer._sos is not None
+            assert fam.tick_renderer.method == "linear" and fam.tick_renderer._sos is not None
         assert grating.kind == "grating"
     finally:
         chain.safe_stop()
@@ -253,8 +262,6 @@ def test_tick_position_extrapolates_between_frames_and_rests_when_the_finger_sto
     """30 fps centroids of a finger at 100 mm/s that stops at 10 mm: between frames the
     position runs on along the velocity; once the centroid stays put, the position is the
     centroid itself (not 10 mm + v * hold)."""
-    from fydpad.texture.families import TickPosition
-
     pos = TickPosition()
     frame_s = 1 / 30
     out = []

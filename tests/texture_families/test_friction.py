@@ -1,4 +1,4 @@
-"""Friction playback (paper 001 IV-B): mu(x) fitted from physically generated scans and
+"""Friction playback (Jiao 2018 IV-B): mu(x) fitted from physically generated scans and
 played back by position at any speed, against the generator's ground truth."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from fydpad.texture.families import constant_stroke, load_family, read_scans
-from fydpad.texture.friction import fit_friction, parse_friction
+from fydpad.texture.families.friction import fit_friction, parse_friction
 from fydpad.texture.scan_generator import generate_scan
 from tests.texture_families.helpers import run_cli, truth_in_scan_frame
 

@@ -1,4 +1,4 @@
-"""Gratings at a vibrotactile/friction ratio (paper 002 4.2): the rendered spatial period
+"""Gratings at a vibrotactile/friction ratio (Ito 2019 4.2): the rendered spatial period
 is lambda at any speed, and the energy split follows the ratio's levels."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from fydpad.texture.families import constant_stroke, load_family
-from fydpad.texture.grating import RATIOS, GratingFamily, estimate_wavelength, level_value
+from fydpad.texture.families.grating import RATIOS, GratingFamily, estimate_wavelength, level_value
 from fydpad.texture.scan_generator import generate_scan
 from tests.texture_families.helpers import run_cli
 
@@ -116,8 +116,8 @@ def test_cli_fit_parametric_and_synth(tmp_path):
                    "--out", str(tmp_path / "v.csv")) == 0
     from vision.recording import read_csv_columns
 
-    cols = read_csv_columns(tmp_path / "v.csv", ("t_s", "vibration"))
-    assert _peak_hz(cols["vibration"], 1000.0) == pytest.approx(10.0, abs=0.2)
+    cols = read_csv_columns(tmp_path / "v.csv", ("t_s", "a"))  # the vibration, m/s^2
+    assert _peak_hz(cols["a"], 1000.0) == pytest.approx(10.0, abs=0.2)
 
 
 @pytest.mark.parametrize("profile", ["sine", "rect"])

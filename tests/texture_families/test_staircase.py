@@ -1,4 +1,4 @@
-"""The 1-up/1-down staircase of paper 001: convergence with a simulated observer, and
+"""The 1-up/1-down staircase of Jiao 2018: convergence with a simulated observer, and
 the interactive command driven by piped answers (logged as they come, resumable)."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from fydpad.texture.staircase import Staircase
+from fydpad.web.staircase import Staircase
 from tests.conftest import REPO
 
 

@@ -1,17 +1,17 @@
-"""The thesis network against the LPC family on the same held-out test thirds (issue 9).
+"""The thesis network against the LPC family on the same held-out test thirds.
 
 Both model the z acceleration of the same strokes (felt; the generator's own force
 column, ``friction=True``). The network is the
 batch variant (weights in [-0.5, 0.5]) to keep the test fast; docs/texture_mlp.md has
-the thesis settings on four textures (``python -m fydpad.texture.mlp_eval``).
+the thesis settings on four textures (``python -m benchmarks.bench_mlp_accuracy``).
 """
 
 from __future__ import annotations
 
 import pytest
 
-from fydpad.texture.mlp_eval import thesis_vs_lpc
-from fydpad.texture.mlp_train import TrainConfig
+from benchmarks.bench_mlp_accuracy import thesis_vs_lpc
+from fydpad.texture.families.mlp.train import TrainConfig
 
 
 @pytest.fixture(scope="module")
@@ -28,10 +28,7 @@ def test_neither_family_predicts_the_samples(felt):
     assert felt["r2_mlp"] <= felt["r2_linear_ceiling"] + 0.02, felt
 
 
-@pytest.mark.xfail(strict=True, reason="measured on felt's test thirds: power-spectrum "
-                   "correlation 0.073 (network) vs 0.946 (LPC), LSD 39.2 vs 2.7 dB; the "
-                   "network renders 0.24 % of the recorded RMS (the conditional mean of a "
-                   "random texture; session 14's strokes; before them 0.044 vs 0.888, 20.6 vs "
-                   "2.1 dB, 1.6 %)")
+@pytest.mark.xfail(strict=True, reason="felt: PSD correlation 0.073 (network) vs 0.946 "
+                   "(LPC), LSD 39.2 vs 2.7 dB")
 def test_network_spectrum_is_as_close_as_the_lpc_family(felt):
     assert felt["corr_mlp"] >= felt["corr_lpc"] and felt["lsd_mlp"] <= felt["lsd_lpc"], felt

@@ -1,4 +1,4 @@
-"""The thesis' network (003, section 3.2): shipped weights, features, training, model files."""
+"""The thesis' network (Lin 2016, section 3.2): shipped weights, features, training, model files."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from fydpad.errors import UserError
-from fydpad.texture.mlp import (
+from fydpad.texture.families.mlp.model import (
     THESIS_MODEL,
     MlpNet,
     bandpass_fft,
@@ -20,7 +20,7 @@ from fydpad.texture.mlp import (
     thesis_model,
     velocity_xy,
 )
-from fydpad.texture.mlp_train import TrainConfig, fit_mlp, thirds, train
+from fydpad.texture.families.mlp.train import TrainConfig, fit_mlp, thirds, train
 
 # Tables 3.2-3.4 of the thesis, transcribed here independently of the shipped file.
 VX = [0.87, -1.87, 0.13, -1.32, -1.26, 1.09, 1.91, 2.91, -1.67, -0.53]
@@ -48,7 +48,7 @@ def test_shipped_thesis_weights_reproduce_a_forward_pass_by_hand():
     want = [_by_hand(vx / 1000, vy / 1000, df) for vx, vy, df in pts]
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
     # The family's folded weights (scaling and logsig folded into tanh) agree as well.
-    from fydpad.texture.mlp_family import MlpTexture
+    from fydpad.texture.families.mlp.render import MlpTexture
 
     fam = MlpTexture(m)
     arr = np.array(pts)
@@ -135,7 +135,7 @@ def _r2_or_none(cfg):
 def test_thesis_training_rule_learns_a_known_function():
     """Per-sample steepest descent, weights in [-10, 10], 10 logsig units (the thesis'),
     at learning rate 0.3: the function of a known teacher network, on unseen inputs."""
-    from fydpad.texture.mlp_train import init_net
+    from fydpad.texture.families.mlp.train import init_net
 
     cfg = TrainConfig(max_epochs=150, learning_rate=0.3)
     assert (cfg.init_range, cfg.hidden, cfg.mode) == (10.0, 10, "online")
@@ -184,7 +184,7 @@ def test_validation_stop_keeps_the_best_validation_weights():
 
 @pytest.fixture(scope="module")
 def fitted(tmp_path_factory):
-    from fydpad.texture.mlp_eval import stroke
+    from benchmarks.bench_mlp_accuracy import stroke
 
     scans = [stroke("felt", s, 3.0, seed=1) for s in (10.0, 30.0)]
     model, rep, _ = fit_mlp(scans, TrainConfig(mode="batch", init_range=0.5, max_epochs=50))
@@ -259,7 +259,7 @@ def test_non_finite_and_unreadable_files(tmp_path):
 def test_audio_channel_at_the_sound_card_rate_is_the_network_signal(fitted):
     """render("audio") of a 48 kHz finger stream: the 1 kHz render, resampled."""
     from fydpad.texture.families import finger_from_scan, resample_finger
-    from fydpad.texture.mlp_family import MlpTexture
+    from fydpad.texture.families.mlp.render import MlpTexture
 
     scans, model, _ = fitted
     fb = finger_from_scan(scans[1])
@@ -276,8 +276,8 @@ def test_audio_channel_at_the_sound_card_rate_is_the_network_signal(fitted):
 def test_missing_speed_or_force_fails_safe(fitted):
     """NaN speed: silence; NaN force: the last reading held. Block and tick agree."""
     from fydpad.texture.families import finger_from_scan
+    from fydpad.texture.families.mlp.render import MlpTexture
     from fydpad.texture.family import FingerBlock
-    from fydpad.texture.mlp_family import MlpTexture
 
     scans, model, _ = fitted
     fb = finger_from_scan(scans[1])

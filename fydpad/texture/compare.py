@@ -1,4 +1,4 @@
-"""Cross-family identification (issue 9): one confusion matrix per family, same scans.
+"""Cross-family identification: one confusion matrix per family, same scans.
 
 Each family is identified on the signal it renders, against the same signal observed
 in the scan:
@@ -18,13 +18,21 @@ bands are what identifies a surface.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
+from dataclasses import replace
 
 import numpy as np
 
+from fydpad.errors import UserError
+from fydpad.motors.base import MotorConfig
+from fydpad.motors.drive import build_drive
+from fydpad.motors.sim import indenter_press
+from fydpad.softness import SPECIMENS, fit_through_origin
 from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import BAND_HZ, welch_psd
-from fydpad.texture.families import finger_from_scan
-from fydpad.texture.identify import Identification
+from fydpad.texture.families import get_kind
+from fydpad.texture.families.friction import friction_coefficient
+from fydpad.texture.family import finger_from_scan
+from fydpad.texture.identify import DISTANCES, Identification
 
 #: Per family: (the channel rendered, the band compared in Hz, the scan's observable).
 OBSERVABLES = {"friction": ("tension", (2.0, 100.0), "friction")}
@@ -46,8 +54,6 @@ def shape_distance_db(p1: np.ndarray, p2: np.ndarray, f: np.ndarray | None = Non
 def observe(scan, what: str, highpass_hz: float = 10.0) -> np.ndarray:
     """The scan's signal a family is compared with (see the module docstring)."""
     if what == "friction":
-        from fydpad.texture.friction import friction_coefficient
-
         ff = getattr(scan, "friction_n", None)
         if ff is None or scan.force_n is None:
             raise ValueError(f"{scan.path}: no friction_n/force_n columns")
@@ -57,36 +63,60 @@ def observe(scan, what: str, highpass_hz: float = 10.0) -> np.ndarray:
 
 
 def identify_families(models: Sequence, labels: Sequence[str], scans: Sequence, *,
-                      highpass_hz: float = 10.0, seed: int = 0,
-                      wrap: Callable[[Iterable], Iterable] = lambda it: it
-                      ) -> Identification:
+                      seed: int = 0, distance: str = "shape",
+                      wrap: Callable[[Iterable], Iterable] = lambda it: it,
+                      model_names: Sequence[str] | None = None) -> Identification:
     """Assign each scan to the nearest model (all of one family, one per surface).
 
-    A family that synthesizes noise (the LPC family, ``mlp_lsf`` through it, a HaTT
-    model: those with a ``seed``) draws it from ``seed`` for every scan, so a run is
-    reproducible; built without one, each run drew its own and close calls flipped."""
+    ``distance``: "shape" (the module docstring; over each scan's moving samples) or
+    :mod:`fydpad.texture.identify`'s "bands"/"lsd" (levels of the vibration against the
+    acceleration high-passed as the family's fit, over the samples each model covers).
+    A family that synthesizes noise (LPC, HaTT: a ``seed`` parameter) draws it from
+    ``seed`` for every scan, so a run is reproducible."""
+    if distance != "shape" and distance not in DISTANCES:
+        raise ValueError(f"distance {distance!r}: expected shape or one of "
+                         f"{', '.join(DISTANCES)}")
     names = list(dict.fromkeys(list(labels) + [s.surface for s in scans]))
+    where = list(model_names) if model_names is not None else list(labels)
     conf = np.zeros((len(names), len(names)), int)
     assignments = []
-    channel, band, what = OBSERVABLES.get(models[0].kind, DEFAULT_OBSERVABLE)
+    channel, band, what = (OBSERVABLES.get(models[0].kind, DEFAULT_OBSERVABLE)
+                           if distance == "shape" else DEFAULT_OBSERVABLE)
     for scan in wrap(scans):
         finger = finger_from_scan(scan)
-        mask = scan.speed_mm_s > 1.0
-        f, pr = welch_psd(observe(scan, what, highpass_hz), scan.fs_hz, mask)
-        sel = (f >= band[0]) & (f <= min(band[1], scan.fs_hz / 2))
         dists = []
-        for m in models:
-            if hasattr(m, "seed"):
-                m.seed = seed
+        for m, name in zip(models, where, strict=True):
+            mask = scan.speed_mm_s > 1.0
+            if distance != "shape":
+                covered = m.covers(scan.speed_mm_s)
+                mask = covered if covered.sum() >= scan.fs_hz / 2 else mask
+            try:
+                f, pr = welch_psd(observe(scan, what, m.highpass_hz), scan.fs_hz, mask)
+            except ValueError as exc:
+                raise UserError(f"{scan.path}: too short to identify ({scan.t_s.size} rows, "
+                                f"{int(mask.sum())} of them scanning by column "
+                                f"'speed_mm_s'): {exc}") from None
+            if "seed" in m.parameters:
+                m.set_parameter("seed", seed)
             m.reset()
-            syn = m.render(finger, channel)
-            _, ps = welch_psd(syn - np.mean(syn), scan.fs_hz, mask)
-            dists.append(shape_distance_db(pr[sel], ps[sel], f[sel]))
+            try:
+                syn = m.render(finger, channel)
+            except ValueError as exc:
+                raise UserError(f"{scan.path}: {name}: {exc}") from None
+            if distance == "shape":
+                _, ps = welch_psd(syn - np.mean(syn), scan.fs_hz, mask)
+                sel = (f >= band[0]) & (f <= min(band[1], scan.fs_hz / 2))
+                dists.append(shape_distance_db(pr[sel], ps[sel], f[sel]))
+            else:
+                _, ps = welch_psd(syn, scan.fs_hz, mask)
+                dists.append(DISTANCES[distance](f, pr, ps))
         j = int(np.argmin(dists))
         conf[names.index(scan.surface), names.index(labels[j])] += 1
+        key = "shape_distance_db" if distance == "shape" else "distance_db"
         assignments.append({"scan": scan.path, "label": scan.surface, "predicted": labels[j],
-                            "shape_distance_db": {lab: round(d, 3) for lab, d in
-                                                  zip(labels, dists, strict=True)}})
+                            "distance": distance,
+                            key: {lab: round(d, 3) for lab, d in
+                                  zip(labels, dists, strict=True)}})
     rate = float(np.trace(conf) / max(1, conf.sum()))
     return Identification(names, conf.tolist(), rate, assignments)
 
@@ -101,8 +131,6 @@ def by_surface(scans: Sequence) -> dict[str, list]:
 
 def fit_per_surface(kind: str, train: dict[str, list], **options) -> tuple[list, list[str]]:
     """One model of ``kind`` per surface (fitted in memory, as ``fit --kind`` would)."""
-    from fydpad.texture.families import get_kind
-
     k = get_kind(kind)
     models, labels = [], []
     for label, scans in train.items():
@@ -134,13 +162,10 @@ def compare_families(train: Sequence, test: Sequence, kinds: Sequence[str],
     return out
 
 
-# --------------------------------------------------------------- paper 004 Table I
+# --------------------------------------------------------------- Bianchi 2015 Table I
 def press_stiffness(drive, k_n_per_mm: float, rng: np.random.Generator) -> float:
     """Render ``k_n_per_mm`` on the simulated fabric and measure it as the paper's
     indenter does: press 0.5-10 mm (noisy force and depth), fit F = k delta."""
-    from fydpad.motors.sim import indenter_press
-    from fydpad.softness import fit_through_origin
-
     drive.set_stiffness(k_n_per_mm)
 
     def hold(ticks: int = 5) -> None:
@@ -154,7 +179,7 @@ def press_stiffness(drive, k_n_per_mm: float, rng: np.random.Generator) -> float
 
 def specimen_experiment(kind: str, train: dict[str, list], test: dict[str, list],
                         reference: dict[str, list], trials: int = 3, seed: int = 0) -> dict:
-    """Paper 004's 2 x 2 (S1/S2 x R1/R2, specimens SS1..SS4) with the pad simulated.
+    """Bianchi 2015's 2 x 2 (S1/S2 x R1/R2, specimens SS1..SS4) with the pad simulated.
 
     Each trial renders a specimen: its roughness by the family's model of R1 or R2 along
     a test stroke (vibration channel), its softness by the simulated motors holding the
@@ -164,10 +189,6 @@ def specimen_experiment(kind: str, train: dict[str, list], test: dict[str, list]
     reference spectrum. With the stiffness feature the nearest specimen uses both,
     each distance scaled by its spread over the specimens.
     """
-    from fydpad.motors.drive import build_drive
-    from fydpad.softness import SPECIMENS
-    from fydpad.texture.families import finger_from_scan
-
     names = sorted(SPECIMENS)
     rough = {n: "R1" if abs(SPECIMENS[n].period_mm - 3.90) < 0.01 else "R2" for n in names}
     models, labels = fit_per_surface(kind, {r: train[r] for r in ("R1", "R2")})
@@ -218,9 +239,5 @@ def specimen_experiment(kind: str, train: dict[str, list], test: dict[str, list]
     }
 
 
-def _sim_motors():
-    from dataclasses import replace
-
-    from fydpad.motors.base import MotorConfig
-
+def _sim_motors() -> MotorConfig:
     return replace(MotorConfig(), backend="sim")

@@ -1,6 +1,6 @@
 """The thesis network as a texture family (kind ``"mlp"``): render and 1 kHz tick.
 
-Per sample: (v_x, v_y, Δf) from the finger state (``fydpad.texture.mlp``), the network's
+Per sample: (v_x, v_y, Δf) from the finger state (:mod:`.model`), the network's
 normal acceleration, a causal first-order DC blocker at the training band's lower edge
 (5 Hz: the network was trained on 5-500 Hz data, but its output at rest is a constant
 that would offset the motors' PWM), then gated to 0 without contact or below
@@ -16,26 +16,39 @@ inputs: it renders only what velocity and force fluctuation determine (docs/text
 from __future__ import annotations
 
 import math
+from dataclasses import fields
+from fractions import Fraction
+from typing import Any
 
 import numpy as np
 import scipy.signal as ss
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.family import FingerBlock, hold_finite
-from fydpad.texture.mlp import MlpModel, delta_force, velocity_xy
+from fydpad.texture.families.mlp.model import (
+    MlpModel,
+    delta_force,
+    model_to_json,
+    parse_mlp,
+    velocity_xy,
+)
+from fydpad.texture.families.mlp.train import TrainConfig, fit_mlp
+from fydpad.texture.family import FamilyBase, FingerBlock, Kind, hold_finite, resample_finger
 
 Array = NDArray[np.float64]
 
 
-class MlpTexture:
-    """A fitted :class:`MlpModel` behind the ``TextureFamily`` interface."""
+class MlpTexture(FamilyBase):
+    """A fitted :class:`MlpModel` behind the texture-family contract."""
 
     kind = "mlp"
     tick_channels = ("vibration",)
+    needs = frozenset({"speed_mm_s", "x_mm", "y_mm", "force_change"})
 
     def __init__(self, model: MlpModel, *, still_mm_s: float = 1.0, gain: float = 1.0):
+        super().__init__()
         self.model = model
+        self.surface = model.surface
         fs = float(model.fs_hz)
         self.channels = {"vibration": fs, "audio": fs}
         self.still_mm_s = float(still_mm_s)
@@ -70,8 +83,7 @@ class MlpTexture:
         return self._c + z @ self._w2
 
     def render(self, finger: FingerBlock, channel: str = "vibration") -> Array:
-        if channel not in self.channels:
-            raise UserError(f"an mlp model renders {', '.join(self.channels)}; not {channel!r}")
+        self.check_channel(channel)
         fs = self.model.fs_hz
         if abs(finger.fs_hz - fs) > 1e-6 * fs:
             return self._render_other_rate(finger)
@@ -98,10 +110,6 @@ class MlpTexture:
         """A finger stream at another rate (e.g. the audio card's): the network runs at
         its own rate (its Δf and DC blocker are defined there), the output is brought to
         the stream's rate by a polyphase filter (per block: offline use)."""
-        from fractions import Fraction
-
-        from fydpad.texture.families import resample_finger
-
         n = finger.t_s.size
         if n < 2:
             return np.zeros(n)
@@ -142,3 +150,26 @@ class MlpTexture:
         self._hp_x, self._hp_y = r, y
         on = contact and speed_mm_s >= self.still_mm_s
         return (self.gain * y if on else 0.0,)
+
+
+def _from_json(data: dict[str, Any], where: str) -> MlpTexture:
+    return MlpTexture(parse_mlp(data, where))
+
+
+def _fit(scans: list, **options: Any) -> dict[str, Any]:
+    """``fit_family("mlp", scans, seed=.., learning_rate=.., mode=.., ...)``."""
+    if not scans:
+        raise UserError("fit --kind mlp: give the scans")
+    names = {f.name for f in fields(TrainConfig)}
+    surface = options.pop("surface", None)
+    bad = sorted(set(options) - names)
+    if bad:
+        raise UserError(f"mlp fit: unknown option(s) {', '.join(bad)} (known: "
+                        f"{', '.join(sorted(names | {'surface'}))})")
+    model, _, _ = fit_mlp(scans, TrainConfig(**options), surface=surface)
+    return model_to_json(model)
+
+
+KIND = Kind("mlp", _from_json, _fit,
+            "3-10-1 network from (v_x, v_y, delta f) to the normal acceleration, Lin 2016",
+            fit_options=("surface",))

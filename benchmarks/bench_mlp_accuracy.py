@@ -1,18 +1,14 @@
-"""Figures of docs/texture_mlp.md: the networks against the LPC family on held-out data.
+"""Accuracy of the network of Lin 2016 against the LPC family (the baseline, measured
+in the same run) on held-out data: the figures of docs/texture_mlp.md.
 
-``python -m fydpad.texture.mlp_eval`` prints both tables (about 3 minutes);
-``python -m fydpad.texture.mlp_eval --plot DIR`` draws the spectra of docs/texture_mlp.md;
-``--identify`` gives the networks' identification rates (``families_compare``).
+``python benchmarks/bench_mlp_accuracy.py`` prints the table (about 3 minutes);
+``--plot DIR`` draws the spectra; ``--identify`` gives the network's identification
+rates (``fydpad.texture.compare``).
 
-1. the thesis network (fit_mlp) against the LPC family on the test thirds of the same
-   strokes, both modelling the z acceleration: R^2 (sample by sample) and the
-   power-spectrum correlation and log-spectral distance (``evaluate.compare``);
-2. the spectrum network (mlp_lsf) against the LPC family's interpolation on held-out
-   strokes at a modelled speed (20 mm/s) and between modelled speeds (25 mm/s), on the
-   LPC family's own signal (DFT321), with the ceiling of a second recording.
-
-The LPC family here is the pooled per-speed fit (``fit_texture(..., free_form=None)``, the
-paper's model), as the figures of docs/texture_mlp.md were measured.
+The thesis network (fit_mlp) and the LPC family on the test thirds of the same strokes,
+both modelling the z acceleration: R^2 (sample by sample), the power-spectrum
+correlation and the log-spectral distance (``evaluate.compare``). The LPC family here
+is the pooled per-speed fit (``fit_texture(..., free_form=None)``, Bianchi 2015's model).
 
 Force: the generator's own ``force_n`` (``friction=True``); for comparison also
 ``synthetic_force``, whose load follows the surface profile (the network's best case).
@@ -29,11 +25,10 @@ import scipy.signal as ss
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.evaluate import compare, compare_recordings, evaluate_scan, evaluation_mask
+from fydpad.texture.evaluate import compare, evaluation_mask
+from fydpad.texture.families.mlp.render import MlpTexture
+from fydpad.texture.families.mlp.train import TrainConfig, fit_mlp, scan_features, thirds
 from fydpad.texture.fit import fit_texture
-from fydpad.texture.mlp_family import MlpTexture
-from fydpad.texture.mlp_lsf import SpectrumTrainConfig, fit_spectrum_net
-from fydpad.texture.mlp_train import TrainConfig, fit_mlp, scan_features, thirds
 from fydpad.texture.scan_generator import DX_MM, TEXTURES, generate_scan, surface_profile
 from fydpad.texture.scan_io import Scan
 
@@ -159,37 +154,8 @@ def _synth(model, speed: Array, seed: int) -> Array:
         return synthesize(model, speed, seed=seed, method="lsf")
 
 
-def spectrum_vs_lpc(texture: str, seconds: float = 8.0, speeds: Sequence[float] = SPEEDS,
-                    cfg: SpectrumTrainConfig | None = None,
-                    held_speeds: Sequence[float] = (20.0, 25.0), order: int = 100
-                    ) -> list[dict[str, float | str]]:
-    """The spectrum network and the LPC family, same training strokes, held-out strokes."""
-    scans = [generate_scan(texture, s, seconds, seed=1) for s in speeds]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        # The paper's model: the per-speed LPC of the whole signal (no lines).
-        lpc, _ = fit_texture(scans, speeds_mm_s=speeds, free_form=None, lines="off")
-        net = fit_spectrum_net(scans, order=order,
-                               cfg=cfg or SpectrumTrainConfig()).texture_model()
-        rows = []
-        for v in held_speeds:
-            held = generate_scan(texture, v, seconds, seed=100)
-            second = generate_scan(texture, v, seconds, seed=200)
-            mask = evaluation_mask(held, lpc)
-            ceil = compare_recordings(held, second, lpc, mask)
-            c_lpc, _ = evaluate_scan(lpc, held, mask=mask, method="lsf")
-            c_str, _ = evaluate_scan(lpc, held, mask=mask, method="stretch")
-            c_net, _ = evaluate_scan(net, held, mask=mask, method="lsf")
-            rows.append({"texture": texture, "speed_mm_s": v, "order": order,
-                         "corr_lpc": c_lpc.psd_correlation, "lsd_lpc": c_lpc.lsd_db,
-                         "corr_stretch": c_str.psd_correlation, "lsd_stretch": c_str.lsd_db,
-                         "corr_net": c_net.psd_correlation, "lsd_net": c_net.lsd_db,
-                         "lsd_ceiling": ceil.lsd_db})
-    return rows
-
-
 def plot_figures(out_dir: str) -> list[str]:
-    """Spectra a person would rather look at: ``mlp_thesis_felt.png``, ``mlp_lsf_R1_25.png``."""
+    """The spectra of ``mlp_thesis_felt.png``: recorded against each family's."""
     from pathlib import Path
 
     from fydpad.texture.evaluate import welch_psd
@@ -215,21 +181,6 @@ def plot_figures(out_dir: str) -> list[str]:
         ("felt 20 mm/s, a_z, test third: thesis network", f, pr, pn),
         ("felt 20 mm/s, a_z, test third: LPC family", f, pr, pl)],
         "recorded (blue) against model (orange)"))]
-    train = [generate_scan("R1", v, 8.0, seed=1) for v in SPEEDS]
-    held = generate_scan("R1", 25.0, 8.0, seed=100)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        lpc, _ = fit_texture(train, speeds_mm_s=SPEEDS, free_form=None)
-        netm = fit_spectrum_net(train).texture_model()
-        mask = evaluation_mask(held, lpc)
-        panels = []
-        for lab, m, meth in (("spectrum network", netm, "lsf"), ("LPC, LSF interp.", lpc, "lsf"),
-                             ("LPC, stretch interp.", lpc, "stretch")):
-            c, d = evaluate_scan(m, held, mask=mask, method=meth)
-            panels.append((f"R1 25 mm/s held out: {lab} (LSD {c.lsd_db:.2f} dB)", d["f_hz"],
-                           d["recorded"], d["synthesized"]))
-    paths.append(str(plot_spectra(out / "mlp_lsf_R1_25.png", panels,
-                                  "between modelled speeds (DFT321)")))
     return paths
 
 
@@ -239,9 +190,9 @@ IDENTIFY_SURFACES = ("R1", "R2", "canvas", "corduroy", "cork", "felt", "sandpape
 
 def identification() -> list[tuple[str, dict, float]]:
     """docs/texture_families.md's comparison (same surfaces, strokes and identifier:
-    ``families_compare``) for the networks: one 6 s training stroke at 20 mm/s per
+    ``fydpad.texture.compare``) for the networks: one 6 s training stroke at 20 mm/s per
     surface (seed 1), three test strokes each (seeds 101-103)."""
-    from fydpad.texture.families_compare import by_surface, fit_per_surface, identify_families
+    from fydpad.texture.compare import by_surface, fit_per_surface, identify_families
 
     train = [generate_scan(n, 20.0, 6.0, seed=1, friction=True) for n in IDENTIFY_SURFACES]
     test = [generate_scan(n, 20.0, 6.0, seed=s, friction=True) for n in IDENTIFY_SURFACES
@@ -250,7 +201,7 @@ def identification() -> list[tuple[str, dict, float]]:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for kind, opts in (("mlp", {"learning_rate": 0.3}),
-                           ("mlp", {"mode": "batch", "init_range": 0.5}), ("mlp_lsf", {})):
+                           ("mlp", {"mode": "batch", "init_range": 0.5})):
             models, labels = fit_per_surface(kind, by_surface(train), **{kind: opts})
             out.append((kind, opts, identify_families(models, labels, test).rate))
     return out
@@ -268,7 +219,7 @@ def main() -> None:
             print(f"{kind} {opts}: identification rate {rate:.3f} over "
                   f"{3 * len(IDENTIFY_SURFACES)} strokes")
         return
-    print("1. thesis network (3-10-1) vs LPC (LSF interpolation), z acceleration, test thirds")
+    print("thesis network (3-10-1) vs LPC (LSF interpolation), z acceleration, test thirds")
     print(f"{'texture':9s} {'force':9s} {'stop':>10s} {'ep':>4s} {'R2 mlp':>8s} {'R2 lpc':>8s} "
           f"{'R2 lin':>7s} {'corr mlp':>8s} {'corr lpc':>8s} {'LSD mlp':>8s} {'LSD lpc':>8s} "
           f"{'rms mlp':>8s}")
@@ -285,16 +236,6 @@ def main() -> None:
                       f"{r['corr_mlp']:8.3f} {r['corr_lpc']:8.3f} {r['lsd_mlp']:8.2f} "
                       f"{r['lsd_lpc']:8.2f} {r['rms_ratio_mlp']:8.3f}")
     print("   * batch steepest descent, weights initialised in [-0.5, 0.5] (not the thesis')")
-    print("2. spectrum network vs the LPC family, DFT321, held-out strokes")
-    print("   (texture/order of the network; the LPC family is order 200)")
-    print(f"{'texture':8s} {'mm/s':>5s} {'corr lsf':>8s} {'corr str':>8s} {'corr net':>8s} "
-          f"{'LSD lsf':>8s} {'LSD str':>8s} {'LSD net':>8s} {'ceiling':>8s}")
-    for name, order in [(n, o) for o in (100, 200) for n in TEXTURES_EVAL]:
-        for r in spectrum_vs_lpc(name, order=order):
-            print(f"{name + f'/{order}':8s} {r['speed_mm_s']:5g} {r['corr_lpc']:8.3f} "
-                  f"{r['corr_stretch']:8.3f} "
-                  f"{r['corr_net']:8.3f} {r['lsd_lpc']:8.2f} {r['lsd_stretch']:8.2f} "
-                  f"{r['lsd_net']:8.2f} {r['lsd_ceiling']:8.2f}")
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""The neural-network texture model of thesis 003 (section 3.2, Tables 3.1-3.4).
+"""The neural-network texture model of Lin 2016 (section 3.2, Tables 3.1-3.4).
 
 A 3-10-1 network maps the finger's velocity and force change to the normal
 acceleration of the texture:
@@ -40,7 +40,7 @@ FORMAT_VERSION = 1
 BAND_HZ = (5.0, 500.0)  # thesis 3.2: hand jitter below 5 Hz, insensitivity above 500 Hz
 DF_TAU_S = 0.05
 INPUTS = ("vx_mm_s", "vy_mm_s", "df_n")
-THESIS_MODEL = Path(__file__).with_name("data") / "thesis_mlp.json"
+THESIS_MODEL = Path(__file__).resolve().parents[2] / "data" / "thesis_mlp.json"
 
 
 # ------------------------------------------------------------------ features
@@ -281,52 +281,3 @@ def load_mlp(path: str | Path) -> MlpModel:
 def thesis_model() -> MlpModel:
     """The thesis' trained weights (Tables 3.2-3.4, output bias 0.11); see its file."""
     return load_mlp(THESIS_MODEL)
-
-
-# ------------------------------------------------------------------ registry
-def _family_from_json(data: dict[str, Any], where: str) -> Any:
-    from fydpad.texture.mlp_family import MlpTexture
-
-    return MlpTexture(parse_mlp(data, where))
-
-
-def _fit_json(scans: list, **options: Any) -> dict[str, Any]:
-    """``fit_family("mlp", scans, seed=.., learning_rate=.., mode=.., ...)``."""
-    from dataclasses import fields
-
-    from fydpad.texture.mlp_train import TrainConfig, fit_mlp
-
-    names = {f.name for f in fields(TrainConfig)}
-    surface = options.pop("surface", None)
-    bad = sorted(set(options) - names)
-    if bad:
-        raise UserError(f"mlp fit: unknown option(s) {', '.join(bad)} (known: "
-                        f"{', '.join(sorted(names | {'surface'}))})")
-    model, _, _ = fit_mlp(scans, TrainConfig(**options), surface=surface)
-    return model_to_json(model)
-
-
-def _register() -> None:
-    from fydpad.texture.families import Kind, register_kind
-
-    register_kind(Kind("mlp", _family_from_json, _fit_json,
-                       "3-10-1 network from (v_x, v_y, delta f) to the normal acceleration "
-                       "(thesis 003)"))
-    register_kind(Kind("mlp_lsf", _lsf_from_json, _lsf_fit,
-                       "network from (speed, force) to the LPC model's line spectral "
-                       "frequencies and variance, rendered by eq. 5"))
-
-
-def _lsf_from_json(data: dict[str, Any], where: str) -> Any:
-    from fydpad.texture.mlp_lsf import _family_from_json as from_json
-
-    return from_json(data, where)
-
-
-def _lsf_fit(scans: list, **options: Any) -> dict[str, Any]:
-    from fydpad.texture.mlp_lsf import _fit_json as fit
-
-    return fit(scans, **options)
-
-
-_register()

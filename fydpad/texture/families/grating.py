@@ -1,4 +1,4 @@
-"""Vibrotactile/friction gratings at a composition ratio (paper 002, section 4.2).
+"""Vibrotactile/friction gratings at a composition ratio (Ito 2019, section 4.2).
 
     F_v = A sin(2 pi x / lambda)                       (eq. 1, voice coil, normal)
     V_e = B cos(2 pi x / (2 lambda))                   (eq. 2, electrostatic voltage)
@@ -6,15 +6,15 @@
 
 A ratio v:f (0:10 ... 10:0) picks level v of the vibrotactile stimulus and level f of
 the friction one. Levels are linear in force between level 1 (just perceivable) and
-level 10 (realistic alone); level 0 is off (002 4.2.3): A_L = A_1 + (L-1)(A_10-A_1)/9,
+level 10 (realistic alone); level 0 is off (Ito 2019 4.2.3): A_L = A_1 + (L-1)(A_10-A_1)/9,
 and the friction modulation mu k B_L^2 / 2 likewise, so B_L = sqrt(2 F_L / (mu k)).
-8:2 is the default for lambda >= 1 mm (002 Fig. 5: most chosen at 1.0-3.0 mm); below,
+8:2 is the default for lambda >= 1 mm (Ito 2019 Fig. 5: most chosen at 1.0-3.0 mm); below,
 6:4 (the most chosen at 0.5 mm, not significantly).
 
 Rectangular profile (the FYD-pad specimens R1 3.90 mm and R2 2.15 mm, ridge 90 %):
 the sine is replaced by p(x) = 2 (r(x) - d), r the 0/1 ridge indicator (raised-cosine
 edges ``edge_mm`` wide), d the ridge fraction: the same peak-to-peak 2 as the sine, zero
-mean. The friction follows the sine's quarter-period lead (002 4.2.2: friction goes with
+mean. The friction follows the sine's quarter-period lead (Ito 2019 4.2.2: friction goes with
 the gradient): V_e^2 = B^2 (1 + p(x + lambda/4)) / 2.
 
 Channels: ``vibration`` (FYD-pad, 1 kHz) = g_v F_v / A_10 in m/s^2; ``tension`` (FYD-pad)
@@ -30,16 +30,18 @@ from typing import Any
 import numpy as np
 
 from fydpad.errors import UserError
-from fydpad.texture.families import (
+from fydpad.texture.dft321 import preprocess
+from fydpad.texture.family import (
+    Array,
+    FamilyBase,
+    FingerBlock,
     Kind,
-    _check_channel,
-    register_kind,
+    TickPosition,
     require,
     require_version,
 )
-from fydpad.texture.family import Array, FingerBlock, TickPosition
 
-KIND = "grating"
+NAME = "grating"
 FORMAT_VERSION = 1
 PROFILES = ("sine", "rect")
 RATIOS = tuple((v, 10 - v) for v in range(11))  # 0:10 ... 10:0
@@ -50,7 +52,7 @@ def default_ratio(wavelength_mm: float) -> tuple[int, int]:
 
 
 def level_value(level: int, at_1: float, at_10: float) -> float:
-    """Linear in force between level 1 and level 10; level 0 is off (002 4.2.3)."""
+    """Linear in force between level 1 and level 10; level 0 is off (Ito 2019 4.2.3)."""
     if not 0 <= level <= 10:
         raise ValueError(f"level must be 0..10, got {level}")
     return 0.0 if level == 0 else at_1 + (level - 1) * (at_10 - at_1) / 9.0
@@ -88,11 +90,12 @@ def profile_scalar(x_mm: float, wavelength_mm: float, ridge_fraction: float,
     return 2.0 * (step(ph) - step(ph - d) - ridge_fraction)
 
 
-class GratingFamily:
+class GratingFamily(FamilyBase):
     """A grating rendered by position at a vibrotactile:friction ratio."""
 
-    kind = KIND
+    kind = NAME
     tick_channels = ("vibration", "tension")
+    needs = frozenset({"x_mm"})
 
     def __init__(self, wavelength_mm: float, *, profile: str = "sine",
                  ridge_fraction: float = 0.9, ratio: tuple[int, int] | None = None,
@@ -101,6 +104,7 @@ class GratingFamily:
                  mu: float = 0.5, load_n: float = 0.5, k_n_per_v2: float = 2e-6,
                  vibration_gain_m_s2: float = 2.0, tension_gain: float = 1.0,
                  edge_mm: float = 0.1, audio_hz: float = 48_000.0, surface: str = ""):
+        super().__init__()
         if not wavelength_mm > 0:
             raise ValueError("wavelength must be positive")
         if profile not in PROFILES:
@@ -156,7 +160,7 @@ class GratingFamily:
 
     # ------------------------------------------------------------------ interface
     def render(self, finger: FingerBlock, channel: str) -> Array:
-        _check_channel(self, channel)
+        self.check_channel(channel)
         c = finger.contact
         x = np.where(c, finger.x_mm, 0.0)
         if channel == "vibration":
@@ -199,8 +203,6 @@ def estimate_wavelength(scans: list, band_mm: tuple[float, float] = (0.3, 10.0),
     (a harmonic sum: the rectangle's lines, weighted by the tip's d^2/dt^2, need not
     have the fundamental strongest); then the longest multiple of it whose in-between
     lines also stand 10 dB out."""
-    from fydpad.texture.dft321 import preprocess
-
     logs = []
     for sc in scans:
         x = getattr(sc, "x_mm", None)
@@ -256,6 +258,8 @@ def fit_grating(scans: list | None = None, *, wavelength_mm: float | None = None
                 surface: str | None = None, **extra: Any) -> dict[str, Any]:
     """A grating model file (JSON dict): parametric, lambda given or estimated from scans."""
     how = "given"
+    if wavelength_mm is not None and not (wavelength_mm > 0 and math.isfinite(wavelength_mm)):
+        raise UserError("--wavelength-mm must be positive")
     if wavelength_mm is None:
         if not scans:
             raise UserError("fit --kind grating: give --wavelength-mm or scans to estimate it")
@@ -265,7 +269,7 @@ def fit_grating(scans: list | None = None, *, wavelength_mm: float | None = None
                         ratio=ratio, vib_levels_n=vib_levels_n,
                         friction_levels_n=friction_levels_n)
     return {
-        "format": "fydpad-texture-model", "kind": KIND, "format_version": FORMAT_VERSION,
+        "format": "fydpad-texture-model", "kind": NAME, "format_version": FORMAT_VERSION,
         "surface": surface or (scans[0].surface if scans else f"grating_{wavelength_mm:g}mm"),
         "wavelength_mm": float(wavelength_mm), "profile": profile,
         "ridge_fraction": ridge_fraction, "ratio": list(fam.ratio),
@@ -287,7 +291,7 @@ def _pair(d: dict, key: str, where: str) -> tuple[float, float]:
 
 def parse_grating(data: dict[str, Any], where: str) -> GratingFamily:
     """Check a grating model file; errors name the file and the key."""
-    require_version(data, where, KIND, FORMAT_VERSION)
+    require_version(data, where, NAME, FORMAT_VERSION)
     lam = float(require(data, "wavelength_mm", where))
     if not lam > 0 or not math.isfinite(lam):
         raise UserError(f"{where}: key 'wavelength_mm' must be positive")
@@ -313,5 +317,12 @@ def parse_grating(data: dict[str, Any], where: str) -> GratingFamily:
         tension_gain=float(pad.get("tension_gain", 1.0)), surface=str(data.get("surface", "")))
 
 
-register_kind(Kind(KIND, parse_grating, fit_grating,
-                   "vibrotactile/friction grating at a ratio, paper 002 4.2"))
+def describe_fit(data: dict[str, Any], where: str) -> list[str]:
+    return [f"grating {data['profile']} lambda {data['wavelength_mm']:.3f} mm "
+            f"({data['provenance']['wavelength']}), ratio {data['ratio'][0]}:{data['ratio'][1]}"]
+
+
+KIND = Kind(NAME, parse_grating, fit_grating,
+            "vibrotactile/friction grating at a ratio, Ito 2019 4.2",
+            fit_options=("wavelength_mm", "profile", "ratio", "surface"),
+            describe=describe_fit)

@@ -1,4 +1,4 @@
-"""Training the thesis' 3-10-1 texture network (thesis 003, section 3.2, Fig. 3.18).
+"""Training the thesis' 3-10-1 texture network (Lin 2016, section 3.2, Fig. 3.18).
 
 Settings (``TrainConfig`` defaults are the thesis'): every weight and bias drawn
 uniformly in [-10, 10]; learning rate 0.9; back-propagation by steepest descent on the
@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.mlp import (
+from fydpad.texture.families.mlp.model import (
     BAND_HZ,
     DF_TAU_S,
     MlpModel,

@@ -19,8 +19,7 @@ per step, documented in docs/texture.md).
   linear in the state [y history, e history, low-pass state] and the R noise samples,
   so it is one precomputed matrix per grid point: one ``np.dot`` a tick into views
   made in ``prepare`` (the matrix rows and the noise block are indexed through lists of
-  views), no array allocation; the speed estimate (``CentroidSpeed``) still makes Python
-  floats (32 B median transient per tick, tracemalloc). The state is physical (past
+  views), no array allocation. The state is physical (past
   outputs and excitations of the recursion), so a model change carries it as the
   toolkit does, without a click.
 - ``render`` (offline): the same recursion by ``lfilter`` over runs of one grid point
@@ -28,10 +27,9 @@ per step, documented in docs/texture.md).
   that divides the model rate, the same low-pass (state carried) and every R-th sample;
   to any other rate, ``resample_poly`` of the block.
 
-Speed from the contact centroid as the LPC family's ``TextureSource`` (differentiated,
-10 Hz low-pass, every tick); force from the tick's load-cell argument (a missing
-reading holds the last one; before any, the median model force); a centroid unchanged
-for 0.25 s is a finger at rest (speed 0). Silent without
+Speed is the station's one speed input (the centroid's, low-passed at 10 Hz every
+tick); force the tick's load-cell argument (a missing reading holds the last one;
+before any, the median model force). Silent without
 contact or below ``still_mm_s``, through a 5 ms one-pole ramp; above ``maxSpeed`` or
 ``maxForce`` clamped (warned once), as the toolkit saturates.
 """
@@ -49,7 +47,7 @@ import scipy.signal as ss
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.family import FingerBlock, hold_finite
+from fydpad.texture.family import FamilyBase, FingerBlock, Kind, hold_finite
 from fydpad.texture.penn import PennModelSet, barycentric_weights, read_penn
 
 Array = NDArray[np.float64]
@@ -93,25 +91,26 @@ def decimation_sos(ratio: int, rate_hz: float) -> Array:
     return ss.ellip(order, 0.1, 60.0, wn, fs=fs, output="sos")
 
 
-class PennTexture:
-    """A HaTT model set behind the ``TextureFamily`` interface (module docstring)."""
+class PennTexture(FamilyBase):
+    """A HaTT model set behind the texture-family contract (module docstring); its
+    parameter ``seed`` draws the excitation noise."""
 
     kind = "penn"
     tick_channels = ("vibration",)
+    needs = frozenset({"speed_mm_s", "force_n"})
 
     def __init__(self, ms: PennModelSet, path: str | None = None, *, rate_hz: float = 1000.0,
                  seed: int | None = None, still_mm_s: float = 1.0, ramp_s: float = 0.005,
                  grid: tuple[int, int] = (64, 32)):
+        super().__init__()
         self.ms = ms
         self.path = path or ms.name
         self.surface = ms.name
         self.rate_hz = float(rate_hz)
         self.channels = {"vibration": self.rate_hz}
-        self.seed = seed
+        self.parameters = {"seed": seed}
         self.still_mm_s = float(still_mm_s)
         self.ramp_s = float(ramp_s)
-        #: A centroid unchanged this long (s) is a finger at rest (TickPosition's rule).
-        self.stop_s = 0.25
         self.p = ms.ar_lsf.shape[1]
         self.q = ms.ma_lsf.shape[1]
         self._grid = self._fit_grid(grid)
@@ -164,15 +163,16 @@ class PennTexture:
                           f"{ms.max_force_n:g} N: clamped to them", stacklevel=3)
 
     # ------------------------------------------------------------------ state
-    def reset(self) -> None:
-        """A new stroke: zero every filter state, the gain ramps and the speed estimate."""
-        from fydpad.texture.synthesis import CentroidSpeed
+    def set_parameter(self, name: str, value: int | None) -> None:
+        super().set_parameter(name, value)
+        self._rng = np.random.default_rng(value)
 
+    def reset(self) -> None:
+        """A new stroke: zero every filter state and the gain ramps."""
         self._yh = np.zeros(self.p)  # render: newest first, at the model rate
         self._eh = np.zeros(self.q)
         self._rzi: Array | None = None
         self._rg = 0.0
-        self.speed = CentroidSpeed(cutoff_hz=10.0, rest_after_s=self.stop_s)
         self._f = math.nan
         self._g = 0.0
         if self._tick_ready:
@@ -180,7 +180,7 @@ class PennTexture:
 
     def check_rate(self, rate_hz: float) -> int:
         """R = SampleRate / ``rate_hz``, a whole number >= 1 for ``tick``, else a UserError
-        (``fydpad run`` calls it before the station starts: check_family_rate)."""
+        naming the file."""
         ratio = self.ms.fs_hz / rate_hz
         r = round(ratio)
         if r < 1 or abs(ratio - r) > 1e-9 * ratio:
@@ -188,9 +188,10 @@ class PennTexture:
                             f"multiple of the render rate {rate_hz:g} Hz")
         return r
 
-    def prepare(self) -> None:
-        """Build the tick path for ``rate_hz`` (the station sets it) before the loop."""
-        r = self.check_rate(self.rate_hz)
+    def prepare(self, rate_hz: float) -> None:
+        """Check ``rate_hz`` and build the tick path for it, before the loop."""
+        r = self.check_rate(rate_hz)
+        self.rate_hz = float(rate_hz)
         self.channels["vibration"] = self.rate_hz
         self.ratio = r
         self.sos = decimation_sos(r, self.rate_hz)
@@ -205,7 +206,6 @@ class PennTexture:
         self._noise = np.zeros((_NOISE_TICKS, r))
         self._noise_rows = list(self._noise)
         self._npos = _NOISE_TICKS
-        self._dt_s = 1.0 / self.rate_hz
         self._alpha = 1.0 - math.exp(-1.0 / (max(self.ramp_s, 1e-9) * self.rate_hz))
         self._tick_ready = True
 
@@ -245,9 +245,8 @@ class PennTexture:
     def tick(self, t_s: float, contact: bool, x_mm: float, y_mm: float,
              speed_mm_s: float, force_n: float) -> tuple[float]:
         if not self._tick_ready:
-            self.prepare()  # the station calls prepare() before the loop
-        self.speed.sample(t_s, x_mm, y_mm, contact)
-        v = self.speed.tick(self._dt_s)
+            raise RuntimeError(f"{self.path}: prepare(rate_hz) before the first tick")
+        v = speed_mm_s if speed_mm_s == speed_mm_s else 0.0
         if force_n == force_n and force_n != math.inf:
             self._f = force_n
         f = self._f if self._f == self._f else self.default_force_n
@@ -269,7 +268,7 @@ class PennTexture:
         self._npos = pos + 1
         np.dot(self._rows[i * nf + j], self._state, out=self._out)
         np.copyto(self._hist, self._next)
-        target = 1.0 if (self.speed.contact and v >= self.still_mm_s) else 0.0
+        target = 1.0 if (contact and v >= self.still_mm_s) else 0.0
         self._g += self._alpha * (target - self._g)
         return (self._g * self._out.item(self._d),)  # item: a float, not a NumPy scalar
 
@@ -316,14 +315,6 @@ class PennTexture:
         out = ss.resample_poly(y, fr.numerator, fr.denominator)
         return np.pad(out[:n], (0, max(0, n - out.size)))
 
-    def warmup(self, speed_mm_s: float, force_n: float, fs_hz: float, seconds: float = 0.5
-               ) -> None:
-        """Render ``seconds`` at (speed, force) and drop them: a steady synthesis starts
-        with its filters and gate in their stationary state (``fydpad texture synth``)."""
-        from fydpad.texture.families import constant_stroke
-
-        self.render(constant_stroke(speed_mm_s, seconds, fs_hz, force_n=force_n))
-
     def _ramp(self, target: Array, alpha: float) -> Array:
         g, _ = ss.lfilter([alpha], [1.0, alpha - 1.0], target, zi=[(1.0 - alpha) * self._rg])
         self._rg = float(g[-1])
@@ -356,15 +347,10 @@ def load_penn_family(path: str | Path) -> PennTexture:
     return PennTexture(read_penn(path), str(path))
 
 
-def _register() -> None:
-    from fydpad.texture.families import Kind, register_kind
-
-    def from_json(data: dict, where: str) -> PennTexture:
-        raise UserError(f"{where}: penn models are HaTT XML files (penn:FILE.xml), not JSON")
-
-    register_kind(Kind("penn", from_json, None,
-                       "Penn Haptic Texture Toolkit ARMA models over speed and force (XML)",
-                       from_file=load_penn_family))
+def _from_json(data: dict, where: str) -> PennTexture:
+    raise UserError(f"{where}: penn models are HaTT XML files (penn:FILE.xml), not JSON")
 
 
-_register()
+KIND = Kind("penn", _from_json, None,
+            "Penn Haptic Texture Toolkit ARMA models over speed and force, Culbertson 2014 (XML)",
+            from_file=load_penn_family)

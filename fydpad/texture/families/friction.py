@@ -1,4 +1,4 @@
-"""Position-indexed friction playback (paper 001, section IV-B).
+"""Position-indexed friction playback (Jiao 2018, section IV-B).
 
 Fit: mu(x) = F_f(x) / F_n(x) (eq. 1) from scans with ``force_n``, ``friction_n`` and a
 position, resampled onto a uniform position grid and low-passed. The paper low-passes
@@ -27,25 +27,28 @@ import numpy as np
 import scipy.signal as ss
 
 from fydpad.errors import UserError
-from fydpad.texture.families import (
+from fydpad.texture.family import (
+    Array,
+    FamilyBase,
+    FingerBlock,
     Kind,
-    _check_channel,
-    register_kind,
+    TickPosition,
+    read_model_json,
     require,
     require_version,
+    save_model_json,
 )
-from fydpad.texture.family import Array, FingerBlock, TickPosition
 
-KIND = "friction"
+NAME = "friction"
 FORMAT_VERSION = 1
-CARRIER_HZ = 240.0  # the most sensitive frequency (001 IV-B)
-B_DEFAULT = 400.0  # V per unit mu, before the staircase (001 IV-B)
+CARRIER_HZ = 240.0  # the most sensitive frequency (Jiao 2018 IV-B)
+B_DEFAULT = 400.0  # V per unit mu, before the staircase (Jiao 2018 IV-B)
 LOWPASS_HZ = 100.0
 
 
 def friction_coefficient(friction_n: Array, force_n: Array, min_force_n: float = 0.05
                          ) -> Array:
-    """mu = F_f / F_n (001 eq. 1); NaN where the normal force is below ``min_force_n``."""
+    """mu = F_f / F_n (Jiao 2018 eq. 1); NaN where the normal force is below ``min_force_n``."""
     fn = np.asarray(force_n, float)
     ff = np.asarray(friction_n, float)
     return np.where(fn >= min_force_n, np.abs(ff) / np.where(fn > 0, fn, 1.0), np.nan)
@@ -76,6 +79,8 @@ def fit_friction(scans: list, *, dx_mm: float = 0.01, lowpass_hz: float = LOWPAS
     at rest the contact sticks and F_f / F_n is any value below mu_s. Scans cover their
     own strips of the surface; where they overlap their mu are averaged.
     """
+    if not (dx_mm > 0 and math.isfinite(dx_mm)):
+        raise UserError("--dx-mm must be positive")
     if not scans:
         raise UserError("fit --kind friction: no scans")
     pieces = []
@@ -129,14 +134,14 @@ def fit_friction(scans: list, *, dx_mm: float = 0.01, lowpass_hz: float = LOWPAS
         k = np.arange(n)
         mu_grid = np.interp(k, k[covered], mu_grid[covered])
     return {
-        "format": "fydpad-texture-model", "kind": KIND, "format_version": FORMAT_VERSION,
+        "format": "fydpad-texture-model", "kind": NAME, "format_version": FORMAT_VERSION,
         "surface": surface or scans[0].surface,
         "x0_mm": x0, "dx_mm": dx_mm, "mu": [round(float(m), 6) for m in mu_grid],
         "lowpass": {"domain": "position", "hz_at_reference_speed": lowpass_hz,
                     "reference_speed_mm_s": v_ref, "cutoff_cycles_per_mm": cutoff},
         "electrostatic": {"b_v": b, "carrier_hz": CARRIER_HZ, "carrier": "square 0/1"},
         "fydpad": {"vibration_gain_m_s2": 2.0, "tension_gain": 1.0, "still_mm_s": 2.0},
-        "provenance": {"scans": [str(s.path) for s in scans], "method": "001 IV-B eq. 1"},
+        "provenance": {"scans": [str(s.path) for s in scans], "method": "Jiao 2018 IV-B eq. 1"},
     }
 
 
@@ -146,28 +151,41 @@ def _runs(mask: Array) -> list[tuple[int, int]]:
     return list(zip(starts.tolist(), stops.tolist(), strict=True))
 
 
-class FrictionFamily:
-    """Plays mu(x) back by position on the audio, vibration and tension channels."""
+class FrictionFamily(FamilyBase):
+    """Plays mu(x) back by position on the audio, vibration and tension channels; its
+    parameter ``b_v`` is the electrostatic gain b (V per unit mu) of eq. 2."""
 
-    kind = KIND
+    kind = NAME
     tick_channels = ("vibration", "tension")
+    needs = frozenset({"x_mm", "speed_mm_s"})
 
     def __init__(self, mu: Array, x0_mm: float, dx_mm: float, *, b: float = B_DEFAULT,
                  carrier_hz: float = CARRIER_HZ, vibration_gain_m_s2: float = 2.0,
                  tension_gain: float = 1.0, still_mm_s: float = 2.0,
                  audio_hz: float = 48_000.0, surface: str = ""):
+        super().__init__()
         self.mu = np.asarray(mu, float)
         self._mu = [*self.mu.tolist(), float(self.mu[0])]  # floats for the tick (wraps)
         self.x0_mm, self.dx_mm = float(x0_mm), float(dx_mm)
         self.length_mm = self.mu.size * self.dx_mm
         self.mu_mean = float(np.mean(self.mu))
-        self.b, self.carrier_hz = float(b), float(carrier_hz)
+        self.parameters = {"b_v": float(b)}
+        self.carrier_hz = float(carrier_hz)
         self.vibration_gain_m_s2 = float(vibration_gain_m_s2)
         self.tension_gain = float(tension_gain)
         self.still_mm_s = float(still_mm_s)
         self.surface = surface
         self.channels = {"vibration": 1000.0, "tension": 1000.0, "audio": float(audio_hz)}
         self._pos = TickPosition()
+
+    @property
+    def b(self) -> float:
+        return self.parameters["b_v"]
+
+    def set_parameter(self, name: str, value: float) -> None:
+        if name == "b_v" and not (isinstance(value, int | float) and math.isfinite(value)):
+            raise UserError(f"friction b_v must be a finite number of volts, not {value!r}")
+        super().set_parameter(name, float(value))
 
     # ------------------------------------------------------------------ pure parts
     def mu_at(self, x_mm: Array | float) -> Array:
@@ -184,12 +202,12 @@ class FrictionFamily:
         return self.vibration_gain_m_s2 * (mu - self.mu_mean) / self.mu_mean * fade
 
     def carrier(self, t_s: Array) -> Array:
-        """Y(t) of 001 eq. 2: 1 in the first half of each 1/f0 period, else 0."""
+        """Y(t) of Jiao 2018 eq. 2: 1 in the first half of each 1/f0 period, else 0."""
         return (np.mod(np.asarray(t_s) * self.carrier_hz, 1.0) < 0.5).astype(float)
 
     # ------------------------------------------------------------------ interface
     def render(self, finger: FingerBlock, channel: str) -> Array:
-        _check_channel(self, channel)
+        self.check_channel(channel)
         c = finger.contact.astype(float)
         mu = self.mu_at(np.where(finger.contact, finger.x_mm, self.x0_mm))
         if channel == "audio":
@@ -218,7 +236,7 @@ class FrictionFamily:
 
 def parse_friction(data: dict[str, Any], where: str) -> FrictionFamily:
     """Check a friction model file; errors name the file and the key."""
-    require_version(data, where, KIND, FORMAT_VERSION)
+    require_version(data, where, NAME, FORMAT_VERSION)
     mu = require(data, "mu", where, list)
     try:
         arr = np.asarray(mu, float)
@@ -240,5 +258,22 @@ def parse_friction(data: dict[str, Any], where: str) -> FrictionFamily:
         still_mm_s=float(pad.get("still_mm_s", 2.0)), surface=str(data.get("surface", "")))
 
 
-register_kind(Kind(KIND, parse_friction, fit_friction,
-                   "position-indexed friction coefficient mu(x), paper 001 IV-B"))
+def describe_fit(data: dict[str, Any], where: str) -> list[str]:
+    lp = data["lowpass"]
+    return [f"friction mu(x) of {data['surface']}, {len(data['mu'])} points every "
+            f"{data['dx_mm']:g} mm from x = {data['x0_mm']:.2f} mm, mean mu "
+            f"{np.mean(data['mu']):.3f}; low-pass {lp['cutoff_cycles_per_mm']:.3g} "
+            f"cycles/mm (100 Hz at {lp['reference_speed_mm_s']:.1f} mm/s)"]
+
+
+def set_electrostatic_b(path: str, b_v: float) -> None:
+    """Write b (the staircase's result) into a friction model file."""
+    data = read_model_json(path)
+    parse_friction(data, path)
+    data.setdefault("electrostatic", {})["b_v"] = float(b_v)
+    save_model_json(data, path)
+
+
+KIND = Kind(NAME, parse_friction, fit_friction,
+            "position-indexed friction coefficient mu(x), Jiao 2018 IV-B",
+            fit_options=("dx_mm", "lowpass_hz", "surface"), describe=describe_fit)

@@ -1,0 +1,500 @@
+"""What ``fydpad texture`` runs, for every family through the family contract: fit,
+synthesize, evaluate against recordings (with a second recording as the ceiling),
+identify and compare. Each returns its results and the lines to print; the command
+parses arguments and prints.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fydpad.channels import open_channel
+from fydpad.errors import UserError
+from fydpad.texture.compare import (
+    by_surface,
+    compare_families,
+    identify_families,
+    specimen_experiment,
+)
+from fydpad.texture.coverage import describe, inside
+from fydpad.texture.dft321 import preprocess
+from fydpad.texture.evaluate import (
+    BIN_HZ,
+    TARGET_LSD_OVER_CEILING_DB,
+    TARGET_PSD_CORRELATION,
+    Comparison,
+    ceiling,
+    compare,
+    meets_targets,
+    unfair_ceiling,
+    verdict_on_means,
+    welch_psd,
+)
+from fydpad.texture.families import get_kind, load_family, read_scans, spec_kind
+from fydpad.texture.families.friction import FrictionFamily, friction_coefficient
+from fydpad.texture.family import (
+    TextureFamily,
+    constant_stroke,
+    finger_from_scan,
+    save_model_json,
+)
+from fydpad.texture.identify import Identification, plot_confusion
+from fydpad.texture.plots import plot_against_ceiling, plot_spectra
+from fydpad.texture.scan_generator import TEXTURES, generate_scan, save_generated
+from vision.recording import CsvRowWriter
+
+Array = NDArray[np.float64]
+Wrap = Callable[[Iterable], Iterable]
+#: The lead-in rendered and dropped before a steady synthesis: filters and gates settled.
+LEAD_IN_S = 0.5
+#: The speed tolerance (mm/s) of a second recording's fairness check.
+SECOND_TOLERANCE_MM_S = 5.0
+
+
+def _no_wrap(it: Iterable) -> Iterable:
+    return it
+
+
+def caught_messages(caught: list) -> list[str]:
+    """Python warnings as their messages, each once."""
+    return list(dict.fromkeys(str(w.message) for w in caught))
+
+
+# ------------------------------------------------------------------ fit
+@dataclass
+class Fitted:
+    data: dict[str, Any]
+    lines: list[str]
+    #: Warnings raised while fitting (about the scans named), and about the fit as a whole.
+    warnings: list[str]
+    notes: list[str]
+
+
+def fit_model(kind: str, scan_paths: list[str], options: dict[str, Any], out: str,
+              plot: str | None = None, extra: dict[str, Any] | None = None) -> Fitted:
+    """Fit a ``kind`` model from the scans with the family's ``fit_options`` taken from
+    ``options``, and ``extra`` (``--set KEY=VALUE``), and write it to ``out`` (strict
+    JSON)."""
+    k = get_kind(kind)
+    if k.fit is None:
+        raise UserError(f"texture kind {kind!r} is not fitted from scans")
+    opts = {name: options[name] for name in k.fit_options if name in options}
+    if extra:
+        if k.fit_command is not None:
+            raise UserError(f"--set {', '.join(sorted(extra))}: the {kind} fit takes its "
+                            "options as flags (fit --help)")
+        opts.update(extra)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        notes: list[str] = []
+        if k.fit_command is not None:
+            data, lines, notes = k.fit_command(scan_paths, opts, out, plot)
+        else:
+            try:
+                data = k.fit(read_scans(scan_paths), **opts)
+            except TypeError as exc:  # an option this family's fit does not take
+                raise UserError(f"fit --kind {kind}: {exc}") from None
+            lines = k.describe(data, out) if k.describe is not None else [f"{kind} model"]
+    save_model_json(data, out)
+    return Fitted(data, [f"{out}: {lines[0]}", *lines[1:]], caught_messages(caught), notes)
+
+
+# ------------------------------------------------------------------ synth
+@dataclass
+class Synthesis:
+    family: TextureFamily
+    channel: str
+    rate_hz: float
+    t_s: Array
+    y: Array
+    force_n: float | None
+    #: The unscanned speed spans the synthesis speed lies in (the model interpolates).
+    unscanned: list[tuple[float, float]]
+    warnings: list[str]
+
+    @property
+    def rms(self) -> float:
+        return float(np.sqrt(np.mean(self.y * self.y))) if self.y.size else 0.0
+
+
+def set_render_parameters(family: TextureFamily, **values: Any) -> None:
+    """The given render parameters the family has (others do not apply to it; None: not
+    given, the model's own)."""
+    for name, value in values.items():
+        if value is not None and name in family.parameters:
+            family.set_parameter(name, value)
+
+
+def synthesize(spec: str, *, speed_mm_s: float, seconds: float, channel: str | None = None,
+               force_n: float | None = None, audio_hz: float = 48_000.0,
+               x0_mm: float | None = None, kind: str | None = None,
+               **parameters: Any) -> Synthesis:
+    """A constant-speed stroke rendered by the model of ``spec`` on ``channel`` (default
+    vibration), after a lead-in of ``LEAD_IN_S`` at the same speed; ``parameters`` set
+    the family's render parameters it has (method, drive_filter, seed)."""
+    if not (math.isfinite(speed_mm_s) and speed_mm_s >= 0):
+        raise UserError(f"--speed-mm-s {speed_mm_s:g}: must be a finite speed >= 0 (mm/s)")
+    if not (math.isfinite(seconds) and seconds > 0):
+        raise UserError("--seconds must be positive")
+    found = spec_kind(spec)
+    if kind is not None and kind != found:
+        raise UserError(f"{spec}: key 'kind' is {found!r}, not --kind {kind}")
+    family = load_family(spec)
+    if "force_n" in family.needs and force_n is None:
+        raise UserError(f"{spec}: a {family.kind} model is indexed by speed and force: give "
+                        "--force-n (N)")
+    force = 1.0 if force_n is None else force_n
+    if not (math.isfinite(force) and force >= 0):
+        raise UserError("--force-n must be >= 0")
+    channel = channel or "vibration"
+    if channel not in family.channels:
+        raise UserError(f"{spec}: a {family.kind} model renders "
+                        f"{', '.join(family.channels)}, not --channel {channel}")
+    rate = audio_hz if channel == "audio" else family.channels[channel]
+    family.channels[channel] = rate
+    set_render_parameters(family, **parameters)
+    x0 = family.x0_mm if x0_mm is None else x0_mm
+    lead = constant_stroke(speed_mm_s, LEAD_IN_S, rate, x0 - speed_mm_s * LEAD_IN_S, force)
+    finger = constant_stroke(speed_mm_s, seconds, rate, x0_mm=x0, force_n=force)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            family.render(lead, channel)
+            y = family.render(finger, channel)
+    except ValueError as exc:
+        raise UserError(f"{spec}: {exc}") from None
+    gaps = [g for g in family.unscanned_speeds() if inside(speed_mm_s, [g])]
+    return Synthesis(family, channel, rate, finger.t_s, y, force_n, gaps,
+                     caught_messages(caught))
+
+
+def write_synthesis(out: str, syn: Synthesis, speed_mm_s: float) -> None:
+    """``.wav``: a WAV file (peak-normalised float); else CSV ``t_s,a`` for the
+    vibration (m/s^2) or ``t_s,<channel>``."""
+    if out.lower().endswith(".wav"):
+        with open_channel(f"wav:{out}", syn.rate_hz) as ch:
+            ch.write(np.asarray(syn.y, float))
+        return
+    fam = syn.family
+    col = "a" if syn.channel == "vibration" else syn.channel
+    params = " ".join(f"{k}={v}" for k, v in fam.parameters.items() if v is not None)
+    comment = (f"kind={fam.kind} surface={fam.surface} channel={syn.channel} "
+               f"speed_mm_s={speed_mm_s:g}"
+               + (f" force_n={syn.force_n:g}" if syn.force_n is not None else "")
+               + (f" {params}" if params else ""))
+    with CsvRowWriter(out, ("t_s", col), comment=comment, flush_every_s=math.inf) as wr:
+        for t, v in zip(syn.t_s.tolist(), syn.y.tolist(), strict=True):
+            wr.write(t, v)
+
+
+# ------------------------------------------------------------------ evaluate
+@dataclass
+class Second:
+    """``--second``: the recording's Welch spectrum and why it sets no fair ceiling."""
+
+    path: str
+    psd: Array
+    unfair: str | None
+    facts: dict
+
+
+@dataclass
+class Evaluated:
+    """One scan's evaluation: its JSON fields, the lines to print, what the plot needs."""
+
+    out: dict
+    c: Comparison
+    f_hz: Array
+    recorded: Array
+    synthesized: Array
+    sec: Second | None
+    label: str
+    lines: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+
+def _second(path: str, scan: Any, scan_mask: NDArray[np.bool_], family: TextureFamily
+            ) -> Second:
+    """Read and check a ``--second`` recording: its samples the family covers, the
+    family's high-pass and DFT321."""
+    second = read_scans([path])[0]
+    if abs(second.fs_hz - scan.fs_hz) > 1e-6 * scan.fs_hz:
+        raise UserError(f"{path}: column 't_s': sample rate {second.fs_hz:g} Hz, the "
+                        f"scan's {scan.fs_hz:g} Hz")
+    mask = family.covers(second.speed_mm_s)
+    need = round(second.fs_hz / BIN_HZ)
+    try:
+        _, p2 = welch_psd(preprocess(second.acc, second.fs_hz, family.highpass_hz),
+                          second.fs_hz, mask)
+    except ValueError:
+        raise UserError(f"{path}: {int(mask.sum())} of its {mask.size} samples are "
+                        f"within the model's speeds (column 'speed_mm_s'), in no run of the "
+                        f"{need} a {BIN_HZ:g} Hz-bin spectrum needs") from None
+    v1, v2 = scan.speed_mm_s[scan_mask], second.speed_mm_s[mask]
+    unfair = unfair_ceiling(v1, v2, scan.fs_hz, SECOND_TOLERANCE_MM_S,
+                            scan.meta.get("surface"), second.meta.get("surface"))
+    facts = {"second_surface": second.surface, "second_seconds": v2.size / second.fs_hz,
+             "second_median_speed_mm_s": float(np.median(v2)),
+             "scan_seconds": v1.size / scan.fs_hz,
+             "scan_median_speed_mm_s": float(np.median(v1))}
+    return Second(path, p2, unfair, facts)
+
+
+def _report_ceiling(ev: Evaluated) -> None:
+    """The ceiling and the targets' verdict (none when the second recording sets no
+    fair ceiling), into the JSON and the lines."""
+    sec, c = ev.sec, ev.c
+    assert sec is not None
+    ceil = ceiling(ev.recorded, sec.psd, ev.f_hz)
+    met = None if sec.unfair else meets_targets(c, ceil)
+    ev.out.update(second=sec.path, ceiling=ceil.to_json(), **sec.facts,
+                  lsd_over_ceiling_db=c.lsd_db - ceil.lsd_db, targets_met=met,
+                  **({"ceiling_note": f"no fair ceiling: {sec.unfair}"} if sec.unfair else {}))
+    verdict = "no verdict" if met is None else "targets met" if met else "targets not met"
+    ev.lines.append(
+        f"ceiling ({sec.path} against the scan): correlation {ceil.psd_correlation:.3f}, "
+        f"LSD {ceil.lsd_db:.2f} dB; the model's LSD is {c.lsd_db - ceil.lsd_db:+.2f} dB over "
+        f"it: {verdict} (correlation >= {TARGET_PSD_CORRELATION:g}, LSD <= ceiling + "
+        f"{TARGET_LSD_OVER_CEILING_DB:g} dB)")
+    if sec.unfair:
+        ev.warnings.append(f"{sec.path} sets no fair ceiling: {sec.unfair}")
+
+
+def evaluate_scan_file(spec: str, family: TextureFamily, path: str, second: str | None,
+                       seed: int) -> Evaluated:
+    """The family rendered along the scan's own stroke against the scan's DFT321 signal
+    (high-passed as the family's fit), over the samples the family covers."""
+    scan = read_scans([path])[0]
+    mask = family.covers(scan.speed_mm_s)
+    if mask.sum() < scan.fs_hz / 2:
+        raise UserError(f"{path}: column 'speed_mm_s': too little of the scan "
+                        f"({int(mask.sum())} samples) is within the model's speeds")
+    sec = None if not second else _second(second, scan, mask, family)
+    set_render_parameters(family, seed=seed)
+    family.reset()
+    finger = finger_from_scan(scan)
+    try:
+        syn = family.render(finger, "vibration")
+    except ValueError as exc:
+        raise UserError(f"{path}: {exc}") from None
+    rec = preprocess(scan.acc, scan.fs_hz, family.highpass_hz)
+    c, f, pr, ps = compare(rec, syn, scan.fs_hz, mask)
+    gaps = family.unscanned_speeds()
+    share = float(np.mean(inside(scan.speed_mm_s[mask], gaps))) if gaps else 0.0
+    out = {"model": spec, "kind": family.kind, "scan": path, **c.to_json(),
+           "interpolated_share": share,
+           "note": "time_correlation compares independent realisations: ~0 expected"}
+    if "method" in family.parameters:
+        out["method"] = family.parameters["method"]
+    ev = Evaluated(out, c, f, pr, ps, sec, f"{scan.surface} vs {family.surface or family.kind}")
+    ev.lines.append(
+        f"{family.kind}: power-spectrum correlation (20-500 Hz) {c.psd_correlation:.3f} "
+        f"(dB spectra {c.psd_correlation_db:.3f}); log-spectral distance {c.lsd_db:.2f} dB; "
+        f"time correlation {c.time_correlation:.3f} (independent realisations: ~0 expected)")
+    if isinstance(family, FrictionFamily) and scan.friction_n is not None \
+            and scan.force_n is not None:
+        mu_rec = friction_coefficient(scan.friction_n, scan.force_n)
+        mu_syn = family.mu_at(finger.x_mm)
+        ok = np.isfinite(mu_rec) & (scan.speed_mm_s > 0.5 * np.median(scan.speed_mm_s))
+        err = float(np.sqrt(np.mean((mu_rec[ok] - mu_syn[ok]) ** 2)) / np.mean(mu_syn[ok]))
+        out["mu_rms_error_rel"] = err
+        ev.lines.append(f"mu(x) RMS error {100 * err:.2f} % of the mean (unfiltered "
+                        "recording)")
+    if sec is not None:
+        _report_ceiling(ev)
+    if share:
+        ev.lines.append(f"{share:.1%} of the compared samples are at speeds no scan of the "
+                        f"fit went at ({describe(gaps)}): the model interpolates there")
+    return ev
+
+
+def evaluate_model(spec: str, scan_paths: list[str], seconds: list[str] | None = None,
+                   seed: int = 0, **parameters: Any) -> list[Evaluated]:
+    """Each scan (the i-th its own noise draw, ``seed + i``) with its second recording."""
+    if seconds and len(seconds) != len(scan_paths):
+        raise UserError(f"--second: {len(seconds)} recording(s) for {len(scan_paths)} "
+                        "scan(s): give --second once per scan, in the same order")
+    family = load_family(spec)
+    set_render_parameters(family, **parameters)
+    results = [evaluate_scan_file(spec, family, p, seconds[i] if seconds else None, seed + i)
+               for i, p in enumerate(scan_paths)]
+    for path, r in zip(scan_paths[1:], results[1:], strict=True):
+        if r.f_hz.shape != results[0].f_hz.shape:  # their means need one frequency grid
+            raise UserError(f"{path}: column 't_s': its sample rate differs from "
+                            f"{scan_paths[0]}'s; several scans need one rate")
+    return results
+
+
+def fair(results: list[Evaluated]) -> list[Evaluated]:
+    """The scans whose second recording sets a fair ceiling."""
+    return [r for r in results if r.sec is not None and not r.sec.unfair]
+
+
+def over_scans(spec: str, results: list[Evaluated]) -> tuple[dict, list[str]]:
+    """Several scans: the means of their figures and, where second recordings set fair
+    ceilings, the targets on the means (mean correlation, mean LSD over the mean
+    ceiling): one scan against one second recording is two random draws."""
+    n = len(results)
+    mean: dict[str, Any] = {
+        "psd_correlation": float(np.mean([r.c.psd_correlation for r in results])),
+        "lsd_db": float(np.mean([r.c.lsd_db for r in results]))}
+    lines = [f"mean over {n} scans: power-spectrum correlation {mean['psd_correlation']:.3f}, "
+             f"log-spectral distance {mean['lsd_db']:.2f} dB"]
+    if any(r.sec is not None for r in results):
+        ok = fair(results)
+        mean.update(fair_pairs=len(ok), fair_psd_correlation=None, ceiling_lsd_db=None,
+                    lsd_over_ceiling_db=None, psd_correlation_se=None,
+                    lsd_over_ceiling_se_db=None, targets_met=None, verdict_decided=None)
+        if ok:
+            v = verdict_on_means([r.c.psd_correlation for r in ok],
+                                 [r.out["lsd_over_ceiling_db"] for r in ok])
+            ceil = float(np.mean([r.out["ceiling"]["lsd_db"] for r in ok]))
+            mean.update(fair_psd_correlation=v.psd_correlation, ceiling_lsd_db=ceil,
+                        lsd_over_ceiling_db=v.lsd_over_ceiling_db,
+                        psd_correlation_se=v.psd_correlation_se,
+                        lsd_over_ceiling_se_db=v.lsd_over_ceiling_se_db, targets_met=v.met,
+                        verdict_decided=v.decided if len(ok) > 1 else None)
+            se = ("" if v.lsd_over_ceiling_se_db is None else
+                  f" (standard error {v.lsd_over_ceiling_se_db:.2f})")
+            cse = ("" if v.psd_correlation_se is None else
+                   f" (standard error {v.psd_correlation_se:.3f})")
+            lines.append(
+                f"on the means of the {len(ok)} scan(s) with a fair ceiling: correlation "
+                f"{v.psd_correlation:.3f}{cse}, LSD {v.lsd_over_ceiling_db:+.2f} dB{se} "
+                f"over the mean ceiling {ceil:.2f} dB: "
+                f"{'targets met' if v.met else 'targets not met'} (correlation >= "
+                f"{TARGET_PSD_CORRELATION:g}, LSD <= ceiling + "
+                f"{TARGET_LSD_OVER_CEILING_DB:g} dB)")
+            if len(ok) > 1 and not v.decided:
+                lines.append("  within two standard errors of a limit: more strokes would "
+                             "decide it")
+        else:
+            lines.append("no scan has a fair ceiling: no verdict")
+    return {"model": spec, "scans": [r.out for r in results], "mean": mean}, lines
+
+
+def plot_evaluation(path: str, results: list[Evaluated]) -> None:
+    """The spectra, and with second recordings their differences; with several scans
+    their mean spectra."""
+    r = results[0]
+    if len(results) == 1:
+        f, rec, syn = r.f_hz, r.recorded, r.synthesized
+        sec = None if r.sec is None else r.sec.psd
+        title = f"corr {r.c.psd_correlation:.3f}, LSD {r.c.lsd_db:.2f} dB"
+        label = r.label
+        ceil = r.out.get("ceiling", {}).get("lsd_db")
+    else:
+        f = r.f_hz
+        ok = fair(results)
+        pool = ok or results  # with fair ceilings, the pairs the verdict is on
+        rec = np.mean([x.recorded for x in pool], axis=0)
+        syn = np.mean([x.synthesized for x in pool], axis=0)
+        sec = np.mean([x.sec.psd for x in ok], axis=0) if ok else None  # type: ignore[union-attr]
+        title = (f"mean corr {np.mean([x.c.psd_correlation for x in pool]):.3f}, mean "
+                 f"LSD {np.mean([x.c.lsd_db for x in pool]):.2f} dB")
+        label = f"{r.label}, mean of {len(pool)} scans"
+        ceil = float(np.mean([x.out["ceiling"]["lsd_db"] for x in ok])) if ok else None
+    if sec is None:
+        plot_spectra(path, [(label, f, rec, syn)], title)
+    else:
+        plot_against_ceiling(path, f, rec, syn, sec,
+                             f"{label}: {title} (ceiling {ceil:.2f} dB)")
+
+
+# ------------------------------------------------------------------ identify, compare
+def identify_models(specs: list[str], scan_paths: list[str], *, distance: str | None = None,
+                    seed: int = 0, wrap: Wrap = _no_wrap, **parameters: Any
+                    ) -> tuple[str, Identification]:
+    """Every scan assigned to the model of ``specs`` (one family, one per surface) whose
+    rendering along the scan's stroke has the nearest spectrum (``distance``: the
+    family's default when None)."""
+    kinds = {spec_kind(p) for p in specs}
+    if len(kinds) > 1:
+        raise UserError(f"identify: the models mix kinds {', '.join(sorted(kinds))}; give "
+                        "one family's models per run (one confusion matrix per family)")
+    kind = next(iter(kinds))
+    fams = [load_family(p) for p in specs]
+    for fam in fams:
+        set_render_parameters(fam, **parameters)
+    labels = [f.surface or Path(p).stem for f, p in zip(fams, specs, strict=True)]
+    scans = read_scans(scan_paths)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ident = identify_families(fams, labels, scans, seed=seed, wrap=wrap,
+                                  distance=distance or get_kind(kind).distance,
+                                  model_names=specs)
+    return kind, ident
+
+
+def compare_command(train_paths: list[str], scan_paths: list[str], kinds: list[str],
+                    out_dir: Path, *, specimens: bool = False, trials: int = 3,
+                    seed: int = 0) -> tuple[dict, list[str]]:
+    """``fydpad texture compare``: per family, the confusion matrix (plots in
+    ``out_dir``), and with ``specimens`` Bianchi 2015's 2 x 2."""
+    fit_kinds = [k for k in kinds if get_kind(k).fit is not None]
+    unknown = [k for k in kinds if k not in fit_kinds]
+    if unknown:
+        raise UserError(f"--kinds: unknown {', '.join(unknown)}")
+    train, test = read_scans(train_paths), read_scans(scan_paths)
+    result: dict = {"train": train_paths, "scans": scan_paths, "families": {}}
+    lines = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = compare_families(train, test, kinds, seed=seed)
+        for kind, ident in res.items():
+            if isinstance(ident, str):
+                lines.append(f"{kind:9s} {ident}")
+                result["families"][kind] = {"error": ident}
+                continue
+            lines.append(f"{kind:9s} identification rate {ident.rate:.1%} ({len(test)} scans)")
+            result["families"][kind] = ident.to_json()
+            plot_confusion(str(out_dir / f"confusion_{kind}.png"), ident,
+                           f"{kind}: rate {ident.rate:.0%}")
+        if specimens:
+            tr, te = by_surface(train), by_surface(test)
+            if not all(r in tr and r in te for r in ("R1", "R2")):
+                raise UserError("--specimens: the --train and --scans need R1 and R2 scans "
+                                "(fydpad texture generate-scans --textures R1,R2)")
+            result["specimens"] = {}
+            for kind in kinds:
+                if isinstance(res.get(kind), str):
+                    continue
+                r = specimen_experiment(kind, tr, te, te, trials=trials)
+                result["specimens"][kind] = r
+                lines.append(f"{kind:9s} SS1..SS4: spectra alone {r['rate']['spectra']:.0%}, "
+                             f"with the stiffness of a press "
+                             f"{r['rate']['spectra+stiffness']:.0%}")
+                for key, conf in r["confusion"].items():
+                    rate = r["rate"][key]
+                    plot_confusion(str(out_dir / f"specimens_{kind}_{key.replace('+', '_')}"
+                                        ".png"),
+                                   Identification(r["specimens"], conf, rate, []),
+                                   f"{kind}, {key}: {rate:.0%}")
+    return result, lines
+
+
+# ------------------------------------------------------------------ generate-scans
+def generate_scans(out_dir: Path, textures: str, speeds_mm_s: list[float], strokes: int,
+                   seconds: float, seed: int, friction: bool, load_scale: float,
+                   wrap: Wrap = _no_wrap) -> int:
+    """Synthetic scans ``SURFACE_SPEEDmms_sSEED.csv`` from the scan generator."""
+    names = list(TEXTURES) if textures == "all" else [
+        n.strip() for n in textures.split(",") if n.strip()]
+    unknown = [n for n in names if n not in TEXTURES]
+    if unknown:
+        raise UserError(f"--textures: unknown {', '.join(unknown)} (known: {', '.join(TEXTURES)})")
+    if not (math.isfinite(load_scale) and load_scale > 0):
+        raise UserError(f"--load-scale: give a positive number, not {load_scale:g}")
+    jobs = [(n, s, seed + k) for n in names for s in speeds_mm_s for k in range(strokes)]
+    for n, s, sd in wrap(jobs):
+        scan = generate_scan(n, s, seconds, seed=sd, friction=friction, load_scale=load_scale)
+        save_generated(scan, out_dir / f"{n}_{s:g}mms_s{sd}.csv")
+    return len(jobs)
