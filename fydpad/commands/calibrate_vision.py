@@ -189,6 +189,8 @@ def match_presses(t, c, u, v, x, y, targets: np.ndarray,
     pressed in several rounds gets the median of its presses. So a session of any length
     serves, in any order, as long as it presses every point; otherwise the error names
     the points no press matched."""
+    import numpy as np
+
     from vision.calibration import press_centroids
 
     uv = press_centroids(t, c, u, v, min_hold_s)
