@@ -31,7 +31,7 @@ from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import BAND_HZ, welch_psd
 from fydpad.texture.families import get_kind
 from fydpad.texture.families.friction import friction_coefficient
-from fydpad.texture.family import finger_from_scan
+from fydpad.texture.family import RateMismatch, finger_from_scan
 from fydpad.texture.identify import DISTANCES, Identification
 
 #: Per family: (the channel rendered, the band compared in Hz, the scan's observable).
@@ -101,6 +101,9 @@ def identify_families(models: Sequence, labels: Sequence[str], scans: Sequence, 
             m.reset()
             try:
                 syn = m.render(finger, channel)
+            except RateMismatch as exc:
+                raise UserError(f"{scan.path}: column 't_s': sample rate {scan.fs_hz:g} Hz, "
+                                f"{name}: {exc}") from None
             except ValueError as exc:
                 raise UserError(f"{scan.path}: {name}: {exc}") from None
             if distance == "shape":

@@ -39,6 +39,12 @@ FORMAT = "fydpad-texture-model"
 INPUTS = ("speed_mm_s", "x_mm", "y_mm", "force_n", "force_change")
 
 
+class RateMismatch(ValueError):
+    """``render`` of a model that renders only at its own sample rate, given a finger block
+    at another: the message names the model's rate (its file's key); the caller names the
+    block's source (a scan's column 't_s')."""
+
+
 @dataclass(frozen=True)
 class FingerBlock:
     """The finger state stream as equal-length arrays at one sample rate ``fs_hz``."""
@@ -105,9 +111,10 @@ class TextureFamily(Protocol):
         """The samples whose speed the model renders from its data (evaluation compares
         the recording there)."""
 
-    def unscanned_speeds(self) -> list[tuple[float, float]]:
+    def unscanned_speeds(self) -> list[tuple[float, float]] | None:
         """Speed spans (mm/s) within its range that no scan of its fit went at: it
-        interpolates there."""
+        interpolates there. None when the model file does not record its coverage
+        (unknown, not "no gaps")."""
 
 
 @dataclass(frozen=True)
@@ -132,6 +139,8 @@ class Kind:
     #: ``identify``'s default distance: "shape" (levels and tilt removed: families whose
     #: level is a gain) or "bands" (third-octave levels: models of recorded accelerations).
     distance: str = "shape"
+    #: The name users know the family by, in messages ("HaTT"); the kind's name if empty.
+    title: str = ""
 
 
 class FamilyBase:
@@ -162,7 +171,7 @@ class FamilyBase:
     def covers(self, speed_mm_s: Array) -> NDArray[np.bool_]:
         return np.asarray(speed_mm_s, float) > 1.0
 
-    def unscanned_speeds(self) -> list[tuple[float, float]]:
+    def unscanned_speeds(self) -> list[tuple[float, float]] | None:
         return []
 
     def check_channel(self, channel: str) -> None:

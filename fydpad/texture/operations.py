@@ -41,6 +41,7 @@ from fydpad.texture.evaluate import (
 from fydpad.texture.families import get_kind, load_family, read_scans, spec_kind
 from fydpad.texture.families.friction import FrictionFamily, friction_coefficient
 from fydpad.texture.family import (
+    RateMismatch,
     TextureFamily,
     constant_stroke,
     finger_from_scan,
@@ -149,7 +150,8 @@ def synthesize(spec: str, *, speed_mm_s: float, seconds: float, channel: str | N
         raise UserError(f"{spec}: key 'kind' is {found!r}, not --kind {kind}")
     family = load_family(spec)
     if "force_n" in family.needs and force_n is None:
-        raise UserError(f"{spec}: a {family.kind} model is indexed by speed and force: give "
+        title = get_kind(family.kind).title or family.kind
+        raise UserError(f"{spec}: a {title} model is indexed by speed and force: give "
                         "--force-n (N)")
     force = 1.0 if force_n is None else force_n
     if not (math.isfinite(force) and force >= 0):
@@ -171,7 +173,7 @@ def synthesize(spec: str, *, speed_mm_s: float, seconds: float, channel: str | N
             y = family.render(finger, channel)
     except ValueError as exc:
         raise UserError(f"{spec}: {exc}") from None
-    gaps = [g for g in family.unscanned_speeds() if inside(speed_mm_s, [g])]
+    gaps = [g for g in family.unscanned_speeds() or [] if inside(speed_mm_s, [g])]
     return Synthesis(family, channel, rate, finger.t_s, y, force_n, gaps,
                      caught_messages(caught))
 
@@ -283,12 +285,15 @@ def evaluate_scan_file(spec: str, family: TextureFamily, path: str, second: str 
     finger = finger_from_scan(scan)
     try:
         syn = family.render(finger, "vibration")
+    except RateMismatch as exc:
+        raise UserError(f"{path}: column 't_s': sample rate {scan.fs_hz:g} Hz, {spec}: "
+                        f"{exc}") from None
     except ValueError as exc:
         raise UserError(f"{path}: {exc}") from None
     rec = preprocess(scan.acc, scan.fs_hz, family.highpass_hz)
     c, f, pr, ps = compare(rec, syn, scan.fs_hz, mask)
     gaps = family.unscanned_speeds()
-    share = float(np.mean(inside(scan.speed_mm_s[mask], gaps))) if gaps else 0.0
+    share = None if gaps is None else float(np.mean(inside(scan.speed_mm_s[mask], gaps)))
     out = {"model": spec, "kind": family.kind, "scan": path, **c.to_json(),
            "interpolated_share": share,
            "note": "time_correlation compares independent realisations: ~0 expected"}

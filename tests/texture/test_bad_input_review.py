@@ -60,13 +60,14 @@ def test_texture_source_refuses_a_model_at_another_rate(files):
 
 def test_run_refuses_a_model_at_another_rate_before_the_station_starts(files, capsys,
                                                                        monkeypatch):
-    import fydpad.commands.run as run_command
+    import fydpad.station.station as station_module
     from fydpad.cli import main
 
     def station(*a, **k):
         raise AssertionError("the station was built before the model was checked")
 
-    monkeypatch.setattr(run_command, "Station", station)
+    # `fydpad run` imports the Station from its module when it runs.
+    monkeypatch.setattr(station_module, "Station", station)
     m2k = str(files / "R1_2k.json")
     # Old: the station ran 0.2 s at the wrong pitch, rc 0.
     assert main(["run", "--synthetic", "circle", "--motors", "sim", "--texture", m2k,

@@ -452,14 +452,12 @@ def test_the_comb_follows_the_speed_and_falls_silent_without_contact(r2_model):
 
 
 def test_the_station_renders_the_lines_from_the_centroid(r2_model):
-    """The station's texture term (centroid -> the station's 10 Hz speed -> the LPC
-    family's tick) on a finger moving at 20 mm/s: its strongest line on a multiple of
-    9.30 Hz."""
-    from fydpad.station.texture_source import tick_speed
-    from fydpad.texture.families.lpc import LpcFamily
+    """The station's texture term (the model file opened as the render process opens it,
+    centroid -> the station's 10 Hz speed -> the LPC family's tick) on a finger moving at
+    20 mm/s: its strongest line on a multiple of 9.30 Hz."""
+    from fydpad.station.texture_source import open_texture, tick_speed
 
-    src = LpcFamily(r2_model[1])
-    src.prepare(FS)
+    src = open_texture(str(r2_model[1]), FS)
     speed = tick_speed()
     out = []
     for k in range(6000):

@@ -368,7 +368,7 @@ def test_cli_synth_refuses_a_non_finite_speed(tmp_path, penn_xml, capsys):
 def test_run_checks_the_model_rate_before_the_station_starts(tmp_path, monkeypatch, capsys):
     """A set at 10.5 kHz cannot tick at 1 kHz: ``fydpad run`` says so in one line from
     the family's check_rate, before a Station (and its render process) exists."""
-    import fydpad.commands.run as run_cmd
+    import fydpad.station.station as station_module
     from fydpad.cli import main
 
     ms = _model_set((120, 260, 180, 340))
@@ -381,7 +381,8 @@ def test_run_checks_the_model_rate_before_the_station_starts(tmp_path, monkeypat
     def no_station(*a, **k):
         raise AssertionError("the station was started")
 
-    monkeypatch.setattr(run_cmd, "Station", no_station)
+    # `fydpad run` imports the Station from its module when it runs.
+    monkeypatch.setattr(station_module, "Station", no_station)
     rc = main(["run", "--synthetic", "--duration", "1", "--motors", "sim",
                "--texture", f"penn:{xml}"])
     err = capsys.readouterr().err

@@ -23,7 +23,7 @@ from fydpad.errors import UserError
 from fydpad.texture.coverage import describe, model_gaps, speed_histogram
 from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import welch_psd
-from fydpad.texture.family import Array, FamilyBase, FingerBlock, Kind
+from fydpad.texture.family import Array, FamilyBase, FingerBlock, Kind, RateMismatch
 from fydpad.texture.fit import fit_texture, lines_option, modelled_speed_range
 from fydpad.texture.free_form import AUTO
 from fydpad.texture.interpolation import METHODS, SpeedInterpolator
@@ -111,8 +111,9 @@ class LpcFamily(FamilyBase):
     def render(self, finger: FingerBlock, channel: str = "vibration") -> Array:
         self.check_channel(channel)
         if abs(finger.fs_hz - self.model.fs_hz) > 1e-6 * self.model.fs_hz:
-            raise ValueError(f"LPC model renders at {self.model.fs_hz:g} Hz, the finger block "
-                             f"is at {finger.fs_hz:g} Hz (resample through fydpad.channels)")
+            raise RateMismatch(f"key 'sample_rate_hz' {self.model.fs_hz:g} Hz (an LPC model "
+                               f"renders at its own rate: fit it on scans at "
+                               f"{finger.fs_hz:g} Hz)")
         if self._renderer is None:
             p = self.parameters
             self._renderer = TextureRenderer(self.model, method=p["method"], seed=p["seed"],
@@ -134,8 +135,8 @@ class LpcFamily(FamilyBase):
         v, s, tol = np.asarray(speed_mm_s, float), self.model.speeds_mm_s, self.model.tolerance_mm_s
         return (v >= s[0] - tol) & (v <= s[-1] + tol)
 
-    def unscanned_speeds(self) -> list[tuple[float, float]]:
-        return model_gaps(self.model.provenance, self.path) or []
+    def unscanned_speeds(self) -> list[tuple[float, float]] | None:
+        return model_gaps(self.model.provenance, self.path)
 
 
 def _from_json(data: dict[str, Any], where: str) -> LpcFamily:

@@ -353,4 +353,4 @@ def _from_json(data: dict, where: str) -> PennTexture:
 
 KIND = Kind("penn", _from_json, None,
             "Penn Haptic Texture Toolkit ARMA models over speed and force, Culbertson 2014 (XML)",
-            from_file=load_penn_family)
+            from_file=load_penn_family, title="HaTT")
