@@ -184,3 +184,11 @@ def test_texture_scan_columns_match_the_reader():
     optional = tuple(_names(r["column"])[0] for r in rows if r["required"] == "no")
     assert required == scan_io.REQUIRED
     assert optional == scan_io.OPTIONAL
+
+
+def test_slave_log_columns_match_the_writer():
+    from fydpad.export.slave_log import SLAVE_LOG_COLUMNS
+
+    doc = [n for r in _table("Slave log (`fydpad replay --slave-log CSV`)")
+           for n in _names(r["column"])]
+    assert tuple(doc) == SLAVE_LOG_COLUMNS

@@ -362,7 +362,8 @@ def _with_position(tex: Texture, speed: float, seed: int, t: Array, acc: Array, 
 
 
 def save_generated(scan: Scan, path: str | Path) -> Path:
-    """Write a generated scan (speed and position columns) as RECORDING_FORMAT CSV."""
+    """Write a generated scan (speed and position columns) as a texture scan CSV
+    (docs/recording_format.md)."""
     x = getattr(scan, "x_mm", None)
     friction = getattr(scan, "friction_n", None)
     if friction is None:

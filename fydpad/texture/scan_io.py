@@ -1,4 +1,4 @@
-"""Texture scan recordings (RECORDING_FORMAT.md, "Texture scan recording").
+"""Texture scan recordings (docs/recording_format.md, "Texture scan recording").
 
 ``t_s,ax,ay,az`` then optional ``speed_mm_s, x_mm, y_mm, force_n, friction_n``; a
 ``# key=value ...`` comment line carries metadata (``surface=``).

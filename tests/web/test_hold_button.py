@@ -63,6 +63,7 @@ def _post_hold(base: str, token: str | None, body: dict) -> dict:
 
 
 def test_hold_button_holds_the_robot_and_is_recorded(tmp_path):
+    from teleop import protocol as P
     from teleop.config import TeleopConfig
     from teleop.slave import SlaveThread
 
@@ -96,12 +97,22 @@ def test_hold_button_holds_the_robot_and_is_recorded(tmp_path):
                 # The page shows what the station says: the next poll keeps it held.
                 page.wait_for_function("() => since >= 10")
                 assert page.get_attribute("#hold", "data-held") == "1"
-                # The slave gets samples carrying the hold while it lasts.
-                for _ in range(200):
-                    if slave.loop.counts["operator_holds"] >= 3:
+                # The slave stands still on samples that carry the hold while it lasts:
+                # one hold, and at least 3 more samples accepted under it.
+                loop = slave.loop
+                for _ in range(600):
+                    if loop.status == P.STATUS_OPERATOR_HOLD:
                         break
                     page.wait_for_timeout(50)
-                assert slave.loop.counts["operator_holds"] >= 3
+                assert loop.status == P.STATUS_OPERATOR_HOLD
+                accepted = loop.counts["accepted"]
+                for _ in range(600):
+                    if loop.counts["accepted"] >= accepted + 3:
+                        break
+                    page.wait_for_timeout(50)
+                assert loop.counts["accepted"] >= accepted + 3
+                assert loop.status == P.STATUS_OPERATOR_HOLD
+                assert loop.counts["operator_holds"] == 1
                 page.click("#hold")
                 page.wait_for_function(
                     "() => document.getElementById('hold').textContent === 'Hold robot'")

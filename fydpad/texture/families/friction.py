@@ -89,7 +89,7 @@ def fit_friction(scans: list, *, dx_mm: float = 0.01, lowpass_hz: float = LOWPAS
         x = getattr(sc, "x_mm", None)
         if ff is None or sc.force_n is None:
             raise UserError(f"{sc.path}: column 'friction_n' and 'force_n' are needed for a "
-                            "friction model (RECORDING_FORMAT.md, texture scan)")
+                            "friction model (docs/recording_format.md, texture scan)")
         if x is None:
             raise UserError(f"{sc.path}: column 'x_mm' is needed: friction is played back "
                             "by position")
