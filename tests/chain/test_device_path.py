@@ -42,9 +42,11 @@ COMPARED_HZ = (10.0, 300.0)
 
 #: The board's host here is this test's process, not paced and not real-time, on a loaded
 #: 2-core machine: a stall past the watchdog's 20 ms would stop the board, and replies
-#: late past 10 ticks would fail the read. Both are tested where they are the subject
-#: (tests/motors); here they would measure the machine's load, not the chain.
-QB_ON_A_LOADED_MACHINE = "watchdog_cs = 0\nmax_missed_replies = 1000\n"
+#: late past 10 ticks would fail the read; a set-up reply (ping, activate) may be late
+#: past the 0.1 s default deadline, so it gets a 10 s one, a hang guard. All three are
+#: tested where they are the subject (tests/motors); here they would measure the
+#: machine's load, not the chain.
+QB_ON_A_LOADED_MACHINE = "watchdog_cs = 0\nmax_missed_replies = 1000\ntimeout_s = 10.0\n"
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,12 @@ from fydpad.motors.drive import MotorDrive
 from fydpad.motors.qb import QbBoardConfig, QbMotors, QbTimeoutError
 from fydpad.motors.qb_emulator import QbEmulator
 
-TIMEOUT_S = 0.2
+#: A hang guard, never a speed: the emulator is a thread of this process, and on a
+#: loaded machine it may answer a set-up command (or the first read, after 800 queued
+#: SET_INPUTS frames) seconds late. The test of the deadline passes a short one.
+SETUP_TIMEOUT_S = 10.0
+#: A late tick reply is reused (up to max_missed_replies): per-tick reads stay short.
+TICK_TIMEOUT_S = 0.05
 
 
 @pytest.fixture
@@ -29,8 +34,9 @@ def board(emu, **kw) -> QbMotors:
     # The watchdog off unless a test arms it: this test thread, not paced and not
     # real-time, may pause past its 20 ms on a loaded machine, and the board would stop.
     kw.setdefault("watchdog_cs", 0)
-    kw.setdefault("tick_timeout_s", 0.05)
-    cfg = QbBoardConfig(port=emu.port, device_id=3, timeout_s=TIMEOUT_S, **kw)
+    kw.setdefault("timeout_s", SETUP_TIMEOUT_S)
+    kw.setdefault("tick_timeout_s", TICK_TIMEOUT_S)
+    cfg = QbBoardConfig(port=emu.port, device_id=3, **kw)
     return QbMotors(cfg)
 
 
@@ -90,7 +96,7 @@ def test_full_loop_on_the_board_holds_a_position(emu):
 
 def test_silent_board_times_out_naming_the_port(emu):
     emu.mute = True
-    m = board(emu)
+    m = board(emu, timeout_s=0.2)
     t0 = time.monotonic()
     with pytest.raises(QbTimeoutError, match=rf"{emu.port}.*PING.*device 3.*200 ms"):
         m.activate()

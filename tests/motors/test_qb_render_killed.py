@@ -17,7 +17,11 @@ from fydpad.motors.qb import QbBoardConfig
 from fydpad.motors.qb_emulator import QbEmulator
 from fydpad.station.render import CONTROL_FIELDS, RenderSpec, render_main
 from fydpad.station.shared import SharedFingerState, SharedRecord
+from fydpad.station.station import StationOptions
 from vision.state import FingerState
+
+#: The station's own wait for its render process to start (a loaded machine).
+START_TIMEOUT_S = StationOptions().render_start_timeout_s
 
 
 def _wait(cond, timeout_s: float) -> bool:
@@ -33,7 +37,8 @@ def test_killed_render_process_leaves_the_board_at_rest_within_the_watchdog_peri
     with QbEmulator(device_id=1) as emu:
         # Replies the emulator (a thread here, on a loaded machine) is late with are
         # reused, however many: this test is about the board's watchdog, not the host's.
-        cfg = StationConfig(qb=QbBoardConfig(port=emu.port, device_id=1,
+        # Its set-up replies may be as late: a generous set-up deadline (a hang guard).
+        cfg = StationConfig(qb=QbBoardConfig(port=emu.port, device_id=1, timeout_s=10.0,
                                              max_missed_replies=1_000_000))
         assert cfg.qb.watchdog_cs == 2  # the default: nothing armed by the test
         spec = RenderSpec(motors="qb", config=cfg, realtime=False)
@@ -48,7 +53,7 @@ def test_killed_render_process_leaves_the_board_at_rest_within_the_watchdog_peri
                         args=(spec, state, control, stop, results, ready), daemon=True)
         p.start()
         try:
-            assert ready.wait(60)
+            assert ready.wait(START_TIMEOUT_S), results.get(timeout=1)
             # The loop drives the board: duties go out tick after tick.
             n0 = emu.received.count(qp.CMD_SET_INPUTS)
             assert _wait(lambda: emu.received.count(qp.CMD_SET_INPUTS) > n0 + 200, 60), (

@@ -23,6 +23,7 @@ import pytest
 
 from fydpad.station.row_log import RingRowLog
 from fydpad.station.shared import SharedFingerState, SharedRecord
+from fydpad.station.station import StationOptions
 from vision.state import FingerState
 
 F_SETPIPE_SZ = 1031  # Linux fcntl: set a pipe's buffer size
@@ -127,7 +128,8 @@ def _run_render(spec, seconds: float, reader: StalledReader, stall_s: float) -> 
                     daemon=True)
     p.start()
     try:
-        assert ready.wait(60)  # the log is open: the pipe has its writer
+        # The log is open: the pipe has its writer. The station's own start deadline.
+        assert ready.wait(StationOptions().render_start_timeout_s), results.get(timeout=1)
         time.sleep(stall_s)
         reader.release()
         time.sleep(seconds - stall_s)
