@@ -39,7 +39,7 @@ FORMAT = "fydpad-texture-model"
 INPUTS = ("speed_mm_s", "x_mm", "y_mm", "force_n", "force_change")
 
 
-class RateMismatch(ValueError):
+class RateMismatch(UserError, ValueError):
     """``render`` of a model that renders only at its own sample rate, given a finger block
     at another: the message names the model's rate (its file's key); the caller names the
     block's source (a scan's column 't_s')."""
