@@ -41,12 +41,13 @@ def _opener():
 
 
 def start_station(args: list[str], cwd: Path):
-    """``fydpad run ARGS`` in a subprocess; returns (process, base URL, token, stderr file)."""
+    """``fydpad run ARGS`` in a subprocess; returns (process, base URL, token, stderr file)
+    once its web view is up (180 s is a hang guard: a loaded machine starts it slowly)."""
     err = (cwd / "station.err").open("w+")
     proc = subprocess.Popen([sys.executable, "-m", "fydpad.cli", "run", *args], cwd=cwd,
                             stdout=subprocess.DEVNULL, stderr=err)
     url = None
-    deadline = time.monotonic() + 30
+    deadline = time.monotonic() + 180
     while url is None and time.monotonic() < deadline and proc.poll() is None:
         err.seek(0)
         m = re.search(r"web view: (\S+)", err.read())

@@ -21,37 +21,12 @@ from tests.web.test_browser import (
     TIMEOUT_MS,
     _opener,
     playwright_sync,
+    start_station,
     stop_station,
 )
 
 pytestmark = pytest.mark.skipif(not CHROMIUM.exists(),
                                 reason="no /usr/bin/chromium (apt-get install chromium)")
-
-
-def start_station(args: list[str], cwd):
-    """``fydpad run ARGS``; (process, base URL, token, stderr file) once its web view is
-    up (bounded by 180 s: a loaded machine starts it slowly; what is tested is behaviour)."""
-    import re
-    import subprocess
-    import sys
-    import time
-
-    err = (cwd / "station.err").open("w+")
-    proc = subprocess.Popen([sys.executable, "-m", "fydpad.cli", "run", *args], cwd=cwd,
-                            stdout=subprocess.DEVNULL, stderr=err)
-    url = None
-    deadline = time.monotonic() + 180
-    while url is None and time.monotonic() < deadline and proc.poll() is None:
-        err.seek(0)
-        m = re.search(r"web view: (\S+)", err.read())
-        url = m.group(1) if m else None
-        time.sleep(0.1)
-    if url is None:
-        proc.kill()
-        err.seek(0)
-        pytest.fail(f"the station did not start its web view: {err.read()}")
-    base, _, token = url.partition("/?token=")
-    return proc, base.rstrip("/").replace("0.0.0.0", "127.0.0.1"), token, err
 
 
 def _post_hold(base: str, token: str | None, body: dict) -> dict:
