@@ -92,7 +92,7 @@ def register_indentation(sub: argparse._SubParsersAction) -> None:
             "correction_coef into the [ir] section. The correction weighs each sensor's "
             "deflection by a polynomial of the contact's position, so a fit on presses "
             "holds for strokes. --protocol prints the 2-minute session to record "
-            "(the web view's /guide/indentation walks through it)."
+            "(the web view's /indentation-guide walks through it)."
         ),
     )
     p.add_argument("recdirs", nargs="*", metavar="RECDIR", help="recordings with truth.csv")
