@@ -25,11 +25,11 @@ import scipy.signal as ss
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
+from fydpad.synth.texture_scans import DX_MM, TEXTURES, generate_scan, surface_profile
 from fydpad.texture.evaluate import compare, evaluation_mask
 from fydpad.texture.families.mlp.render import MlpTexture
 from fydpad.texture.families.mlp.train import TrainConfig, fit_mlp, scan_features, thirds
 from fydpad.texture.fit import fit_texture
-from fydpad.texture.scan_generator import DX_MM, TEXTURES, generate_scan, surface_profile
 from fydpad.texture.scan_io import Scan
 
 Array = NDArray[np.float64]

@@ -16,11 +16,11 @@ import warnings
 import numpy as np
 from timing import best
 
+from fydpad.synth.texture_scans import generate_scan
 from fydpad.texture.dft321 import preprocess
 from fydpad.texture.fit import fit_speed
 from fydpad.texture.lpc import h_from_poly
 from fydpad.texture.model_file import TextureModel
-from fydpad.texture.scan_generator import generate_scan
 from fydpad.texture.synthesis import TextureRenderer
 
 
@@ -182,10 +182,10 @@ def lines_benchmark(best) -> None:
 
 def quality(textures: list[str] | None = None) -> None:
     """Held-out figures against the texture targets for every texture (minutes; --quality)."""
+    from fydpad.synth.texture_scans import TEXTURES
     from fydpad.texture.evaluate import compare_recordings, evaluate_scan, evaluation_mask
     from fydpad.texture.fit import fit_texture
     from fydpad.texture.identify import identify
-    from fydpad.texture.scan_generator import TEXTURES
 
     warnings.simplefilter("ignore")
     names = textures or list(TEXTURES)

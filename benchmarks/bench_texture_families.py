@@ -18,12 +18,12 @@ import warnings
 
 import numpy as np
 
+from fydpad.synth.texture_scans import generate_scan
 from fydpad.texture.families.friction import fit_friction, parse_friction
 from fydpad.texture.families.grating import GratingFamily
 from fydpad.texture.families.lpc import LpcFamily
 from fydpad.texture.family import constant_stroke
 from fydpad.texture.fit import fit_texture
-from fydpad.texture.scan_generator import generate_scan
 
 
 def per_tick_us(fam, n: int = 20_000) -> float:

@@ -5,7 +5,7 @@
 
 DIR holds HaTT model files (``Models_<material>.xml``, Culbertson, Lopez Delgado and
 Kuchenbecker 2014; not shipped: see the README). Per surface, through the project's HaTT
-import (fydpad/texture/penn.py) and :func:`scan_generator.penn_scan` (which adds a tool
+import (fydpad/texture/penn.py) and :func:`texture_scans.penn_scan` (which adds a tool
 resonance, contact impacts, the hand's wander and gravity on three axes):
 
 - training: one 30 s hand stroke through plateaus near 10, 20, 30 and 40 mm/s;
@@ -33,13 +33,13 @@ from pathlib import Path
 import numpy as np
 
 from fydpad.progress import progress
+from fydpad.synth.texture_scans import hand_speed, penn_scan, plateau_speed
 from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import compare
 from fydpad.texture.fit import fit_paper
 from fydpad.texture.identify import identify
 from fydpad.texture.model_file import load_model, save_model
 from fydpad.texture.penn import read_penn
-from fydpad.texture.scan_generator import hand_speed, penn_scan, plateau_speed
 from fydpad.texture.scan_io import read_scan, write_scan
 from fydpad.texture.select import select_model
 from fydpad.texture.synthesis import TextureRenderer

@@ -18,7 +18,6 @@ from fydpad.texture.families.friction import set_electrostatic_b
 from fydpad.texture.free_form import AUTO
 from fydpad.texture.identify import plot_confusion
 from fydpad.texture.interpolation import DEFAULT_METHOD, METHODS
-from fydpad.texture.scan_generator import TEXTURES
 from fydpad.web.experiment import ExperimentError
 from fydpad.web.staircase import StaircaseSession
 from vision.strict_json import finite
@@ -322,7 +321,8 @@ def register(sub: argparse._SubParsersAction) -> None:
             "gravity. Includes Bianchi 2015's gratings R1 (3.90 mm) and R2 (2.15 mm). Files are "
             "named SURFACE_SPEEDmms_sSEED.csv. Deterministic per seed."),
     )
-    g.add_argument("--out-dir", required=True, metavar="DIR")
+    g.add_argument("--out-dir", metavar="DIR", help="folder to write to (created; needed "
+                   "unless --list)")
     g.add_argument("--textures", default="all",
                    help="comma-separated names or 'all' (--list shows them)")
     g.add_argument("--speeds", type=_floats, default=[10.0, 20.0, 30.0, 40.0], metavar="S,..")
@@ -549,13 +549,18 @@ def run_staircase(args: argparse.Namespace) -> int:
 
 
 def run_generate(args: argparse.Namespace) -> int:
+    # The generator (scipy.signal, the synthetic pad) loads here, not for --help.
+    from fydpad.synth.texture_scans import TEXTURES, write_scans
+
     if args.list:
         for t in TEXTURES.values():
             print(f"{t.name:16s} period {t.period_mm:g} mm, resonance {t.resonance_hz:g} Hz")
         return 0
+    if args.out_dir is None:
+        raise UserError("generate-scans: give --out-dir DIR (or --list to see the textures)")
     out = _make_dir(args.out_dir, "--out-dir")
-    n = ops.generate_scans(out, args.textures, args.speeds, args.strokes, args.seconds,
-                           args.seed, args.friction, args.load_scale,
-                           wrap=lambda it: progress(it, total=len(it), desc="generate"))
+    n = write_scans(out, args.textures, args.speeds, args.strokes, args.seconds, args.seed,
+                    args.friction, args.load_scale,
+                    wrap=lambda it: progress(it, total=len(it), desc="generate"))
     print(f"{out}: {n} scans")
     return 0

@@ -49,7 +49,6 @@ from fydpad.texture.family import (
 )
 from fydpad.texture.identify import Identification, plot_confusion
 from fydpad.texture.plots import plot_against_ceiling, plot_spectra
-from fydpad.texture.scan_generator import TEXTURES, generate_scan, save_generated
 from vision.recording import CsvRowWriter
 
 Array = NDArray[np.float64]
@@ -484,22 +483,3 @@ def compare_command(train_paths: list[str], scan_paths: list[str], kinds: list[s
                                    Identification(r["specimens"], conf, rate, []),
                                    f"{kind}, {key}: {rate:.0%}")
     return result, lines
-
-
-# ------------------------------------------------------------------ generate-scans
-def generate_scans(out_dir: Path, textures: str, speeds_mm_s: list[float], strokes: int,
-                   seconds: float, seed: int, friction: bool, load_scale: float,
-                   wrap: Wrap = _no_wrap) -> int:
-    """Synthetic scans ``SURFACE_SPEEDmms_sSEED.csv`` from the scan generator."""
-    names = list(TEXTURES) if textures == "all" else [
-        n.strip() for n in textures.split(",") if n.strip()]
-    unknown = [n for n in names if n not in TEXTURES]
-    if unknown:
-        raise UserError(f"--textures: unknown {', '.join(unknown)} (known: {', '.join(TEXTURES)})")
-    if not (math.isfinite(load_scale) and load_scale > 0):
-        raise UserError(f"--load-scale: give a positive number, not {load_scale:g}")
-    jobs = [(n, s, seed + k) for n in names for s in speeds_mm_s for k in range(strokes)]
-    for n, s, sd in wrap(jobs):
-        scan = generate_scan(n, s, seconds, seed=sd, friction=friction, load_scale=load_scale)
-        save_generated(scan, out_dir / f"{n}_{s:g}mms_s{sd}.csv")
-    return len(jobs)

@@ -3,8 +3,8 @@ that score a model form on it: held-out 8 s stroke seed 100, second recording se
 
 from __future__ import annotations
 
+from fydpad.synth.texture_scans import generate_scan
 from fydpad.texture.evaluate import compare_recordings, evaluation_mask
-from fydpad.texture.scan_generator import generate_scan
 
 
 def held_out(name: str, speed_mm_s: float, model, seconds: float = 8.0, seed: int = 100,

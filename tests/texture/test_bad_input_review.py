@@ -13,9 +13,9 @@ import pytest
 
 from fydpad.errors import UserError
 from fydpad.station.texture_source import open_texture
+from fydpad.synth.texture_scans import generate_scan, save_generated
 from fydpad.texture.families.lpc import LpcFamily
 from fydpad.texture.model_file import TextureModel, load_model, model_to_json
-from fydpad.texture.scan_generator import generate_scan, save_generated
 from fydpad.texture.scan_io import read_scan
 from fydpad.texture.synthesis import TextureRenderer
 from tests.texture_families.helpers import run_cli

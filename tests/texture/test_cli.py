@@ -103,6 +103,18 @@ def test_bad_input_is_a_user_error(workdir, tmp_path):
             "--form", "calibrated")
 
 
+def test_generate_scans_list_needs_no_out_dir(tmp_path, capsys, monkeypatch):
+    from fydpad.synth.texture_scans import TEXTURES
+
+    monkeypatch.chdir(tmp_path)
+    assert run("generate-scans", "--list") == 0
+    listed = [line.split()[0] for line in capsys.readouterr().out.splitlines()]
+    assert listed == list(TEXTURES) and "R1" in listed
+    assert list(tmp_path.iterdir()) == []  # nothing written
+    with pytest.raises(UserError, match="--out-dir"):
+        run("generate-scans", "--textures", "R1")
+
+
 def test_evaluate_refuses_a_scan_outside_the_models_speeds(workdir, tmp_path):
     fast = tmp_path / "fast.csv"
     fast.write_text("# surface=R1\nt_s,ax,ay,az,speed_mm_s\n" + "".join(
@@ -130,7 +142,7 @@ def test_generate_scans_with_a_light_touch_writes_that_stroke_and_says_so(tmp_pa
     """--load-scale 0.3 writes the generator's light-touch stroke (the physics is tested in
     test_generator.py: brick at 35 mm/s is then off the surface a fifth of the time) and
     the file's header says which load it was scanned with."""
-    from fydpad.texture.scan_generator import generate_scan
+    from fydpad.synth.texture_scans import generate_scan
     from fydpad.texture.scan_io import read_scan
 
     for scale, sub in (("1", "own"), ("0.3", "light")):

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from fydpad.errors import UserError
+from fydpad.synth.texture_scans import generate_scan, save_generated
 from fydpad.texture.coverage import (
     checked_spans,
     describe,
@@ -25,7 +26,6 @@ from fydpad.texture.evaluate import verdict_on_means
 from fydpad.texture.fit import fit_texture
 from fydpad.texture.model_file import load_model
 from fydpad.texture.plots import SpeedCoverage, plot_spectra
-from fydpad.texture.scan_generator import generate_scan, save_generated
 from tests.texture_families.helpers import run_cli as run
 
 FS = 1000.0

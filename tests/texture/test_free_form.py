@@ -19,6 +19,7 @@ import pytest
 
 from fydpad.commands import texture
 from fydpad.errors import UserError
+from fydpad.synth.texture_scans import generate_scan
 from fydpad.texture.fit import fit_texture
 from fydpad.texture.free_form import (
     RENDER_SMEAR_MM_S,
@@ -29,7 +30,6 @@ from fydpad.texture.free_form import (
 )
 from fydpad.texture.lpc import is_stable
 from fydpad.texture.model_file import load_model, model_to_json, parse_model, save_model
-from fydpad.texture.scan_generator import generate_scan
 from fydpad.texture.segment import segment_by_speed
 from fydpad.texture.synthesis import TextureRenderer
 from fydpad.texture.two_part import chunk_periodograms, fit_two_part

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import scipy.signal as ss
 
-from fydpad.texture.scan_generator import (
+from fydpad.synth.texture_scans import (
     TEXTURES,
     generate_scan,
     hand_load,
@@ -43,7 +43,7 @@ def test_a_variant_of_a_texture_gets_its_own_surface():
         ratio = np.std(np.diff(b.acc[:, 2])) / np.std(np.diff(a.acc[:, 2]))
         assert (ratio < 0.5) if other is smooth else (ratio > 2.0), ratio
     # Its friction's ground truth follows its own profile's slopes too.
-    from fydpad.texture.scan_generator import friction_truth
+    from fydpad.synth.texture_scans import friction_truth
 
     assert not np.allclose(friction_truth(smooth)[0], friction_truth("brick")[0])
 
@@ -149,7 +149,7 @@ def test_the_preload_follows_the_hands_load(monkeypatch):
     """The preload is the texture's times the hand's load (``hand_load``): a load held at
     half, one and two times its mean flies less the heavier; and the friction model's
     normal force is that load, scaled with ``load_scale``."""
-    import fydpad.texture.scan_generator as gen
+    import fydpad.synth.texture_scans as gen
 
     light = generate_scan("brick", 25.0, 6.0, seed=2, load_scale=0.3, friction=True)
     own = generate_scan("brick", 25.0, 6.0, seed=2, friction=True)

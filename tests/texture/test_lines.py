@@ -16,12 +16,12 @@ import pytest
 import scipy.signal as ss
 
 from fydpad.errors import UserError
+from fydpad.synth.texture_scans import generate_scan, hand_speed
 from fydpad.texture.dft321 import preprocess
 from fydpad.texture.fit import fit_texture
 from fydpad.texture.line_voice import LineVoice
 from fydpad.texture.lines import LineSpectrum, arc_length_mm, fit_lines
 from fydpad.texture.model_file import load_model, save_model
-from fydpad.texture.scan_generator import generate_scan, hand_speed
 from fydpad.texture.synthesis import TextureRenderer
 
 FS = 1000.0
@@ -263,7 +263,7 @@ def test_a_rounded_rib_keeps_the_harmonics_that_stand_out(seed):
     comb of three peaks a stroke. Its harmonics stand as spatial peaks and are kept
     (one line alone held 58 % of the power); with seed 4 the 2nd harmonic outdoes the
     line in one stroke."""
-    from fydpad.texture.scan_generator import Texture
+    from fydpad.synth.texture_scans import Texture
 
     rib = Texture("round_rib_0.35", period_mm=2.5, ridge_fraction=0.7, relief_mm=0.15,
                   tip_mm=0.35, rough_mm=0.001, resonance_hz=120.0, damping=0.15)

@@ -280,7 +280,7 @@ def test_cli_evaluate_and_identify_take_hatt_files(tmp_path, penn_xml, capsys):
     import json
 
     from fydpad.cli import main
-    from fydpad.texture.scan_generator import generate_scan, save_generated
+    from fydpad.synth.texture_scans import generate_scan, save_generated
 
     scan = save_generated(generate_scan("felt", 30.0, 3.0, seed=2), tmp_path / "felt.csv")
     other = write_penn(tmp_path / "Models_Other.xml", _model_set((60, 70, 65, 75), "other"))

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 import scipy.signal as ss
 
+from fydpad.synth.texture_scans import generate_scan
 from fydpad.texture.fir_warp import WARP_SLACK_MM_S, responses_along, table_position
 from fydpad.texture.fit import fit_texture
 from fydpad.texture.lpc import ar_psd, h_from_poly, lpc_autocorrelation
 from fydpad.texture.model_file import TextureModel
-from fydpad.texture.scan_generator import generate_scan
 from fydpad.texture.synthesis import CentroidSpeed, TextureRenderer, synthesize
 
 

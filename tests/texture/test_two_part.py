@@ -15,12 +15,12 @@ import pytest
 
 from fydpad.commands import texture
 from fydpad.errors import UserError
+from fydpad.synth.texture_scans import generate_scan
 from fydpad.texture.evaluate import evaluate_scan
 from fydpad.texture.fit import fit_texture
 from fydpad.texture.interpolation import build_table
 from fydpad.texture.lpc import is_stable
 from fydpad.texture.model_file import load_model, model_to_json, parse_model, save_model
-from fydpad.texture.scan_generator import generate_scan
 from fydpad.texture.two_part import TwoPartSpectrum, fit_two_part
 
 FS = 1000.0

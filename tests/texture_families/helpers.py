@@ -7,8 +7,8 @@ import argparse
 import numpy as np
 
 from fydpad.commands import texture
+from fydpad.synth.texture_scans import DX_MM, TEXTURES, friction_mu_true, friction_params
 from fydpad.texture.families.friction import lowpass_position
-from fydpad.texture.scan_generator import DX_MM, TEXTURES, friction_mu_true, friction_params
 
 
 def run_cli(*argv: str) -> int:

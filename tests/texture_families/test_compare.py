@@ -9,13 +9,13 @@ import warnings
 import numpy as np
 import pytest
 
+from fydpad.synth.texture_scans import generate_scan, save_generated
 from fydpad.texture.compare import (
     by_surface,
     compare_families,
     shape_distance_db,
     specimen_experiment,
 )
-from fydpad.texture.scan_generator import generate_scan, save_generated
 from tests.texture_families.helpers import run_cli
 
 NAMES = ("R1", "R2", "canvas", "cork", "felt")

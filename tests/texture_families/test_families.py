@@ -14,13 +14,13 @@ import scipy.signal as ss
 
 from fydpad.errors import UserError
 from fydpad.station.texture_source import open_texture, tick_speed
+from fydpad.synth.texture_scans import generate_scan
 from fydpad.texture.families import KINDS, fit_family, load_family
 from fydpad.texture.families.lpc import LpcFamily
 from fydpad.texture.family import TickPosition, constant_stroke, save_model_json
 from fydpad.texture.fit import fit_texture
 from fydpad.texture.interpolation import DEFAULT_METHOD, build_table
 from fydpad.texture.model_file import save_model
-from fydpad.texture.scan_generator import generate_scan
 from fydpad.texture.synthesis import TextureRenderer
 from tests.conftest import REPO
 

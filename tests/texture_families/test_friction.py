@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from fydpad.synth.texture_scans import generate_scan
 from fydpad.texture.families import constant_stroke, load_family, read_scans
 from fydpad.texture.families.friction import fit_friction, parse_friction
-from fydpad.texture.scan_generator import generate_scan
 from tests.texture_families.helpers import run_cli, truth_in_scan_frame
 
 FIT_SPEEDS = (10.0, 25.0, 40.0)

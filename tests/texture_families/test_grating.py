@@ -8,9 +8,9 @@ import json
 import numpy as np
 import pytest
 
+from fydpad.synth.texture_scans import generate_scan
 from fydpad.texture.families import constant_stroke, load_family
 from fydpad.texture.families.grating import RATIOS, GratingFamily, estimate_wavelength, level_value
-from fydpad.texture.scan_generator import generate_scan
 from tests.texture_families.helpers import run_cli
 
 

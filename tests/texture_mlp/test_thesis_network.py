@@ -211,8 +211,8 @@ def test_fit_round_trip_and_family_render_equals_tick(fitted, tmp_path):
 
 
 def test_fit_needs_force(tmp_path):
+    from fydpad.synth.texture_scans import generate_scan
     from fydpad.texture.families import fit_family
-    from fydpad.texture.scan_generator import generate_scan
 
     with pytest.raises(UserError, match="column 'force_n'"):
         fit_family("mlp", [generate_scan("felt", 10.0, 1.0, seed=1)])

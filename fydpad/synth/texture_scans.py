@@ -37,8 +37,9 @@ vanishes.
 from __future__ import annotations
 
 import functools
+import math
 import zlib
-from collections.abc import Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -46,8 +47,10 @@ import numpy as np
 import scipy.signal as ss
 from numpy.typing import NDArray
 
-from fydpad.texture.penn import PennModelSet
+from fydpad.errors import UserError
+from fydpad.texture.penn import PennModelSet, PennRenderer
 from fydpad.texture.scan_io import Scan, write_scan
+from vision.recording import CsvRowWriter
 
 Array = NDArray[np.float64]
 SIM_FS_HZ = 10_000.0
@@ -370,8 +373,6 @@ def save_generated(scan: Scan, path: str | Path) -> Path:
         return write_scan(path, scan.t_s, scan.acc, scan.speed_mm_s, x_mm=x,
                           y_mm=None if x is None else np.zeros_like(x), meta=scan.meta)
     # With the friction model: all the contract's columns, in its order.
-    from vision.recording import CsvRowWriter
-
     names = ("t_s", "ax", "ay", "az", "speed_mm_s", "x_mm", "y_mm", "force_n", "friction_n")
     data = np.column_stack([scan.t_s, scan.acc, scan.speed_mm_s, x, np.zeros_like(x),
                             scan.force_n, friction])
@@ -380,6 +381,26 @@ def save_generated(scan: Scan, path: str | Path) -> Path:
         for row in data:
             w.write(*(float(v) for v in row))
     return Path(path)
+
+
+def write_scans(out_dir: Path, textures: str, speeds_mm_s: Sequence[float], strokes: int,
+                seconds: float, seed: int, friction: bool, load_scale: float,
+                wrap: Callable[[Iterable], Iterable] = lambda it: it) -> int:
+    """``fydpad texture generate-scans``: ``strokes`` scans per texture (``textures``:
+    comma-separated names or ``all``) and speed, ``SURFACE_SPEEDmms_sSEED.csv`` in
+    ``out_dir``; returns how many."""
+    names = list(TEXTURES) if textures == "all" else [
+        n.strip() for n in textures.split(",") if n.strip()]
+    unknown = [n for n in names if n not in TEXTURES]
+    if unknown:
+        raise UserError(f"--textures: unknown {', '.join(unknown)} (known: {', '.join(TEXTURES)})")
+    if not (math.isfinite(load_scale) and load_scale > 0):
+        raise UserError(f"--load-scale: give a positive number, not {load_scale:g}")
+    jobs = [(n, s, seed + k) for n in names for s in speeds_mm_s for k in range(strokes)]
+    for n, s, sd in wrap(jobs):
+        scan = generate_scan(n, s, seconds, seed=sd, friction=friction, load_scale=load_scale)
+        save_generated(scan, out_dir / f"{n}_{s:g}mms_s{sd}.csv")
+    return len(jobs)
 
 
 # --------------------------------------------------------------------------- friction
@@ -505,7 +526,6 @@ def penn_scan(ms: PennModelSet, speed_mm_s: Array, seed: int, force_n: float = 1
     contact impacts (one per 0.5-2 mm travelled), a tool resonance (seeded by the
     material's name, 250-420 Hz), the three axes' coupling, the hand's slow motion and
     gravity through a tilting hand, and sensor noise."""
-    from fydpad.texture.penn import PennRenderer
 
     fs = ms.fs_hz
     v = np.asarray(speed_mm_s, float)
