@@ -10,19 +10,16 @@ import argparse
 import sys
 import warnings
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fydpad.errors import UserError
-from fydpad.softness import (
-    PAPER_RANGE_N_PER_MM,
-    SPECIMENS,
-    SoftnessConfig,
-    SoftnessError,
-    SoftnessTable,
-    SoftnessWarning,
-    characterise_fabric,
-    fit_specimen,
-    save_table,
-)
+
+if TYPE_CHECKING:  # annotations only: fydpad.softness (NumPy) loads inside the command
+    from fydpad.softness import SoftnessTable
+
+#: fydpad.softness.SPECIMENS' stiffnesses, written out so that --help loads no NumPy
+#: (tests/cli/test_fast_help.py keeps the two equal).
+SPECIMEN_STIFFNESSES = "SS1 0.88 N/mm, SS2 0.88 N/mm, SS3 0.39 N/mm, SS4 0.39 N/mm"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -57,7 +54,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=(
             "DATA.csv: indentation_mm,force_n. Prints lambda of F = lambda * delta with "
             f"its R^2 (the paper: > 0.924) and the nearest of the paper's specimens "
-            f"({', '.join(f'{k} {v.lambda_n_per_mm} N/mm' for k, v in SPECIMENS.items())})."
+            f"({SPECIMEN_STIFFNESSES})."
         ),
     )
     s.add_argument("data", metavar="DATA.csv", help="indenter samples on one specimen")
@@ -77,6 +74,8 @@ def _read(path: str, required: tuple[str, ...], optional: tuple[str, ...] = ()) 
 
 def _fit_quietly(fn, *args, **kwargs):
     """Run a fit, collecting its SoftnessWarnings (they are printed as one line each)."""
+    from fydpad.softness import SoftnessWarning  # the library: not for --help
+
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", SoftnessWarning)
         result = fn(*args, **kwargs)
@@ -85,6 +84,14 @@ def _fit_quietly(fn, *args, **kwargs):
 
 def run_calibrate(args: argparse.Namespace) -> int:
     import numpy as np
+
+    from fydpad.softness import (  # the library: not for --help
+        PAPER_RANGE_N_PER_MM,
+        SoftnessConfig,
+        SoftnessError,
+        characterise_fabric,
+        save_table,
+    )
 
     cols = _read(args.data, ("indentation_mm", "force_n"), ("theta_rad", "theta_deg"))
     if "theta_rad" in cols:
@@ -116,6 +123,13 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
 
 def run_fit_specimen(args: argparse.Namespace) -> int:
+    from fydpad.softness import (  # the library: not for --help
+        SPECIMENS,
+        SoftnessConfig,
+        SoftnessError,
+        fit_specimen,
+    )
+
     cols = _read(args.data, ("indentation_mm", "force_n"))
     name = args.name or Path(args.data).stem
     try:
@@ -145,6 +159,7 @@ def plot_fabric(path: str | Path, theta_rad, indentation_mm, force_n,
     import numpy as np
 
     from fydpad.plots import plt
+    from fydpad.softness import PAPER_RANGE_N_PER_MM
 
     th = np.round(np.asarray(theta_rad, float), 6)
     d = np.asarray(indentation_mm, float)

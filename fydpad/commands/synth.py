@@ -6,11 +6,36 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fydpad.errors import UserError
-from fydpad.progress import progress
-from fydpad.synth import EFFECT_HELP, TRAJECTORIES, Effects, SynthConfig, SyntheticPad
-from vision.recording import IMAGE_FLIPS, VIDEO_NAMES
+
+if TYPE_CHECKING:  # annotations only: the synthetic pad (OpenCV, NumPy) loads in the command
+    from fydpad.synth import SynthConfig
+
+# The synthetic pad's option lists, written out so that --help loads neither OpenCV nor
+# NumPy (tests/cli/test_fast_help.py keeps each equal to its source).
+#: fydpad.synth.TRAJECTORIES
+TRAJECTORIES = ("circle", "lissajous", "tapping", "walk", "fast", "hover", "presses")
+#: vision.recording.IMAGE_FLIPS and VIDEO_NAMES
+IMAGE_FLIPS = ("none", "horizontal", "vertical", "both")
+VIDEO_NAMES = ("video.avi", "video.mp4")
+#: fydpad.synth.EFFECT_HELP
+EFFECT_HELP: dict[str, str] = {
+    "uneven_light": "uneven, strongly vignetted backlight (corners ~35 % darker, a lamp's "
+                    "hotspot, blotches)",
+    "room_light": "room light dipping by a third for seconds, mains flicker and bursts",
+    "auto_exposure": "camera auto-exposure hunting: the whole image swings by up to +-20 %",
+    "daylight": "daylight from one side: a brightness gradient whose side and strength drift",
+    "stains": "ink dots, pen lines and a dried stain on the fabric, darker than grey 150",
+    "hover": "the finger travels 3 mm above the fabric between contacts and its shadow is dark "
+             "(below grey 150 when close)",
+    "hand_shadow": "the rest of the hand shadows the user's edge of the view",
+    "light_touch": "light touches: indentations under ~1.5 mm and a pale contact",
+    "fast": "fast strokes: finger speed up to 45 mm/s and a 1/30 s exposure",
+    "palm_rest": "the heel of the palm rests on the fabric at the user's edge at the start, "
+                 "lifted after 1-2 s",
+}
 
 #: The files of a pad session recording (docs/recording_format.md), removed by --force.
 RECORDING_FILES = ("meta.json", *VIDEO_NAMES, "frames.csv", "ir.csv", "force.csv", "truth.csv")
@@ -76,6 +101,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def config_from_args(args: argparse.Namespace) -> SynthConfig:
+    from fydpad.synth import Effects, SynthConfig  # the synthetic pad: not for --help
+
     if not args.seconds > 0:
         raise UserError(f"--seconds must be positive, got {args.seconds}")
     if not args.fps > 0:
@@ -97,6 +124,9 @@ def config_from_args(args: argparse.Namespace) -> SynthConfig:
 
 
 def run(args: argparse.Namespace) -> int:
+    from fydpad.progress import progress  # tqdm: not for --help
+    from fydpad.synth import SyntheticPad  # OpenCV, NumPy: not for --help
+
     cfg = config_from_args(args)
     out = Path(args.outdir)
     if out.exists() and not out.is_dir():

@@ -4,23 +4,29 @@ arguments and prints; the work is :mod:`fydpad.texture.operations`'s."""
 
 from __future__ import annotations
 
+# The texture library (SciPy, the families) and the staircase load inside the command
+# functions, so that --help starts fast.
 import argparse
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fydpad.errors import UserError
-from fydpad.progress import progress
-from fydpad.texture import operations as ops
-from fydpad.texture.coverage import describe
-from fydpad.texture.families import FIT_KIND_NAMES, KIND_NAMES
-from fydpad.texture.families.friction import set_electrostatic_b
-from fydpad.texture.free_form import AUTO
-from fydpad.texture.identify import plot_confusion
-from fydpad.texture.interpolation import DEFAULT_METHOD, METHODS
-from fydpad.web.experiment import ExperimentError
-from fydpad.web.staircase import StaircaseSession
-from vision.strict_json import finite
+
+if TYPE_CHECKING:  # annotations only
+    from fydpad.texture.operations import Synthesis
+
+# What the options list, written out so that --help loads no texture code
+# (tests/cli/test_fast_help.py keeps each equal to its source).
+#: fydpad.texture.families.KIND_NAMES and FIT_KIND_NAMES
+KIND_NAMES = ("lpc", "friction", "grating", "mlp", "penn")
+FIT_KIND_NAMES = ("lpc", "friction", "grating", "mlp")
+#: fydpad.texture.interpolation.METHODS and DEFAULT_METHOD
+METHODS = ("nearest", "stretch", "lsf", "reflection", "linear")
+DEFAULT_METHOD = None
+#: fydpad.texture.free_form.AUTO
+AUTO = "auto"
 
 #: The interpolation between modelled speeds (fydpad.texture.interpolation, docs/texture.md).
 INTERPOLATION_HELP = ("interpolation between modelled speeds (default: the model file's "
@@ -401,11 +407,16 @@ def _set_options(pairs: list[str]) -> dict:
 
 def _write_json(path: str, data: dict) -> None:
     """Strict JSON: a figure that is not a number (NaN) is written as null."""
+    from vision.strict_json import finite  # NumPy: not for --help
+
     Path(path).write_text(json.dumps(finite(data), indent=1, allow_nan=False) + "\n",
                           encoding="utf-8")
 
 
 def run_fit(args: argparse.Namespace) -> int:
+    from fydpad.progress import progress
+    from fydpad.texture import operations as ops
+
     _check_out(args.out, "--out")
     _check_out(args.plot, "--plot")
     options = {**vars(args),
@@ -421,6 +432,9 @@ def run_fit(args: argparse.Namespace) -> int:
 
 
 def run_synth(args: argparse.Namespace) -> int:
+    from fydpad.texture import operations as ops
+    from fydpad.texture.coverage import describe
+
     if not _is_audio(args.out):
         _check_out(args.out, "--out")
     syn = ops.synthesize(args.model, speed_mm_s=args.speed_mm_s, seconds=args.seconds,
@@ -446,7 +460,7 @@ def _is_audio(out: str) -> bool:
     return out == "audio" or out.startswith(("audio:", "audio@"))
 
 
-def _play_audio(spec: str, syn: ops.Synthesis) -> None:
+def _play_audio(spec: str, syn: Synthesis) -> None:
     """Play on the sound card through the audio channel (waits for the end)."""
     from fydpad.channels import ChannelError, open_channel
     from fydpad.channels.audio import AudioChannel
@@ -465,6 +479,8 @@ def _play_audio(spec: str, syn: ops.Synthesis) -> None:
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
+    from fydpad.texture import operations as ops
+
     _check_out(args.json, "--json")
     _check_out(args.plot, "--plot")
     results = ops.evaluate_model(args.model, args.scan, args.second, seed=args.seed,
@@ -489,6 +505,10 @@ def run_evaluate(args: argparse.Namespace) -> int:
 
 
 def run_identify(args: argparse.Namespace) -> int:
+    from fydpad.progress import progress
+    from fydpad.texture import operations as ops
+    from fydpad.texture.identify import plot_confusion
+
     _check_out(args.json, "--json")
     _check_out(args.plot, "--plot")
     kind, ident = ops.identify_models(
@@ -504,6 +524,8 @@ def run_identify(args: argparse.Namespace) -> int:
 
 
 def run_compare(args: argparse.Namespace) -> int:
+    from fydpad.texture import operations as ops
+
     kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
     out_dir = _make_dir(args.out_dir, "--out-dir")
     result, lines = ops.compare_command(args.train, args.scans, kinds, out_dir,
@@ -517,6 +539,10 @@ def run_compare(args: argparse.Namespace) -> int:
 
 
 def run_staircase(args: argparse.Namespace) -> int:
+    from fydpad.texture.families.friction import set_electrostatic_b
+    from fydpad.web.experiment import ExperimentError
+    from fydpad.web.staircase import StaircaseSession
+
     _check_out(args.log, "--log")
     try:
         session = StaircaseSession.from_log(args.log, args.start, args.step)
@@ -549,7 +575,7 @@ def run_staircase(args: argparse.Namespace) -> int:
 
 
 def run_generate(args: argparse.Namespace) -> int:
-    # The generator (scipy.signal, the synthetic pad) loads here, not for --help.
+    from fydpad.progress import progress
     from fydpad.synth.texture_scans import TEXTURES, write_scans
 
     if args.list:

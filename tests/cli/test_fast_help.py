@@ -15,9 +15,6 @@ from fydpad import cli
 
 ROOT = Path(__file__).resolve().parents[2]
 HEAVY = ("scipy.signal", "pybullet", "aiohttp", "matplotlib")
-#: Commands whose --help still loads a heavy library at registration (their modules are
-#: the texture helpers' and the synthetic pad's: their option lists come from it).
-NOT_YET_FAST = {"texture", "synth"}
 
 PROBE = """
 import json, sys
@@ -43,7 +40,7 @@ def test_top_level_help_imports_no_command():
     assert not {m for m in mods if m.split(".")[0] in ("cv2", "numpy", *HEAVY)}
 
 
-@pytest.mark.parametrize("command", sorted(set(cli.COMMANDS) - NOT_YET_FAST))
+@pytest.mark.parametrize("command", sorted(cli.COMMANDS))
 def test_command_help_loads_no_heavy_library(command):
     mods = loaded(command, "--help")
     assert f"fydpad.commands.{command}" in mods
@@ -62,6 +59,36 @@ def test_run_lists_the_texture_methods_there_are():
     from fydpad.texture.interpolation import METHODS
 
     assert TEXTURE_METHODS == METHODS
+
+
+def test_texture_lists_the_families_and_methods_there_are():
+    from fydpad.commands import texture
+    from fydpad.texture import families, free_form, interpolation
+
+    assert texture.KIND_NAMES == families.KIND_NAMES
+    assert texture.FIT_KIND_NAMES == families.FIT_KIND_NAMES
+    assert texture.METHODS == interpolation.METHODS
+    assert texture.DEFAULT_METHOD == interpolation.DEFAULT_METHOD
+    assert texture.AUTO == free_form.AUTO
+
+
+def test_synth_lists_the_trajectories_effects_and_videos_there_are():
+    from fydpad import synth
+    from fydpad.commands import synth as command
+    from vision import recording
+
+    assert command.TRAJECTORIES == synth.TRAJECTORIES
+    assert command.EFFECT_HELP == synth.EFFECT_HELP
+    assert command.IMAGE_FLIPS == recording.IMAGE_FLIPS
+    assert command.VIDEO_NAMES == recording.VIDEO_NAMES
+
+
+def test_softness_names_the_specimens_there_are():
+    from fydpad.commands.softness import SPECIMEN_STIFFNESSES
+    from fydpad.softness import SPECIMENS
+
+    assert SPECIMEN_STIFFNESSES == ", ".join(
+        f"{k} {v.lambda_n_per_mm} N/mm" for k, v in SPECIMENS.items())
 
 
 def test_track_lists_the_trackers_there_are():
