@@ -42,7 +42,7 @@ def penn_family(order_ar: int, order_ma: int, tmp: str):
     from scipy.spatial import Delaunay
 
     from fydpad.texture.families import load_family
-    from fydpad.texture.penn import PennModelSet, write_penn
+    from fydpad.texture.families.penn.toolkit import PennModelSet, write_penn
 
     rng = np.random.default_rng(order_ar)
     s, f = np.meshgrid([10.0, 50.0, 120.0, 250.0], [0.2, 1.0, 3.0], indexing="ij")

@@ -5,8 +5,8 @@
 
 DIR holds HaTT model files (``Models_<material>.xml``, Culbertson, Lopez Delgado and
 Kuchenbecker 2014; not shipped: see the README). Per surface, through the project's HaTT
-import (fydpad/texture/penn.py) and :func:`texture_scans.penn_scan` (which adds a tool
-resonance, contact impacts, the hand's wander and gravity on three axes):
+import (fydpad/texture/families/penn/toolkit.py) and :func:`texture_scans.penn_scan` (which
+adds a tool resonance, contact impacts, the hand's wander and gravity on three axes):
 
 - training: one 30 s hand stroke through plateaus near 10, 20, 30 and 40 mm/s;
 - test: a 10 s stroke at about 15, 20, 25 and 35 mm/s (a separate rendering: held out),
@@ -36,10 +36,10 @@ from fydpad.progress import progress
 from fydpad.synth.texture_scans import hand_speed, penn_scan, plateau_speed
 from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import compare
+from fydpad.texture.families.penn.toolkit import read_penn
 from fydpad.texture.fit import fit_paper
 from fydpad.texture.identify import identify
 from fydpad.texture.model_file import load_model, save_model
-from fydpad.texture.penn import read_penn
 from fydpad.texture.scan_io import read_scan, write_scan
 from fydpad.texture.select import select_model
 from fydpad.texture.synthesis import TextureRenderer

@@ -7,9 +7,15 @@ import pytest
 import scipy.signal as ss
 
 from fydpad.errors import UserError
+from fydpad.texture.families.penn.toolkit import (
+    PennModelSet,
+    PennRenderer,
+    interpolate,
+    read_penn,
+    write_penn,
+)
 from fydpad.texture.lpc import reflection_to_poly
 from fydpad.texture.lsf import lsf_to_poly, poly_to_lsf
-from fydpad.texture.penn import PennModelSet, PennRenderer, interpolate, read_penn, write_penn
 
 
 def _resonator(f_hz: float, fs: float, r: float = 0.97) -> np.ndarray:
@@ -93,7 +99,7 @@ def _toolkit_lsf2poly(lsf: np.ndarray) -> np.ndarray:
 
 @pytest.mark.parametrize("order", [6, 7])
 def test_lsf_conversion_matches_the_toolkits(order):
-    from fydpad.texture.families.penn import lsf_to_poly_rows
+    from fydpad.texture.families.penn.render import lsf_to_poly_rows
 
     rng = np.random.default_rng(order)
     lsf = np.sort(rng.uniform(0.05, 3.0, (3, order)), axis=1)

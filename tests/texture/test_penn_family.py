@@ -12,10 +12,10 @@ import scipy.signal as ss
 
 from fydpad.errors import UserError
 from fydpad.texture.families import constant_stroke, load_family, spec_kind
-from fydpad.texture.families.penn import PennTexture
+from fydpad.texture.families.penn.render import PennTexture
+from fydpad.texture.families.penn.toolkit import PennModelSet, write_penn
 from fydpad.texture.lpc import reflection_to_poly
 from fydpad.texture.lsf import poly_to_lsf
-from fydpad.texture.penn import PennModelSet, write_penn
 
 FS = 10_000.0
 
@@ -334,7 +334,7 @@ def test_tick_creates_no_arrays(penn_xml):
 def test_table_budget_uses_the_real_low_pass(tmp_path):
     """ARMA(25, 5) at 10 kHz: the tick matrices of the full 64 x 32 grid (4 low-pass
     sections, 30.7 MB) fit the 32 MiB budget; AR(60) shrinks the grid to fit it."""
-    from fydpad.texture.families.penn import _TABLE_BYTES, decimation_sos
+    from fydpad.texture.families.penn.render import _TABLE_BYTES, decimation_sos
 
     assert decimation_sos(10, 1000.0).shape[0] == 4
     rng = np.random.default_rng(0)

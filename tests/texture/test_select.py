@@ -12,11 +12,11 @@ from fydpad.errors import UserError
 from fydpad.synth.texture_scans import hand_speed, penn_scan, plateau_speed
 from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import lsd_db, welch_psd
+from fydpad.texture.families.penn.toolkit import PennModelSet
 from fydpad.texture.fit import fit_paper
 from fydpad.texture.lpc import ar_psd, autocorrelation, reflection_to_poly
 from fydpad.texture.lsf import poly_to_lsf
 from fydpad.texture.model_file import load_model, model_to_json, save_model
-from fydpad.texture.penn import PennModelSet
 from fydpad.texture.scan_io import write_scan
 from fydpad.texture.select import CANDIDATES, select_model
 from tests.texture_families.helpers import run_cli

@@ -15,8 +15,9 @@ from typing import Any
 import numpy as np
 
 from fydpad.errors import UserError
-from fydpad.texture.families import friction, grating, lpc, penn
+from fydpad.texture.families import friction, grating, lpc
 from fydpad.texture.families.mlp import render as mlp
+from fydpad.texture.families.penn import render as penn
 from fydpad.texture.family import (
     FingerBlock,
     Kind,

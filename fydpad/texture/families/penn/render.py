@@ -1,13 +1,13 @@
-"""HaTT texture models (``fydpad.texture.penn``) as a texture family (kind ``"penn"``).
+"""HaTT texture models (:mod:`.toolkit`) as a texture family (kind ``"penn"``).
 
 ``fydpad run --texture penn:Models_Wood.xml`` (or any ``.xml`` path) renders a Penn
-Haptic Texture Toolkit model set: the toolkit's ARMA synthesis (``penn`` module
+Haptic Texture Toolkit model set: the toolkit's ARMA synthesis (``toolkit`` module
 docstring) at the model's rate (10 kHz for the recorded sets), the model interpolated
 over speed and force, brought to the output rate through an anti-alias low-pass.
 
 The (speed, force) plane over [0, maxSpeed] x [0, maxForce] is sampled on a grid
 (``grid`` points, 64 x 32 by default): at every grid point the Delaunay-barycentric
-interpolation of the LSFs, ``var`` and ``gain`` (``penn.barycentric_weights``) is
+interpolation of the LSFs, ``var`` and ``gain`` (``toolkit.barycentric_weights``) is
 turned into A(z), B(z) once, at load. Both paths take the nearest grid point's model,
 so ``render`` and ``tick`` run the same filters; the toolkit re-interpolates on every
 update instead (the grid step is maxSpeed/63 and maxForce/31: 0.3 % of the LSF range
@@ -47,8 +47,8 @@ import scipy.signal as ss
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
+from fydpad.texture.families.penn.toolkit import PennModelSet, barycentric_weights, read_penn
 from fydpad.texture.family import FamilyBase, FingerBlock, Kind, hold_finite
-from fydpad.texture.penn import PennModelSet, barycentric_weights, read_penn
 
 Array = NDArray[np.float64]
 _NOISE_TICKS = 512  # ticks of noise drawn at once
@@ -142,7 +142,7 @@ class PennTexture(FamilyBase):
         self.den = lsf_to_poly_rows(w @ ms.ar_lsf)
         self.ma_poly = lsf_to_poly_rows(w @ ms.ma_lsf) if self.q else np.ones((w.shape[0], 1))
         self.sigma = np.sqrt(np.maximum(w @ ms.var, 0.0))
-        self.gain = w @ ms.gain  # AR files: 1 (penn.read_penn)
+        self.gain = w @ ms.gain  # AR files: 1 (toolkit.read_penn)
         self.num = self.gain[:, None] * self.ma_poly
         self._inv_ds = (ns - 1) / ms.max_speed_mm_s if ms.max_speed_mm_s > 0 else 0.0
         self._inv_df = (nf - 1) / ms.max_force_n if ms.max_force_n > 0 else 0.0
