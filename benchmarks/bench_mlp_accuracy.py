@@ -3,7 +3,7 @@ in the same run) on held-out data: the figures of docs/texture_mlp.md.
 
 ``python benchmarks/bench_mlp_accuracy.py`` prints the table (about 3 minutes);
 ``--plot DIR`` draws the spectra; ``--identify`` gives the network's identification
-rates (``fydpad.texture.compare``).
+rates (``fydpad.texture.evaluation.compare``).
 
 The thesis network (fit_mlp) and the LPC family on the test thirds of the same strokes,
 both modelling the z acceleration: R^2 (sample by sample), the power-spectrum
@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from fydpad.errors import UserError
 from fydpad.synth.texture_scans import DX_MM, TEXTURES, generate_scan, surface_profile
-from fydpad.texture.evaluate import compare, evaluation_mask
+from fydpad.texture.evaluation.evaluate import compare, evaluation_mask
 from fydpad.texture.families.mlp.render import MlpTexture
 from fydpad.texture.families.mlp.train import TrainConfig, fit_mlp, scan_features, thirds
 from fydpad.texture.fit import fit_texture
@@ -158,7 +158,7 @@ def plot_figures(out_dir: str) -> list[str]:
     """The spectra of ``mlp_thesis_felt.png``: recorded against each family's."""
     from pathlib import Path
 
-    from fydpad.texture.evaluate import welch_psd
+    from fydpad.texture.evaluation.evaluate import welch_psd
     from fydpad.texture.families import finger_from_scan
     from fydpad.texture.plots import plot_spectra
 
@@ -190,9 +190,9 @@ IDENTIFY_SURFACES = ("R1", "R2", "canvas", "corduroy", "cork", "felt", "sandpape
 
 def identification() -> list[tuple[str, dict, float]]:
     """docs/texture_families.md's comparison (same surfaces, strokes and identifier:
-    ``fydpad.texture.compare``) for the networks: one 6 s training stroke at 20 mm/s per
+    ``fydpad.texture.evaluation.compare``) for the networks: one 6 s training stroke at 20 mm/s per
     surface (seed 1), three test strokes each (seeds 101-103)."""
-    from fydpad.texture.compare import by_surface, fit_per_surface, identify_families
+    from fydpad.texture.evaluation.compare import by_surface, fit_per_surface, identify_families
 
     train = [generate_scan(n, 20.0, 6.0, seed=1, friction=True) for n in IDENTIFY_SURFACES]
     test = [generate_scan(n, 20.0, 6.0, seed=s, friction=True) for n in IDENTIFY_SURFACES

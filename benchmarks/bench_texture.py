@@ -183,9 +183,13 @@ def lines_benchmark(best) -> None:
 def quality(textures: list[str] | None = None) -> None:
     """Held-out figures against the texture targets for every texture (minutes; --quality)."""
     from fydpad.synth.texture_scans import TEXTURES
-    from fydpad.texture.evaluate import compare_recordings, evaluate_scan, evaluation_mask
+    from fydpad.texture.evaluation.evaluate import (
+        compare_recordings,
+        evaluate_scan,
+        evaluation_mask,
+    )
+    from fydpad.texture.evaluation.identify import identify
     from fydpad.texture.fit import fit_texture
-    from fydpad.texture.identify import identify
 
     warnings.simplefilter("ignore")
     names = textures or list(TEXTURES)

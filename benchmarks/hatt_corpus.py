@@ -35,10 +35,10 @@ import numpy as np
 from fydpad.progress import progress
 from fydpad.synth.texture_scans import hand_speed, penn_scan, plateau_speed
 from fydpad.texture.dft321 import preprocess
-from fydpad.texture.evaluate import compare
+from fydpad.texture.evaluation.evaluate import compare
+from fydpad.texture.evaluation.identify import identify
 from fydpad.texture.families.penn.toolkit import read_penn
 from fydpad.texture.fit import fit_paper
-from fydpad.texture.identify import identify
 from fydpad.texture.model_file import load_model, save_model
 from fydpad.texture.scan_io import read_scan, write_scan
 from fydpad.texture.select import select_model

@@ -18,15 +18,15 @@ from numpy.typing import NDArray
 
 from fydpad.channels import open_channel
 from fydpad.errors import UserError
-from fydpad.texture.compare import (
+from fydpad.texture.coverage import describe, inside
+from fydpad.texture.dft321 import preprocess
+from fydpad.texture.evaluation.compare import (
     by_surface,
     compare_families,
     identify_families,
     specimen_experiment,
 )
-from fydpad.texture.coverage import describe, inside
-from fydpad.texture.dft321 import preprocess
-from fydpad.texture.evaluate import (
+from fydpad.texture.evaluation.evaluate import (
     BIN_HZ,
     TARGET_LSD_OVER_CEILING_DB,
     TARGET_PSD_CORRELATION,
@@ -38,6 +38,7 @@ from fydpad.texture.evaluate import (
     verdict_on_means,
     welch_psd,
 )
+from fydpad.texture.evaluation.identify import Identification, plot_confusion
 from fydpad.texture.families import get_kind, load_family, read_scans, spec_kind
 from fydpad.texture.families.friction import FrictionFamily, friction_coefficient
 from fydpad.texture.family import (
@@ -47,7 +48,6 @@ from fydpad.texture.family import (
     finger_from_scan,
     save_model_json,
 )
-from fydpad.texture.identify import Identification, plot_confusion
 from fydpad.texture.plots import plot_against_ceiling, plot_spectra
 from vision.recording import CsvRowWriter
 

@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.texture.dft321 import preprocess
-from fydpad.texture.evaluate import compare
+from fydpad.texture.evaluation.evaluate import compare
 from fydpad.texture.fit import fit_paper, fit_texture
 from fydpad.texture.model_file import TextureModel
 from fydpad.texture.scan_io import Scan

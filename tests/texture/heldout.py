@@ -4,7 +4,7 @@ that score a model form on it: held-out 8 s stroke seed 100, second recording se
 from __future__ import annotations
 
 from fydpad.synth.texture_scans import generate_scan
-from fydpad.texture.evaluate import compare_recordings, evaluation_mask
+from fydpad.texture.evaluation.evaluate import compare_recordings, evaluation_mask
 
 
 def held_out(name: str, speed_mm_s: float, model, seconds: float = 8.0, seed: int = 100,

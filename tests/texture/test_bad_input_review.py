@@ -156,9 +156,9 @@ def test_fit_options_checked_against_the_scans(files, tmp_path, option, value, m
 ])
 def test_output_in_a_missing_directory_fails_before_the_work(files, tmp_path, monkeypatch,
                                                              argv, option):
-    import fydpad.texture.evaluate as ev
+    import fydpad.texture.evaluation.evaluate as ev
+    import fydpad.texture.evaluation.identify as ident
     import fydpad.texture.fit as fit
-    import fydpad.texture.identify as ident
     import fydpad.texture.synthesis as syn
 
     def started(*a, **k):

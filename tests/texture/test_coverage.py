@@ -22,7 +22,7 @@ from fydpad.texture.coverage import (
     speed_histogram,
     steady,
 )
-from fydpad.texture.evaluate import verdict_on_means
+from fydpad.texture.evaluation.evaluate import verdict_on_means
 from fydpad.texture.fit import fit_texture
 from fydpad.texture.model_file import load_model
 from fydpad.texture.plots import SpeedCoverage, plot_spectra

@@ -209,7 +209,7 @@ def target_figures():
     """The generator's held-out set-up (one 8 s training stroke per speed, held-out
     8 s strokes seed 100, ceiling seed 200) for the calibrated form:
     {(texture, speed): (corr, lsd, ceiling)}."""
-    from fydpad.texture.evaluate import evaluate_scan
+    from fydpad.texture.evaluation.evaluate import evaluate_scan
     from tests.texture.heldout import held_out
 
     out = {}
@@ -341,7 +341,7 @@ def test_speeds_fitted_every_5_mm_s_meet_the_target_between(monkeypatch):
     stroke at 15 mm/s: +0.15 dB over the ceiling with tents scaled to the spacing, +0.55
     with the 7.5 mm/s tents, which summed three corrections there."""
     import fydpad.texture.free_form as free_form
-    from fydpad.texture.evaluate import evaluate_scan
+    from fydpad.texture.evaluation.evaluate import evaluate_scan
     from tests.texture.heldout import held_out
 
     speeds = (10.0, 15.0, 20.0, 25.0, 30.0)

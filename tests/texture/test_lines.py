@@ -218,7 +218,7 @@ def test_a_ribs_residual_is_a_surface_and_gets_the_spectral_form():
     the held-out stroke meets the target with it (measured +0.03 dB over the ceiling;
     +0.06 with the base at 150 iterations) and misses with the residual pooled (+0.68
     dB)."""
-    from fydpad.texture.evaluate import evaluate_scan
+    from fydpad.texture.evaluation.evaluate import evaluate_scan
     from tests.texture.heldout import held_out
 
     with warnings.catch_warnings():
@@ -240,7 +240,7 @@ def test_a_combs_residual_gets_the_spectral_form_too():
     default spectral form as a rib's is. Ground truth at 15 mm/s, between strokes at 10
     and 20 mm/s: the held-out stroke meets the target with it, closer than with the
     residual pooled (measured -0.67 and -0.33 dB over the ceiling)."""
-    from fydpad.texture.evaluate import evaluate_scan
+    from fydpad.texture.evaluation.evaluate import evaluate_scan
     from tests.texture.heldout import held_out
 
     with warnings.catch_warnings():

@@ -11,7 +11,7 @@ import pytest
 from fydpad.errors import UserError
 from fydpad.synth.texture_scans import hand_speed, penn_scan, plateau_speed
 from fydpad.texture.dft321 import preprocess
-from fydpad.texture.evaluate import lsd_db, welch_psd
+from fydpad.texture.evaluation.evaluate import lsd_db, welch_psd
 from fydpad.texture.families.penn.toolkit import PennModelSet
 from fydpad.texture.fit import fit_paper
 from fydpad.texture.lpc import ar_psd, autocorrelation, reflection_to_poly

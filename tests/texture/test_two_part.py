@@ -16,7 +16,7 @@ import pytest
 from fydpad.commands import texture
 from fydpad.errors import UserError
 from fydpad.synth.texture_scans import generate_scan
-from fydpad.texture.evaluate import evaluate_scan
+from fydpad.texture.evaluation.evaluate import evaluate_scan
 from fydpad.texture.fit import fit_texture
 from fydpad.texture.interpolation import build_table
 from fydpad.texture.lpc import is_stable

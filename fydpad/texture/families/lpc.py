@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from fydpad.errors import UserError
 from fydpad.texture.coverage import describe, model_gaps, speed_histogram
 from fydpad.texture.dft321 import preprocess
-from fydpad.texture.evaluate import welch_psd
+from fydpad.texture.evaluation.evaluate import welch_psd
 from fydpad.texture.family import Array, FamilyBase, FingerBlock, Kind, RateMismatch
 from fydpad.texture.fit import fit_texture, lines_option, modelled_speed_range
 from fydpad.texture.free_form import AUTO

@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 
 from fydpad.errors import UserError
 from fydpad.texture.dft321 import preprocess
-from fydpad.texture.evaluate import BAND_HZ, evaluation_mask, lsd_db, welch_psd
+from fydpad.texture.evaluation.evaluate import BAND_HZ, evaluation_mask, lsd_db, welch_psd
 from fydpad.texture.interpolation import DEFAULT_METHOD
 from fydpad.texture.model_file import TextureModel
 from fydpad.texture.scan_io import Scan

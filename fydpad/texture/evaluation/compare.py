@@ -28,11 +28,11 @@ from fydpad.motors.drive import build_drive
 from fydpad.motors.sim import indenter_press
 from fydpad.softness import SPECIMENS, fit_through_origin
 from fydpad.texture.dft321 import preprocess
-from fydpad.texture.evaluate import BAND_HZ, welch_psd
+from fydpad.texture.evaluation.evaluate import BAND_HZ, welch_psd
+from fydpad.texture.evaluation.identify import DISTANCES, Identification
 from fydpad.texture.families import get_kind
 from fydpad.texture.families.friction import friction_coefficient
 from fydpad.texture.family import RateMismatch, finger_from_scan
-from fydpad.texture.identify import DISTANCES, Identification
 
 #: Per family: (the channel rendered, the band compared in Hz, the scan's observable).
 OBSERVABLES = {"friction": ("tension", (2.0, 100.0), "friction")}
@@ -69,7 +69,7 @@ def identify_families(models: Sequence, labels: Sequence[str], scans: Sequence, 
     """Assign each scan to the nearest model (all of one family, one per surface).
 
     ``distance``: "shape" (the module docstring; over each scan's moving samples) or
-    :mod:`fydpad.texture.identify`'s "bands"/"lsd" (levels of the vibration against the
+    :mod:`fydpad.texture.evaluation.identify`'s "bands"/"lsd" (levels of the vibration against the
     acceleration high-passed as the family's fit, over the samples each model covers).
     A family that synthesizes noise (LPC, HaTT: a ``seed`` parameter) draws it from
     ``seed`` for every scan, so a run is reproducible."""
