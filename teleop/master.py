@@ -29,6 +29,7 @@ from teleop.report import (
     plot_tracking,
     truth_breakdown,
 )
+from teleop.slave import SlaveThread
 from vision.state import FingerState
 
 
@@ -311,8 +312,6 @@ def run_local_sim(states: Sequence[FingerState], cfg: TeleopConfig | None = None
                   on_sample: Callable[[], None] | None = None) -> Session:
     """The demo: a simulated slave in a thread of this process on a random loopback port,
     driven over a real socket by run_session; optionally the Fig. 11 plot."""
-    from teleop.slave import SlaveThread
-
     cfg = cfg or TeleopConfig()
     # The slave's thread (and ZeroMQ's, if this makes the first socket) inherit it.
     with (realtime_scheduling(cfg.link.rt_priority),
