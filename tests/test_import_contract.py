@@ -132,16 +132,12 @@ def unexplained_local_imports(source: str) -> list[int]:
     return sorted(out)
 
 
-#: Library modules with local imports that do not yet say why (15 imports in these 9
+#: Library modules with local imports that do not yet say why (10 imports in these 5
 #: modules). The set only shrinks: the test fails when a module listed here says why for
 #: all of its local imports, so that it leaves the set.
 NOT_YET_EXPLAINED = {
     "fydpad.chain.check",
     "fydpad.synth.trajectory",
-    "fydpad.texture.identify",
-    "fydpad.texture.penn",
-    "fydpad.texture.plots",
-    "fydpad.texture.scan_generator",
     "fydpad.web.experiment",
     "fydpad.web.server",
     "fydpad.web.stimuli",

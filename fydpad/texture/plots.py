@@ -19,10 +19,11 @@ if TYPE_CHECKING:
 def pyplot() -> Any:
     """matplotlib's pyplot on the Agg backend, loaded when a figure is drawn: the
     families' modules import this one, and the station's render process never draws."""
+    # Local: matplotlib loads only when a figure is drawn (see above).
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # after use("Agg")
 
     return plt
 

@@ -41,6 +41,7 @@ from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluation.evaluate import BAND_HZ, evaluation_mask, lsd_db, welch_psd
 from fydpad.texture.interpolation import DEFAULT_METHOD
 from fydpad.texture.model_file import TextureModel
+from fydpad.texture.plots import pyplot
 from fydpad.texture.scan_io import Scan
 from fydpad.texture.synthesis import TextureRenderer
 
@@ -150,11 +151,7 @@ def _check_rates(models: Sequence[TextureModel], names: Sequence[str],
 
 
 def plot_confusion(path: str, ident: Identification, title: str = "") -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     c = np.asarray(ident.confusion)
     n = len(ident.labels)
     fig, ax = plt.subplots(figsize=(1.0 + 0.5 * n, 1.0 + 0.45 * n), constrained_layout=True)

@@ -30,6 +30,7 @@ import math
 import warnings
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
@@ -354,7 +355,5 @@ class PennRenderer:
                             for k in range(0, n, step)]) if n else np.zeros(0)
         if abs(fs_out_hz - self.ms.fs_hz) < 1e-9:
             return y
-        from fractions import Fraction
-
         fr = Fraction(fs_out_hz / self.ms.fs_hz).limit_denominator(1000)
         return ss.resample_poly(y, fr.numerator, fr.denominator)
