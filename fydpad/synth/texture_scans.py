@@ -270,7 +270,7 @@ def _resonance_sos(f_hz: float, zeta: float, fs: float) -> Array:
 def generate_scan(
     texture: str | Texture, speed_mm_s: float, seconds: float = 8.0, seed: int = 0,
     fs_hz: float = 1000.0, hand_variation: float = 1.0, noise_m_s2: float = 0.01,
-    hand_motion: bool = True, friction: bool = False, force_noise_n: float = 0.003,
+    friction: bool = False, force_noise_n: float = 0.003,
     load_scale: float = 1.0,
 ) -> Scan:
     """One stroke over ``texture`` at about ``speed_mm_s``: a Scan (not written).
@@ -333,14 +333,14 @@ def generate_scan(
     x_out = x[::q][: acc.shape[0]]
     m = acc.shape[0]
     t = np.arange(m) / fs_hz
-    if hand_motion:  # slow hand motion and gravity through a slowly tilting hand
-        slow = ss.sosfiltfilt(ss.butter(2, 2.0, fs=fs_hz, output="sos"),
-                              rng.standard_normal((m, 3)), axis=0)
-        slow *= 0.3 / (np.std(slow, axis=0) + 1e-12)
-        tilt = 0.08 * np.sin(2 * np.pi * 0.2 * t + rng.uniform(0, 6.3))
-        roll = 0.05 * np.sin(2 * np.pi * 0.13 * t + rng.uniform(0, 6.3))
-        grav = G * np.column_stack([np.sin(tilt), np.sin(roll), np.cos(tilt) * np.cos(roll)])
-        acc = acc + slow + grav
+    # slow hand motion and gravity through a slowly tilting hand
+    slow = ss.sosfiltfilt(ss.butter(2, 2.0, fs=fs_hz, output="sos"),
+                          rng.standard_normal((m, 3)), axis=0)
+    slow *= 0.3 / (np.std(slow, axis=0) + 1e-12)
+    tilt = 0.08 * np.sin(2 * np.pi * 0.2 * t + rng.uniform(0, 6.3))
+    roll = 0.05 * np.sin(2 * np.pi * 0.13 * t + rng.uniform(0, 6.3))
+    grav = G * np.column_stack([np.sin(tilt), np.sin(roll), np.cos(tilt) * np.cos(roll)])
+    acc = acc + slow + grav
     acc = acc + noise_m_s2 * rng.standard_normal(acc.shape)
     scan = _with_position(tex, speed_mm_s, seed, t, acc, v_out, x_out)
     scan.in_flight_share = in_flight_share  # type: ignore[attr-defined]
