@@ -57,7 +57,11 @@ function showStats(st) {
   });
   $("loops").innerHTML = "<tr><th>loop</th><th>rate Hz</th><th>on time %</th><th>jitter p50 ms</th><th>jitter p99 ms</th></tr>" + rows.join("");
   const f = st.frame_to_command_ms;
-  $("f2c").textContent = f ? `frame to command p50 ${fmt(f.p50)} ms, p99 ${fmt(f.p99)} ms` : "";
+  const v = st.vision || {};
+  // A live camera drops frames now and then: counted and shown, never fatal.
+  const cam = v.camera_read_failures === undefined ? "" :
+    `; camera dropped ${v.camera_read_failures} frames (${v.camera_outages} outages)`;
+  $("f2c").textContent = (f ? `frame to command p50 ${fmt(f.p50)} ms, p99 ${fmt(f.p99)} ms` : "") + cam;
 }
 
 let firstSettings = true;
