@@ -6,7 +6,7 @@ made from a known device so a fit can be checked against it.
   10 mm with 5 mV of noise;
 - load cell: offset 12 000 counts, gain 1.05 x the CZL616C's nominal, three readings
   each under 0, 50, 100, 200, 500 and 700 g with 30 counts of noise;
-- camera: 14 views of the default 7x5 ChArUco board (12 mm squares, 9 mm markers,
+- camera: 18 views of the default 7x5 ChArUco board (12 mm squares, 9 mm markers,
   DICT_5X5_100) held 90-130 mm in front of a wide-angle webcam (focal length 560 px,
   barrel distortion k1 -0.30), rendered by casting each pixel's ray through the lens
   model onto the tilted board (OpenCV's aruco module draws the board);
@@ -75,7 +75,7 @@ def write_force_example(out_dir: Path, seed: int = 0) -> Path:
 LENS_K = np.array([[560.0, 0.0, 323.0], [0.0, 565.6, 236.0], [0.0, 0.0, 1.0]])
 LENS_DIST = np.array([-0.30, 0.10, 0.0015, -0.001, 0.0])
 LENS_SIZE = (640, 480)
-CHARUCO_VIEWS = 14
+CHARUCO_VIEWS = 18
 CHARUCO_PX_PER_MM = 8.0
 
 
@@ -128,7 +128,7 @@ def write_camera_example(out_dir: Path, seed: int = 0) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     for i in range(CHARUCO_VIEWS):
         r = _rotation(*rng.uniform(-35, 35, 2), rng.uniform(-30, 30))
-        centre = np.array([rng.uniform(-25, 25), rng.uniform(-18, 18), rng.uniform(90, 130)])
+        centre = np.array([rng.uniform(-45, 45), rng.uniform(-35, 35), rng.uniform(90, 130)])
         t = centre - r @ np.array([w_mm / 2, h_mm / 2, 0.0])
         img = render_plane_view(board, CHARUCO_PX_PER_MM, r, t).astype(np.float64)
         img = np.clip(img + rng.normal(0.0, 2.0, img.shape), 0, 255).astype(np.uint8)
