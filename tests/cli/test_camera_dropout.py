@@ -119,6 +119,7 @@ def test_station_counts_dropped_frames_in_stats_and_events(fake_camera, tmp_path
     rc = cli_main(["run", "--camera", "0", "--duration", "6", "--record",
                    str(tmp_path / "rec"), "--stats", str(tmp_path / "stats.json")])
     assert rc == 0, capsys.readouterr().err
+    assert "7 dropped by the camera in 2 outages" in capsys.readouterr().out
     vision_stats = json.loads((tmp_path / "stats.json").read_text())["vision"]
     assert vision_stats["camera_read_failures"] == 7
     assert vision_stats["camera_outages"] == 2
