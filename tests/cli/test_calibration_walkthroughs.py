@@ -35,7 +35,7 @@ def walkthroughs() -> dict[str, tuple[list[str], list[str]]]:
 
 
 WALKTHROUGHS = walkthroughs()
-SLOW = {"Indentation"}  # renders a 30 s video of the synthetic pad
+SLOW = {"Indentation and workspace mapping"}  # renders a 30 s video of the synthetic pad
 
 
 def run_walkthrough(title: str, tmp_path, monkeypatch, capsys) -> None:
@@ -59,7 +59,8 @@ def run_walkthrough(title: str, tmp_path, monkeypatch, capsys) -> None:
 def test_every_calibration_command_has_a_walkthrough():
     commands = " ".join(c for cs, _ in WALKTHROUGHS.values() for c in cs)
     for name in ("calibrate ir", "calibrate force", "calibrate camera",
-                 "calibrate indentation", "softness calibrate", "softness fit-specimen"):
+                 "calibrate indentation", "calibrate workspace", "softness calibrate",
+                 "softness fit-specimen"):
         assert f"fydpad {name} " in commands, name
 
 
