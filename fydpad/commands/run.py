@@ -21,7 +21,7 @@ if TYPE_CHECKING:  # annotations only: the station loads inside the command
 
 #: fydpad.texture.interpolation.METHODS, written out so that --help loads no texture code
 #: (tests/cli/test_fast_help.py keeps the two equal).
-TEXTURE_METHODS = ("nearest", "stretch", "lsf", "reflection", "linear")
+TEXTURE_METHODS = ("nearest", "stretch")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -96,9 +96,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--vibration-gain", type=float, default=1.0,
                    help="texture vibration gain (the paper: 1)")
     p.add_argument("--texture-method", choices=TEXTURE_METHODS, default=None,
-                   help="an LPC model's interpolation between its fitted speeds: stretch "
-                   "(default; the one `fydpad texture evaluate` scores), lsf, reflection, or "
-                   "linear (the paper's coefficient interpolation) (docs/texture.md)")
+                   help="an LPC model's interpolation between its fitted speeds (default: the "
+                   "model file's, which fit chose): nearest (the paper's per-speed fits) or "
+                   "stretch (the calibrated spectrum) (docs/texture.md)")
     p.add_argument("--drive-filter", action="store_true",
                    help="band-pass an LPC model's vibration through its file's drive band "
                    "(the paper's 165-220 Hz, where the fabric's actuators respond)")

@@ -1,4 +1,4 @@
-"""Linear prediction (paper eq. 4): autocorrelation + Levinson-Durbin, Burg, stability.
+"""Linear prediction (paper eq. 4): autocorrelation + Levinson-Durbin, stability.
 
 Conventions. The paper writes the predictor as ``a_hat(k) = h^T a(k-1)`` (eq. 4) and
 synthesis as ``a(k) = e(k) + h^T a(k-1)`` (eq. 5). In scipy.signal terms that is the
@@ -80,25 +80,6 @@ def lpc_autocorrelation(segments: Sequence[ArrayLike], order: int, floor: float 
     return a, err
 
 
-def lpc_burg(x: ArrayLike, order: int) -> tuple[Array, float]:
-    """Burg's method on one segment: (A, sigma^2). Stable by construction (|k| <= 1)."""
-    x = np.asarray(x, float)
-    if x.size <= order:
-        raise ValueError(f"{x.size} samples cannot fit an order-{order} model")
-    f = x[1:].copy()
-    b = x[:-1].copy()
-    a = np.zeros(order + 1)
-    a[0] = 1.0
-    err = float(np.dot(x, x) / x.size)
-    for m in range(1, order + 1):
-        den = np.dot(f, f) + np.dot(b, b)
-        km = -2.0 * np.dot(f, b) / den if den > 0 else 0.0
-        a[1:m + 1] = a[1:m + 1] + km * a[m - 1::-1][:m]
-        err *= 1.0 - km * km
-        f, b = f[1:] + km * b[1:], b[:-1] + km * f[:-1]
-    return a, err
-
-
 def poly_to_reflection(a: ArrayLike) -> Array:
     """Step-down recursion: reflection coefficients of A (nan-free; |k|>=1 means unstable)."""
     a = np.asarray(a, float)
@@ -129,14 +110,6 @@ def is_stable(a: ArrayLike) -> bool:
     """True when every pole of 1/A lies strictly inside the unit circle (|k_i| < 1)."""
     k = poly_to_reflection(a)
     return bool(np.all(np.isfinite(k)) and np.all(np.abs(k) < 1.0))
-
-
-def max_pole_radius(a: ArrayLike) -> float:
-    """Largest pole modulus of 1/A (eigenvalues of the companion matrix)."""
-    a = np.asarray(a, float)
-    if a.size < 2:
-        return 0.0
-    return float(np.max(np.abs(np.roots(a))))
 
 
 def h_from_poly(a: ArrayLike) -> Array:

@@ -53,6 +53,7 @@ CHUNK = 512  # samples per periodogram (2 Hz bins at 1 kHz)
 SPEED_STEP_MM_S = 1.0  # grid of the level functions g, n and of the chunks' speed mixes
 ITERATIONS = 600
 RENDER_SMEAR_MM_S = 1.0  # see TwoPartSpectrum.ar
+PREWHITEN_ORDER = 8  # of the two-stage all-pole fit (ar_two_stage)
 FACTORS = ("f_hz", "k_per_mm", "tool", "surface", "floor", "v_mm_s", "g", "n")
 STEP = 0.5  # MU exponent: 1/2 is the IS divergence's majorisation (monotone)
 #: A level knot needs this many chunks' worth of data within half a knot step (8: about
@@ -137,12 +138,12 @@ class TwoPartSpectrum:
                    fixed=None if fixed is None else np.asarray(fixed, float))
 
 
-def ar_two_stage(log_p: Array, order: int, prewhiten_order: int = 8) -> tuple[Array, float]:
-    """All-pole fit to a log spectrum in two stages, as ``fit.fit_speed`` on signals: an
-    order-``prewhiten_order`` P flattens the tilt, the rest of the order is fitted to the
-    flattened spectrum, A = A2 * P. One stage over-fills the valleys of a 50-60 dB
-    spectrum (measured on felt's two-part spectrum: +3 dB at 350-500 Hz)."""
-    q = min(max(prewhiten_order, 0), order - 1)
+def ar_two_stage(log_p: Array, order: int) -> tuple[Array, float]:
+    """All-pole fit to a log spectrum in two stages: an order-``PREWHITEN_ORDER`` P
+    flattens the tilt, the rest of the order is fitted to the flattened spectrum,
+    A = A2 * P. One stage over-fills the valleys of a 50-60 dB spectrum (measured on
+    felt's two-part spectrum: +3 dB at 350-500 Hz)."""
+    q = min(PREWHITEN_ORDER, order - 1)
     if q == 0:
         return ar_from_log_psd(log_p, order)
     pre, _ = ar_from_log_psd(log_p, q)

@@ -214,19 +214,19 @@ def test_scan_time_error_names_the_real_line(tmp_path, comment, blank_after, lin
 # ---------------------------------------------------------------- 9: fit warnings
 def test_fit_warnings_are_one_line_naming_the_scans(files, tmp_path, capsys):
     scan = str(files / "R1_10.csv")
-    assert run("fit", scan, "--out", str(tmp_path / "m.json"), "--speeds", "10,50",
-               "--order", "10", "--form", "calibrated") == 0
+    assert run("fit", scan, str(files / "R1_30.csv"), "--out", str(tmp_path / "m.json"),
+               "--speeds", "10,30,50", "--order", "10", "--form", "calibrated") == 0
     err = capsys.readouterr().err
     lines = [ln for ln in err.splitlines() if "warning" in ln.lower()]
-    assert lines == [f"fydpad texture fit: warning: {scan}: no scan has 0.25 s within 5 mm/s "
-                     "of 50 mm/s: no model at that speed"]
+    assert lines == [f"fydpad texture fit: warning: {scan}, {files / 'R1_30.csv'}: no scan "
+                     "has 0.25 s within 5 mm/s of 50 mm/s: no model at that speed"]
     assert "UserWarning" not in err
 
 
 # ---------------------------------------------------------------- tick(nan/inf)
 def test_tick_treats_a_non_finite_speed_as_no_speed():
-    for method in ("stretch", "linear"):
-        r = TextureRenderer(_model(), method=method, ramp_s=1e-3, seed=1)
+    for structure in ("fir", "direct"):
+        r = TextureRenderer(_model(), structure=structure, ramp_s=1e-3, seed=1)
         moving = np.array([r.tick(20.0) for _ in range(300)])
         assert np.std(moving) > 0
         for bad in (math.nan, math.inf, -math.inf):
