@@ -28,7 +28,7 @@ from fydpad.errors import UserError
 from fydpad.texture.evaluate import compare, evaluation_mask
 from fydpad.texture.families.mlp.render import MlpTexture
 from fydpad.texture.families.mlp.train import TrainConfig, fit_mlp, scan_features, thirds
-from fydpad.texture.fit import fit_paper
+from fydpad.texture.lpc.fit import fit_paper
 from fydpad.texture.scan_generator import DX_MM, TEXTURES, generate_scan, surface_profile
 from fydpad.texture.scan_io import Scan
 
@@ -146,7 +146,7 @@ def thesis_vs_lpc(texture: str, cfg: TrainConfig | None = None, seconds: float =
 
 
 def _synth(model, speed: Array, seed: int) -> Array:
-    from fydpad.texture.synthesis import synthesize
+    from fydpad.texture.lpc.synthesis import synthesize
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -18,11 +18,11 @@ import numpy as np
 import scipy.linalg as sl
 from timing import best
 
-from fydpad.texture.dft321 import preprocess
-from fydpad.texture.fit import fit_paper, fit_texture
-from fydpad.texture.lpc import lpc_autocorrelation
+from fydpad.texture.lpc.analysis import lpc_autocorrelation
+from fydpad.texture.lpc.dft321 import preprocess
+from fydpad.texture.lpc.fit import fit_paper, fit_texture
+from fydpad.texture.lpc.synthesis import TextureRenderer
 from fydpad.texture.scan_generator import generate_scan
-from fydpad.texture.synthesis import TextureRenderer
 
 
 def _scipy_lpc(x: np.ndarray, order: int) -> np.ndarray:
@@ -123,7 +123,7 @@ def main() -> None:
 def lines_benchmark(best) -> None:
     """A periodic surface's lines (fit --lines, the default): the fit, and the renderer
     with its wavetable against the same model without lines, in the same run."""
-    from fydpad.texture.lines import fit_lines
+    from fydpad.texture.lpc.lines import fit_lines
 
     train = [generate_scan("R1", s, 10.0, seed=1 + j) for s in (10.0, 20.0, 30.0, 40.0)
              for j in range(2)]

@@ -20,9 +20,9 @@ import numpy as np
 
 from fydpad.texture.families.friction import fit_friction, parse_friction
 from fydpad.texture.families.grating import GratingFamily
-from fydpad.texture.families.lpc import LpcFamily
 from fydpad.texture.family import constant_stroke
-from fydpad.texture.fit import fit_paper
+from fydpad.texture.lpc.family import LpcFamily
+from fydpad.texture.lpc.fit import fit_paper
 from fydpad.texture.scan_generator import generate_scan
 
 

@@ -19,7 +19,7 @@ if TYPE_CHECKING:  # annotations only: the station loads inside the command
     from fydpad.station.station import Station
     from fydpad.texture.family import TextureFamily
 
-#: fydpad.texture.interpolation.METHODS, written out so that --help loads no texture code
+#: fydpad.texture.lpc.interpolation.METHODS, written out so that --help loads no texture code
 #: (tests/cli/test_fast_help.py keeps the two equal).
 TEXTURE_METHODS = ("nearest", "stretch")
 
@@ -375,7 +375,7 @@ def _stiffness(args: argparse.Namespace) -> float:
 def _say_texture_gaps(family: TextureFamily, spec: str) -> None:
     """One line at start when a texture's scans left speeds unscanned (its model
     interpolates there: docs/texture.md, 'Speed coverage')."""
-    from fydpad.texture.coverage import describe
+    from fydpad.texture.lpc.coverage import describe
 
     gaps = family.unscanned_speeds()
     if gaps:

@@ -12,17 +12,17 @@ from pathlib import Path
 from fydpad.errors import UserError
 from fydpad.progress import progress
 from fydpad.texture import operations as ops
-from fydpad.texture.coverage import describe
 from fydpad.texture.families import FIT_KIND_NAMES, KIND_NAMES
 from fydpad.texture.families.friction import set_electrostatic_b
 from fydpad.texture.identify import plot_confusion
-from fydpad.texture.interpolation import DEFAULT_METHOD, METHODS
+from fydpad.texture.lpc.coverage import describe
+from fydpad.texture.lpc.interpolation import DEFAULT_METHOD, METHODS
 from fydpad.texture.scan_generator import TEXTURES
 from fydpad.web.experiment import ExperimentError
 from fydpad.web.staircase import StaircaseSession
 from vision.strict_json import finite
 
-#: The interpolation between modelled speeds (fydpad.texture.interpolation, docs/texture.md).
+#: The interpolation between modelled speeds (fydpad.texture.lpc.interpolation, docs/texture.md).
 INTERPOLATION_HELP = ("interpolation between modelled speeds (default: the model file's "
                       "own, which fit chose): nearest (Bianchi 2015's per-speed fits), "
                       "stretch (the calibrated speed-resolved spectrum)")

@@ -13,11 +13,11 @@ import pytest
 
 from fydpad.errors import UserError
 from fydpad.station.texture_source import open_texture
-from fydpad.texture.families.lpc import LpcFamily
-from fydpad.texture.model_file import TextureModel, load_model, model_to_json
+from fydpad.texture.lpc.family import LpcFamily
+from fydpad.texture.lpc.model_file import TextureModel, load_model, model_to_json
+from fydpad.texture.lpc.synthesis import TextureRenderer
 from fydpad.texture.scan_generator import generate_scan, save_generated
 from fydpad.texture.scan_io import read_scan
-from fydpad.texture.synthesis import TextureRenderer
 from tests.texture_families.helpers import run_cli
 from vision.recording import RecordingError
 
@@ -157,9 +157,9 @@ def test_fit_options_checked_against_the_scans(files, tmp_path, option, value, m
 def test_output_in_a_missing_directory_fails_before_the_work(files, tmp_path, monkeypatch,
                                                              argv, option):
     import fydpad.texture.evaluate as ev
-    import fydpad.texture.fit as fit
     import fydpad.texture.identify as ident
-    import fydpad.texture.synthesis as syn
+    import fydpad.texture.lpc.fit as fit
+    import fydpad.texture.lpc.synthesis as syn
 
     def started(*a, **k):
         raise AssertionError("the work started before the output was checked")

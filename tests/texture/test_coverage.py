@@ -1,5 +1,5 @@
 """Speed coverage: the speeds the scans went at, and the gaps where a model interpolates
-(fydpad/texture/coverage.py), through the fit, the model file and the commands; and
+(fydpad/texture/lpc/coverage.py), through the fit, the model file and the commands; and
 ``evaluate --second``, the ceiling a second recording sets."""
 
 from __future__ import annotations
@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from fydpad.errors import UserError
-from fydpad.texture.coverage import (
+from fydpad.texture.evaluate import verdict_on_means
+from fydpad.texture.lpc.coverage import (
     checked_spans,
     describe,
     gaps_within,
@@ -20,8 +21,7 @@ from fydpad.texture.coverage import (
     speed_histogram,
     steady,
 )
-from fydpad.texture.evaluate import verdict_on_means
-from fydpad.texture.model_file import load_model
+from fydpad.texture.lpc.model_file import load_model
 from fydpad.texture.plots import SpeedCoverage, plot_spectra
 from fydpad.texture.scan_generator import generate_scan, save_generated
 from tests.texture_families.helpers import run_cli as run

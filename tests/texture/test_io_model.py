@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from fydpad.errors import UserError
-from fydpad.texture.fit import fit_texture
-from fydpad.texture.lpc import is_stable
-from fydpad.texture.model_file import load_model, save_model
+from fydpad.texture.lpc.analysis import is_stable
+from fydpad.texture.lpc.fit import fit_texture
+from fydpad.texture.lpc.model_file import load_model, save_model
 from fydpad.texture.scan_generator import generate_scan, save_generated
 from fydpad.texture.scan_io import read_scan
 from vision.recording import RecordingError

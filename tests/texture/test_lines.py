@@ -1,4 +1,4 @@
-"""The line spectrum of periodic surfaces (fydpad/texture/lines.py, line_voice.py).
+"""The line spectrum of periodic surfaces (fydpad/texture/lpc/lines.py, line_voice.py).
 
 Ground truth first: strokes synthesized here from a known comb (a period, amplitudes that
 follow a tool resonance and the speed, a vanishing harmonic) in noise that is not an AR
@@ -16,13 +16,13 @@ import pytest
 import scipy.signal as ss
 
 from fydpad.errors import UserError
-from fydpad.texture.dft321 import preprocess
-from fydpad.texture.fit import fit_texture, lines_option
-from fydpad.texture.line_voice import LineVoice
-from fydpad.texture.lines import LineSpectrum, arc_length_mm, fit_lines
-from fydpad.texture.model_file import load_model, save_model
+from fydpad.texture.lpc.dft321 import preprocess
+from fydpad.texture.lpc.fit import fit_texture, lines_option
+from fydpad.texture.lpc.line_voice import LineVoice
+from fydpad.texture.lpc.lines import LineSpectrum, arc_length_mm, fit_lines
+from fydpad.texture.lpc.model_file import load_model, save_model
+from fydpad.texture.lpc.synthesis import TextureRenderer
 from fydpad.texture.scan_generator import generate_scan, hand_speed
-from fydpad.texture.synthesis import TextureRenderer
 
 FS = 1000.0
 PERIOD = 1.7  # mm: none of the generator's
@@ -539,7 +539,7 @@ def test_a_line_seen_at_one_edge_row_is_not_carried_across_a_gap():
     keeps its measured row and nothing in the gap (carried, it grew 15 dB over its one
     measurement on canvas); seen at two rows, or at an isolated row (a constant-speed
     rig), it is carried by the model."""
-    from fydpad.texture.lines import _fill
+    from fydpad.texture.lpc.lines import _fill
 
     rows = 30
     data = np.zeros(rows, bool)

@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 import scipy.signal as ss
 
-from fydpad.texture.lpc import (
+from fydpad.texture.lpc.analysis import (
     is_stable,
     levinson,
     lpc_autocorrelation,
     poly_to_reflection,
     reflection_to_poly,
 )
-from fydpad.texture.lsf import lsf_to_poly, poly_to_lsf
+from fydpad.texture.lpc.lsf import lsf_to_poly, poly_to_lsf
 
 TRUE_A = np.array([1.0, -1.6, 1.5, -0.7, 0.2])
 

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 import scipy.signal as ss
 
-from fydpad.texture.fir_warp import WARP_SLACK_MM_S, responses_along, table_position
-from fydpad.texture.fit import fit_paper, fit_texture
-from fydpad.texture.lpc import ar_psd, h_from_poly, lpc_autocorrelation
-from fydpad.texture.model_file import TextureModel
+from fydpad.texture.lpc.analysis import ar_psd, h_from_poly, lpc_autocorrelation
+from fydpad.texture.lpc.fir_warp import WARP_SLACK_MM_S, responses_along, table_position
+from fydpad.texture.lpc.fit import fit_paper, fit_texture
+from fydpad.texture.lpc.model_file import TextureModel
+from fydpad.texture.lpc.synthesis import CentroidSpeed, TextureRenderer, synthesize
 from fydpad.texture.scan_generator import generate_scan
-from fydpad.texture.synthesis import CentroidSpeed, TextureRenderer, synthesize
 
 
 @pytest.fixture(scope="module")

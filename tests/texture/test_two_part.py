@@ -1,4 +1,4 @@
-"""The two-part spectral model (fydpad/texture/two_part.py) against ground truth.
+"""The two-part spectral model (fydpad/texture/lpc/spectrum.py) against ground truth.
 
 Data: Gaussian noise shaped to a known S(f, v) = T(f) U(f/v) g(v) + N(f), so the right
 answer at a speed the fit never saw is known exactly.
@@ -16,12 +16,12 @@ import pytest
 from fydpad.commands import texture
 from fydpad.errors import UserError
 from fydpad.texture.evaluate import evaluate_scan
-from fydpad.texture.fit import fit_texture
-from fydpad.texture.interpolation import build_table
-from fydpad.texture.lpc import is_stable
-from fydpad.texture.model_file import load_model, model_to_json, parse_model, save_model
+from fydpad.texture.lpc.analysis import is_stable
+from fydpad.texture.lpc.fit import fit_texture
+from fydpad.texture.lpc.interpolation import build_table
+from fydpad.texture.lpc.model_file import load_model, model_to_json, parse_model, save_model
+from fydpad.texture.lpc.spectrum import TwoPartSpectrum, fit_two_part
 from fydpad.texture.scan_generator import generate_scan
-from fydpad.texture.two_part import TwoPartSpectrum, fit_two_part
 
 FS = 1000.0
 
@@ -105,7 +105,7 @@ def test_blas_limit_holds_in_the_main_thread_and_no_thread_leaves_it_changed():
 
     from threadpoolctl import threadpool_info
 
-    from fydpad.texture.two_part import one_blas_thread
+    from fydpad.texture.lpc.spectrum import one_blas_thread
 
     def blas_threads():
         return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
@@ -140,7 +140,7 @@ def test_blas_limit_holds_in_the_main_thread_and_no_thread_leaves_it_changed():
 def test_levels_of_several_functions_are_each_ones_own():
     """_node_levels on a (knots, 2) array (the fit updates log g and log n together)
     gives each column what it gives alone, beyond the end knots too (bounded slopes)."""
-    from fydpad.texture.two_part import _hats, _node_levels
+    from fydpad.texture.lpc.spectrum import _hats, _node_levels
 
     log_v = np.log(np.arange(4.0, 46.0))
     log_knots = np.log(np.array([10.0, 20.0, 30.0]))
@@ -267,16 +267,16 @@ def test_spectrum_in_a_gap_between_strokes_matches_the_truth(gap_fit):
 
 
 def test_model_file_keeps_the_fixed_floor(gap_fit, scan_model):
-    """N0 goes into the file and back; a file without it (written before) still reads."""
+    """N0 goes into the file and back; a file without it is a form no longer rendered."""
     d = gap_fit.to_json()
     assert np.allclose(TwoPartSpectrum.from_json(d).psd(15.0), gap_fit.psd(15.0))
-    del d["fixed_floor"]
-    assert TwoPartSpectrum.from_json(d).fixed is None
     data = json.loads(json.dumps(model_to_json(scan_model)))
-    data["two_part"].pop("fixed_floor")
-    parse_model(data, "m.json")
     data["two_part"]["fixed_floor"] = [1.0]
     with pytest.raises(UserError, match=r"m.json: two_part.fixed_floor"):
+        parse_model(data, "m.json")
+    data["two_part"].pop("fixed_floor")
+    with pytest.raises(UserError, match=r"m.json: a two-part base without 'fixed_floor' is "
+                       "a form this fydpad no longer renders; refit"):
         parse_model(data, "m.json")
 
 

@@ -15,13 +15,13 @@ import scipy.signal as ss
 from fydpad.errors import UserError
 from fydpad.station.texture_source import open_texture, tick_speed
 from fydpad.texture.families import KINDS, fit_family, load_family
-from fydpad.texture.families.lpc import LpcFamily
 from fydpad.texture.family import TickPosition, constant_stroke, save_model_json
-from fydpad.texture.fit import fit_paper, fit_texture
-from fydpad.texture.interpolation import DEFAULT_METHOD, build_table
-from fydpad.texture.model_file import save_model
+from fydpad.texture.lpc.family import LpcFamily
+from fydpad.texture.lpc.fit import fit_paper, fit_texture
+from fydpad.texture.lpc.interpolation import DEFAULT_METHOD, build_table
+from fydpad.texture.lpc.model_file import save_model
+from fydpad.texture.lpc.synthesis import TextureRenderer
 from fydpad.texture.scan_generator import generate_scan
-from fydpad.texture.synthesis import TextureRenderer
 from tests.conftest import REPO
 
 

@@ -1,6 +1,6 @@
 """The FYD-pad's LPC texture (Bianchi 2015 III-B, eq. 5) behind the family contract: an
-adapter around :mod:`fydpad.texture.model_file` (the model) and
-:class:`fydpad.texture.synthesis.TextureRenderer` (the render).
+adapter around :mod:`fydpad.texture.lpc.model_file` (the model) and
+:class:`fydpad.texture.lpc.synthesis.TextureRenderer` (the render).
 
 ``render`` synthesizes along the block's speed after a 0.5 s warm-up at its first
 speed; ``tick`` renders one sample per station tick from the station's speed. An output
@@ -20,21 +20,20 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.coverage import describe, model_gaps, speed_histogram
-from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import welch_psd
 from fydpad.texture.family import Array, FamilyBase, FingerBlock, Kind, RateMismatch
-from fydpad.texture.fit import fit_texture, lines_option, modelled_speed_range
-from fydpad.texture.interpolation import METHODS, SpeedInterpolator
-from fydpad.texture.line_voice import LineVoice
-from fydpad.texture.lines import LineSpectrum
-from fydpad.texture.lpc import ar_psd
-from fydpad.texture.model_file import TextureModel, model_to_json, parse_model
+from fydpad.texture.lpc.analysis import ar_psd, segment_by_speed
+from fydpad.texture.lpc.coverage import describe, model_gaps, speed_histogram
+from fydpad.texture.lpc.dft321 import preprocess
+from fydpad.texture.lpc.fit import fit_texture, lines_option, modelled_speed_range
+from fydpad.texture.lpc.interpolation import METHODS, SpeedInterpolator
+from fydpad.texture.lpc.line_voice import LineVoice
+from fydpad.texture.lpc.lines import LineSpectrum
+from fydpad.texture.lpc.model_file import TextureModel, model_to_json, parse_model
+from fydpad.texture.lpc.select import fit_candidate, select_model, selection_table
+from fydpad.texture.lpc.synthesis import TextureRenderer
 from fydpad.texture.plots import SpeedCoverage, plot_spectra
 from fydpad.texture.scan_io import Scan, read_scan
-from fydpad.texture.segment import segment_by_speed
-from fydpad.texture.select import fit_candidate, select_model, selection_table
-from fydpad.texture.synthesis import TextureRenderer
 from vision.recording import RecordingError
 
 #: A tick beyond this many times the model's largest RMS clears the filter.

@@ -12,9 +12,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError, read_json
-from fydpad.texture.coverage import check_provenance
-from fydpad.texture.lines import LineSpectrum
-from fydpad.texture.lpc import is_stable, poly_from_h
+from fydpad.texture.lpc.analysis import is_stable, poly_from_h
+from fydpad.texture.lpc.coverage import check_provenance
+from fydpad.texture.lpc.lines import LineSpectrum
 
 FORMAT = "fydpad-texture-model"
 #: Written when the model has a ``lines`` block (its residual models[] alone would render a
@@ -41,8 +41,8 @@ class TextureModel:
     gain: float = 1.0
     tolerance_mm_s: float = 5.0
     provenance: dict[str, Any] = field(default_factory=dict)
-    #: The calibrated form's spectrum: its two-part base (two_part.TwoPartSpectrum.to_json())
-    #: and its calibration (free_form.CalibratedSpectrum.to_json()).
+    #: The calibrated form's spectrum: its two-part base (spectrum.TwoPartSpectrum.to_json())
+    #: and its calibration (spectrum.CalibratedSpectrum.to_json()).
     two_part: dict[str, Any] | None = None
     free_form: dict[str, Any] | None = None
     #: lines.LineSpectrum.to_json(): a periodic surface's harmonics, rendered beside the
@@ -186,6 +186,8 @@ def _removed_form(data: dict[str, Any], where: str) -> None:
         form = "the two-part form (key 'two_part' without 'free_form')"
     elif ff is None and data.get("interpolation", "stretch") == "stretch":
         form = "the pooled form (interpolation 'stretch' without key 'free_form')"
+    elif isinstance(data.get("two_part"), dict) and "fixed_floor" not in data["two_part"]:
+        form = "a two-part base without 'fixed_floor'"
     if form is not None:
         raise UserError(f"{where}: {form} is a form this fydpad no longer renders; {REFIT}")
 
@@ -281,17 +283,17 @@ def _lines(d: Any, version: Any, where: str) -> dict[str, Any] | None:
     return dict(d)
 
 
-_TWO_PART_KEYS = ("f_hz", "k_per_mm", "tool", "surface", "floor", "v_mm_s", "g", "n")
-_TWO_PART_OPTIONAL = ("fixed_floor",)  # files written before it was fitted lack it
+_TWO_PART_KEYS = ("f_hz", "k_per_mm", "tool", "surface", "floor", "v_mm_s", "g", "n",
+                  "fixed_floor")
 
 
 def _two_part(d: Any, where: str) -> dict[str, Any] | None:
-    """Check the optional two-part spectrum: every factor a finite, nonnegative list."""
+    """Check the calibrated form's two-part base: every factor a finite, nonnegative list."""
     if d is None:
         return None
     if not isinstance(d, dict):
         raise UserError(f"{where}: key 'two_part' must be an object")
-    for k in _TWO_PART_KEYS + tuple(k for k in _TWO_PART_OPTIONAL if k in d):
+    for k in _TWO_PART_KEYS:
         try:
             a = np.asarray(_get(d, k, f"{where}: two_part"), float)
         except (TypeError, ValueError) as exc:
@@ -301,7 +303,7 @@ def _two_part(d: Any, where: str) -> dict[str, Any] | None:
                             "nonnegative numbers")
     for grid, vals in (("f_hz", ("tool", "floor", "fixed_floor")), ("k_per_mm", ("surface",)),
                        ("v_mm_s", ("g", "n"))):
-        for k in (k for k in vals if k in d):
+        for k in vals:
             if len(d[k]) != len(d[grid]):
                 raise UserError(f"{where}: two_part.{k} has {len(d[k])} values, "
                                 f"two_part.{grid} {len(d[grid])}")
@@ -309,7 +311,7 @@ def _two_part(d: Any, where: str) -> dict[str, Any] | None:
 
 
 def _free_form(d: Any, two_part: Any, where: str) -> dict[str, Any] | None:
-    """Check the calibrated spectrum (free_form.py): ascending ``f_hz`` and ``v_mm_s``, a
+    """Check the calibrated spectrum (spectrum.py): ascending ``f_hz`` and ``v_mm_s``, a
     finite ``log_c`` of one row per speed and one column per ``two_part.f_hz``, a taper
     > 0, and the ``two_part`` block it builds on."""
     if d is None:

@@ -4,7 +4,7 @@ Two methods, named by the model file's ``interpolation``:
 
 - ``"nearest"``: the model of the nearest fitted speed, unchanged (the paper's per-speed
   fits on a 1 mm/s speed grid: no coefficients are interpolated);
-- ``"stretch"``: the model's speed-resolved spectrum S(f, v) (:mod:`free_form`) at the
+- ``"stretch"``: the model's speed-resolved spectrum S(f, v) (:mod:`spectrum`) at the
   speed, as a two-stage all-pole fit; stable, as a Levinson fit to a positive spectrum.
 """
 
@@ -16,9 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from fydpad.texture.free_form import spectrum_of
-from fydpad.texture.lpc import is_stable
-from fydpad.texture.model_file import TextureModel
+from fydpad.texture.lpc.analysis import is_stable
+from fydpad.texture.lpc.model_file import TextureModel
+from fydpad.texture.lpc.spectrum import spectrum_of
 
 Array = NDArray[np.float64]
 METHODS = ("nearest", "stretch")

@@ -1,4 +1,4 @@
-"""The calibrated spectrum (fydpad/texture/free_form.py) against ground truth.
+"""The calibrated spectrum (fydpad/texture/lpc/spectrum.py) against ground truth.
 
 Data: strokes whose speed wanders (0.8-1.2 x the target, a new speed every 0.5 s) with
 Gaussian noise shaped to a known S(f, v) that the two-part model cannot represent: two
@@ -19,19 +19,19 @@ import pytest
 
 from fydpad.commands import texture
 from fydpad.errors import UserError
-from fydpad.texture.fit import fit_texture
-from fydpad.texture.free_form import (
+from fydpad.texture.lpc.analysis import is_stable, segment_by_speed
+from fydpad.texture.lpc.fit import fit_texture
+from fydpad.texture.lpc.model_file import load_model, model_to_json, parse_model, save_model
+from fydpad.texture.lpc.spectrum import (
     RENDER_SMEAR_MM_S,
     CalibratedSpectrum,
+    chunk_periodograms,
     fit_calibrated,
+    fit_two_part,
     spectrum_of,
 )
-from fydpad.texture.lpc import is_stable
-from fydpad.texture.model_file import load_model, model_to_json, parse_model, save_model
+from fydpad.texture.lpc.synthesis import TextureRenderer
 from fydpad.texture.scan_generator import generate_scan
-from fydpad.texture.segment import segment_by_speed
-from fydpad.texture.synthesis import TextureRenderer
-from fydpad.texture.two_part import chunk_periodograms, fit_two_part
 
 FS = 1000.0
 SPEEDS = (10.0, 20.0, 30.0, 40.0)
@@ -94,7 +94,7 @@ def _error_db(spec, speeds, f):
 
 
 def test_calibrated_spectrum_reproduces_the_pooled_runs_at_each_fitted_speed(fitted):
-    """By construction (free_form.py): S_two C_i, averaged over the runs' own sample
+    """By construction (spectrum.py): S_two C_i, averaged over the runs' own sample
     speeds with the render's +-1 mm/s average, is the runs' mean periodogram. Checked
     here by a different average (every 8th sample, not the 0.25 mm/s histogram)."""
     cal = fitted["calibrated"]
@@ -289,7 +289,7 @@ def test_a_spectral_forms_table_spans_the_speeds_its_fit_saw(scan_model):
     tolerance, not its slowest and fastest entries held beyond (felt at 40 mm/s, seed set
     A: +2.42 -> +0.33 dB over the ceiling, docs/texture.md); the paper's nearest-model
     grid holds its end models."""
-    from fydpad.texture.interpolation import build_table, table_range
+    from fydpad.texture.lpc.interpolation import build_table, table_range
 
     assert table_range(scan_model) == (5.0, 35.0)
     table = build_table(scan_model)
@@ -320,7 +320,7 @@ def test_speeds_fitted_every_5_mm_s_meet_the_target_between(monkeypatch):
     """Ground truth: cork scanned and fitted at 10, 15, 20, 25 and 30 mm/s, a held-out
     stroke at 15 mm/s: +0.15 dB over the ceiling with tents scaled to the spacing, +0.55
     with the 7.5 mm/s tents, which summed three corrections there."""
-    import fydpad.texture.free_form as free_form
+    import fydpad.texture.lpc.spectrum as free_form
     from fydpad.texture.evaluate import evaluate_scan
     from tests.texture.heldout import held_out
 

@@ -12,20 +12,21 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.coverage import gaps_within, scanned_spans
-from fydpad.texture.dft321 import preprocess
-from fydpad.texture.free_form import fit_calibrated
-from fydpad.texture.lines import LineFit, fit_lines
-from fydpad.texture.lpc import h_from_poly, is_stable, lpc_autocorrelation
-from fydpad.texture.model_file import TextureModel
-from fydpad.texture.scan_io import Scan
-from fydpad.texture.segment import (
+from fydpad.texture.lpc.analysis import (
     DEFAULT_SPEEDS_MM_S,
     DEFAULT_TOLERANCE_MM_S,
+    h_from_poly,
+    is_stable,
+    lpc_autocorrelation,
     segment_by_speed,
 )
-from fydpad.texture.segment import runs as segment_runs
-from fydpad.texture.two_part import ITERATIONS, PREWHITEN_ORDER, fit_two_part
+from fydpad.texture.lpc.analysis import runs as segment_runs
+from fydpad.texture.lpc.coverage import gaps_within, scanned_spans
+from fydpad.texture.lpc.dft321 import preprocess
+from fydpad.texture.lpc.lines import LineFit, fit_lines
+from fydpad.texture.lpc.model_file import TextureModel
+from fydpad.texture.lpc.spectrum import ITERATIONS, PREWHITEN_ORDER, fit_calibrated, fit_two_part
+from fydpad.texture.scan_io import Scan
 
 Array = NDArray[np.float64]
 
@@ -51,7 +52,7 @@ def fit_texture(
     wrap: Callable[[Iterable], Iterable] = lambda it: it,
     wrap_iterations: Callable[[Iterable], Iterable] = lambda it: it,
 ) -> tuple[TextureModel, list[FitReport]]:
-    """The calibrated form (:mod:`free_form`): the two-part spectrum S_two(f, v) fitted on
+    """The calibrated form (:mod:`spectrum`): the two-part spectrum S_two(f, v) fitted on
     every 0.5 s chunk within the modelled speeds, times a correction C_i measured at each
     target speed on the runs within ``tolerance_mm_s`` of it; each speed's (h, sigma^2)
     is the all-pole fit of S there. Each scan is high-passed at ``highpass_hz`` and
@@ -119,7 +120,7 @@ def fit_texture(
         tolerance_mm_s=tolerance_mm_s, interpolation="stretch",
         provenance={
             "scans": [s.path for s in scans],
-            # models[] are the all-pole fits of S at the fitted speeds (two_part.py)
+            # models[] are the all-pole fits of S at the fitted speeds (spectrum.py)
             "method": "two-stage all-pole fit of S(f, v)", "order": order,
             "prewhiten_order": PREWHITEN_ORDER,
             "tool": "fydpad texture fit",

@@ -50,7 +50,8 @@ import scipy.signal as ss
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import maximum_filter1d, minimum_filter1d
 
-from fydpad.texture.fir_warp import (
+from fydpad.texture.lpc.analysis import energy_length, impulse_responses
+from fydpad.texture.lpc.fir_warp import (
     WARP_LAGS,
     WARP_SLACK_MM_S,
     lag_fade,
@@ -58,11 +59,10 @@ from fydpad.texture.fir_warp import (
     table_position,
     warped_responses,
 )
-from fydpad.texture.interpolation import SpeedTable, build_table
-from fydpad.texture.line_voice import LineVoice
-from fydpad.texture.lines import LineSpectrum
-from fydpad.texture.lpc import energy_length, impulse_responses
-from fydpad.texture.model_file import TextureModel
+from fydpad.texture.lpc.interpolation import SpeedTable, build_table
+from fydpad.texture.lpc.line_voice import LineVoice
+from fydpad.texture.lpc.lines import LineSpectrum
+from fydpad.texture.lpc.model_file import TextureModel
 from vision.speed import SpeedState, speed_update
 
 Array = NDArray[np.float64]
