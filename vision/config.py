@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from vision.ir import PAPER_POLY_CM, VALID_VOLTAGE_RANGE_V
+from vision.ir import PAPER_POLY_CM, SENSOR_PERIOD_S, VALID_VOLTAGE_RANGE_V
 
 #: Standard gravity, for masses in grams to forces in newtons.
 G_M_S2 = 9.80665
@@ -54,6 +54,9 @@ class IRConfig:
     adc_vref_v: float = 5.0
     #: Sample rate the board is asked for, in Hz.
     rate_hz: float = 100.0
+    #: Each sensor's own measurement period, in s: it measures that often and holds its
+    #: output in between, so the board reads repeats and readings up to a period old.
+    sensor_period_s: tuple[float, float, float] = (SENSOR_PERIOD_S,) * 3
     #: Serial port of the sensor board ("" when there is none) and its speed.
     serial_port: str = ""
     serial_baud: int = 115200
@@ -96,6 +99,10 @@ class IRConfig:
                     f"{self.correction_depth_degree}"
                     f"{' per sensor' if self.correction_per_sensor else ''}, "
                     f"got {len(self.correction_coef)}")
+        if len(self.sensor_period_s) != 3 or not all(
+                math.isfinite(t) and 0 <= t <= 1 for t in self.sensor_period_s):
+            raise ValueError("sensor_period_s: expected three periods in s, 0-1 (0: the "
+                             "board's samples are the measurements)")
         if not 1 <= self.adc_bits <= 24:
             raise ValueError("adc_bits: expected 1-24")
         if not self.adc_vref_v > 0 or not self.rate_hz > 0 or not self.serial_timeout_s > 0:

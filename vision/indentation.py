@@ -34,7 +34,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from vision.config import PAPER_SENSORS_MM, IRConfig
 from vision.errors import UserError
-from vision.ir import PAPER_POLY_CM, VALID_VOLTAGE_RANGE_V
+from vision.ir import PAPER_POLY_CM, SENSOR_PERIOD_S, VALID_VOLTAGE_RANGE_V
 
 #: Voltages where eq. (1) is nearly flat (slope under about 13 mm/V): low resolution.
 FLAT_REGION_V: tuple[float, float] = (2.2, 2.5)
@@ -382,6 +382,8 @@ class IndentationEstimator:
     base_to_fabric_mm: float = 100.0
     baseline_mm: tuple[float, float, float] | None = None
     correction: PlaneCorrection | None = None
+    #: Each sensor's own measurement period, held in between (``resample_distances_mm``).
+    sensor_period_s: tuple[float, float, float] = (SENSOR_PERIOD_S,) * 3
 
     def __post_init__(self) -> None:
         plane_weights(self.sensors_mm, 0.0, 0.0)  # collinear sensors: fail now, not later
@@ -410,6 +412,7 @@ class IndentationEstimator:
                                        config.correction_depth_degree,
                                        config.correction_per_sensor)
             if config.correction_coef else None,
+            sensor_period_s=tuple(float(t) for t in config.sensor_period_s),  # type: ignore[arg-type]
         )
 
     def distances_mm(self, volts: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -485,13 +488,38 @@ class IndentationEstimator:
 # --------------------------------------------------------------------------- recordings
 
 
+def measurement_time_s(t_s: float, prev_board_t_s: float, sensor_period_s: float) -> float:
+    """When a new reading first seen in the board sample at ``t_s`` was measured.
+
+    A sensor holding its output for ``sensor_period_s`` changes it at a moment the board
+    does not see: a value first read at ``t_s`` was measured after the previous board
+    sample (``prev_board_t_s``) and, for a sensor faster than the board, within its own
+    period; taken in the middle, ``t_s - min(t_s - prev, T) / 2``. ``T = 0`` (or no
+    previous sample and ``T = 0``): the sample is the measurement, at ``t_s``."""
+    return t_s - min(t_s - prev_board_t_s, sensor_period_s) / 2
+
+
+def is_held(z: float, held_z: float, t_s: float, new_t_s: float,
+            sensor_period_s: float) -> bool:
+    """A board sample repeats the sensor's held output (not a new measurement): the same
+    reading as the last sample, less than one sensor period after the last new one (a
+    sensor that read the same value again later has measured again)."""
+    return z == held_z and t_s - new_t_s < sensor_period_s
+
+
 def resample_distances_mm(
     t_ir_s: ArrayLike, distances_mm: ArrayLike, flags: ArrayLike, t_query_s: ArrayLike,
-    max_gap_s: float = 0.1,
+    max_gap_s: float = 0.1, sensor_period_s: Sequence[float] = (0.0, 0.0, 0.0),
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """IR distances at other times (video frames) by linear interpolation between the two
-    neighbouring samples. An invalid neighbour makes the result NaN (never bridged); a
-    query with no sample within ``max_gap_s`` on either side is flagged ``NO_IR``."""
+    neighbouring measurements. An invalid neighbour makes the result NaN (never bridged); a
+    query with no board sample within ``max_gap_s`` on either side is flagged ``NO_IR``.
+
+    With each sensor's own ``sensor_period_s`` (``SENSOR_PERIOD_S`` for the Sharp sensor),
+    the board samples that repeat a held output are dropped and each new reading is placed
+    at its measurement time (``is_held``, ``measurement_time_s``): the held output lags
+    the fabric by up to one period, 8 ms on average (1.3 mm on an 80 mm/s tap) when taken
+    at the board's times. 0: every board sample is a measurement at its own time."""
     t = np.asarray(t_ir_s, np.float64)
     d = np.atleast_2d(np.asarray(distances_mm, np.float64))
     fl = np.asarray(flags, np.int64)
@@ -501,16 +529,37 @@ def resample_distances_mm(
         return np.full((q.size, 3), np.nan), out_fl | int(IRFlag.NO_IR)
     hi = np.clip(np.searchsorted(t, q, side="left"), 0, t.size - 1)
     lo = np.clip(hi - 1, 0, t.size - 1)
-    exact = t[hi] == q
-    lo = np.where(exact, hi, lo)
-    span = t[hi] - t[lo]
-    frac = np.where(span > 0, (q - t[lo]) / np.where(span > 0, span, 1.0), 0.0)
-    frac = np.clip(frac, 0.0, 1.0)[:, None]
-    out = d[lo] * (1 - frac) + d[hi] * frac  # NaN in either neighbour stays NaN
     near = (np.abs(q - t[lo]) <= max_gap_s) & (np.abs(t[hi] - q) <= max_gap_s)
     out_fl |= np.where(near, fl[lo] | fl[hi], int(IRFlag.NO_IR))
+    out = np.empty((q.size, 3))
+    for i in range(3):
+        keep = np.ones(t.size, bool)
+        t_meas = t.copy()
+        if sensor_period_s[i] > 0:
+            held_z, new_t, prev_t = math.nan, -math.inf, -math.inf
+            for k, (tk, z) in enumerate(zip(t.tolist(), d[:, i].tolist(), strict=True)):
+                if is_held(z, held_z, tk, new_t, sensor_period_s[i]):
+                    keep[k] = False
+                else:
+                    new_t = tk
+                    t_meas[k] = measurement_time_s(tk, prev_t, sensor_period_s[i])
+                held_z, prev_t = z, tk
+        out[:, i] = _interp_never_bridging(t_meas[keep], d[keep, i], q)
     out[~near] = np.nan
     return out, out_fl
+
+
+def _interp_never_bridging(t: NDArray[np.float64], z: NDArray[np.float64],
+                           q: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Linear interpolation of z(t) at q, held flat beyond the ends; NaN in either
+    neighbour stays NaN."""
+    hi = np.clip(np.searchsorted(t, q, side="left"), 0, t.size - 1)
+    lo = np.clip(hi - 1, 0, t.size - 1)
+    lo = np.where(t[hi] == q, hi, lo)
+    span = t[hi] - t[lo]
+    frac = np.where(span > 0, (q - t[lo]) / np.where(span > 0, span, 1.0), 0.0)
+    frac = np.clip(frac, 0.0, 1.0)
+    return z[lo] * (1 - frac) + z[hi] * frac
 
 
 #: Causal distance filter (``filter_distances_mm``): white-acceleration PSD of the fabric
@@ -520,67 +569,84 @@ DISTANCE_ACCEL_PSD_MM2_S3 = 1.0e4
 DISTANCE_NOISE_MM = 0.5
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class DistanceFilterState:
-    """Per sensor: [distance mm, velocity mm/s], its covariance, the time and flags of
-    the last sample (NaN time: no sample yet)."""
+    """Per sensor: [distance mm, velocity mm/s], its covariance and the time of the last
+    measurement used (NaN: none yet); the last board sample's reading and the board time
+    of the last new reading (to tell a held output from a new measurement); the time and
+    flags of the last board sample; ``out``, the buffer the distances are returned in.
+    Updated in place: no allocation per frame."""
 
     x: NDArray[np.float64]  # (3, 2)
     p: NDArray[np.float64]  # (3, 2, 2)
     t_s: NDArray[np.float64]  # (3,)
+    held_mm: NDArray[np.float64]  # (3,)
+    new_t_s: NDArray[np.float64]  # (3,)
     last_t_s: float
     last_flags: int
+    out: NDArray[np.float64]  # (3,)
 
     @classmethod
     def initial(cls) -> DistanceFilterState:
-        return cls(np.zeros((3, 2)), np.zeros((3, 2, 2)), np.full(3, np.nan), -math.inf, 0)
+        return cls(np.zeros((3, 2)), np.zeros((3, 2, 2)), np.full(3, np.nan),
+                   np.full(3, np.nan), np.full(3, -np.inf), -math.inf, 0, np.empty(3))
 
 
 def filter_distances_mm(
     state: DistanceFilterState, t_ir_s: ArrayLike, distances_mm: ArrayLike,
     flags: ArrayLike, t_query_s: float, max_gap_s: float = 0.1,
     accel_psd: float = DISTANCE_ACCEL_PSD_MM2_S3, noise_mm: float = DISTANCE_NOISE_MM,
+    sensor_period_s: Sequence[float] = (0.0, 0.0, 0.0),
 ) -> tuple[NDArray[np.float64], int, DistanceFilterState]:
     """The IR distances at ``t_query_s`` from the samples up to it, causally: a
     constant-velocity Kalman filter per sensor (white acceleration, Bar-Shalom ch. 6)
-    updated with each new sample, then predicted to the query time.
+    updated with each new measurement, then predicted to the query time.
 
-    ``t_ir_s``, ``distances_mm`` [n, 3], ``flags`` are the samples not yet given (all at or
-    before ``t_query_s``); returns (distances [3], flags, new state) as scipy's zi/zf.
+    ``t_ir_s``, ``distances_mm`` [n, 3], ``flags`` are the board samples not yet given
+    (all at or before ``t_query_s``); returns (distances [3], flags, state), the state
+    updated in place and the distances in its ``out`` buffer (copy them to keep them).
     Interpolating between the samples either side of a frame needs one taken after it
-    (up to a board period ahead); the filter also averages the sensor's noise. An
-    invalid sample (NaN) is not used, and while a sensor's latest sample is invalid its
-    distance is NaN (never bridged); no sample within ``max_gap_s`` gives ``NO_IR``.
+    (up to a board period ahead); the filter also averages the sensor's noise. With the
+    sensors' ``sensor_period_s`` a board sample repeating a held output is not a
+    measurement, and a new reading is placed at its measurement time (``is_held``,
+    ``measurement_time_s``, as ``resample_distances_mm``). An invalid sample (NaN) is
+    not used, and while a sensor's latest sample is invalid its distance is NaN (never
+    bridged); no sample within ``max_gap_s`` gives ``NO_IR``.
     """
-    ts = state.t_s.copy()
-    last_t, last_fl = state.last_t_s, state.last_flags
+    x, p, ts, held, new_t = state.x, state.p, state.t_s, state.held_mm, state.new_t_s
     r = noise_mm**2
     q = accel_psd
     t = np.asarray(t_ir_s, np.float64).reshape(-1)
     d = np.asarray(distances_mm, np.float64).reshape(-1, 3)
     fl = np.asarray(flags, np.int64).reshape(-1)
-    if t.size:
-        last_t, last_fl = float(t[-1]), int(fl[-1])
-    x, p = state.x.copy(), state.p.copy()
+    n = t.size
     # Per sensor in Python floats: a 2-state filter in 2x2 NumPy arrays spends its time in
     # NumPy's call overhead (about 40 us per sample and sensor against 2 us).
     for i in range(3):
-        col = d[:, i]
-        good = np.flatnonzero(np.isfinite(col))  # an invalid sample is not used
-        if good.size == 0:
-            continue
+        period = float(sensor_period_s[i])
         x0, x1 = float(x[i, 0]), float(x[i, 1])
-        p00, p01, p10, p11 = (float(v) for v in p[i].ravel())
-        ti = float(ts[i])
-        for tk, z in zip(t[good].tolist(), col[good].tolist(), strict=True):
-            if not math.isfinite(ti):  # first sample: at rest, velocity unknown
+        p00, p01, p10, p11 = float(p[i, 0, 0]), float(p[i, 0, 1]), float(p[i, 1, 0]), \
+            float(p[i, 1, 1])
+        ti, held_z, new_ti = float(ts[i]), float(held[i]), float(new_t[i])
+        prev_t = state.last_t_s
+        for k in range(n):
+            tk, z = float(t[k]), float(d[k, i])
+            board_prev, prev_t = prev_t, tk
+            if not math.isfinite(z):  # an invalid sample is not used
+                held_z = math.nan
+                continue
+            if is_held(z, held_z, tk, new_ti, period):
+                continue
+            held_z, new_ti = z, tk
+            tm = measurement_time_s(tk, board_prev, period)
+            if not math.isfinite(ti):  # first measurement: at rest, velocity unknown
                 x0, x1 = z, 0.0
                 p00, p01, p10, p11 = r, 0.0, 0.0, 100.0**2
-                ti = tk
+                ti = tm
                 continue
             # Predict, x = F x, P = F P F' + Q (F = [[1, dt], [0, 1]], Q of white
             # acceleration: q [[dt^3/3, dt^2/2], [dt^2/2, dt]]) ...
-            dt = tk - ti
+            dt = max(tm - ti, 0.0)
             x0 = x0 + dt * x1
             a00 = p00 + dt * p10
             a01 = p01 + dt * p11
@@ -594,18 +660,19 @@ def filter_distances_mm(
             innov = z - x0
             x0, x1 = x0 + g0 * innov, x1 + g1 * innov
             p00, p01, p10, p11 = p00 - g0 * p00, p01 - g0 * p01, p10 - g1 * p00, p11 - g1 * p01
-            ti = tk
-        x[i] = (x0, x1)
-        p[i] = ((p00, p01), (p10, p11))
-        ts[i] = ti
-    out = x[:, 0] + (t_query_s - ts) * x[:, 1]  # NaN for a sensor never seen
+            ti = tm
+        x[i, 0], x[i, 1] = x0, x1
+        p[i, 0, 0], p[i, 0, 1], p[i, 1, 0], p[i, 1, 1] = p00, p01, p10, p11
+        ts[i], held[i], new_t[i] = ti, held_z, new_ti
+    if n:
+        state.last_t_s, state.last_flags = float(t[-1]), int(fl[-1])
+    out = state.out
+    no_ir = t_query_s - state.last_t_s > max_gap_s
     for i in range(3):
-        if last_fl & int(_SENSOR_INVALID[i]):
-            out[i] = np.nan
-    out_fl = last_fl if t_query_s - last_t <= max_gap_s else int(IRFlag.NO_IR)
-    if out_fl & int(IRFlag.NO_IR):
-        out[:] = np.nan
-    return out, out_fl, DistanceFilterState(x, p, ts, last_t, last_fl)
+        # NaN for a sensor never seen; never bridged across an invalid latest sample.
+        invalid = no_ir or bool(state.last_flags & int(_SENSOR_INVALID[i]))
+        out[i] = math.nan if invalid else float(x[i, 0] + (t_query_s - ts[i]) * x[i, 1])
+    return out, int(IRFlag.NO_IR) if no_ir else state.last_flags, state
 
 
 def no_contact_mask(
@@ -639,7 +706,8 @@ def indentation_at_frames(
     """
     est = estimator.with_baseline_from(volts, no_contact_mask(t_ir_s, t_frames_s, contact))
     d, flags = est.distances_mm(volts)
-    d_f, fl_f = resample_distances_mm(t_ir_s, d, flags, t_frames_s, max_gap_s)
+    d_f, fl_f = resample_distances_mm(t_ir_s, d, flags, t_frames_s, max_gap_s,
+                                      est.sensor_period_s)
     return est.estimate_from_distances(d_f, x_mm, y_mm, contact, fl_f), est
 
 
