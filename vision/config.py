@@ -41,14 +41,15 @@ class IRConfig:
     )
     base_to_fabric_mm: float = 100.0
     baseline_mm: tuple[float, float, float] | None = None
-    #: Correction beyond the plane (``vision.indentation.PlaneCorrection``): its
-    #: coefficients, empty for none; fitted from calibration data.
+    #: Correction beyond the plane (``vision.indentation.PlaneCorrection``: each sensor's
+    #: deflection weighted by a polynomial of the centroid): its coefficients, empty for
+    #: none; fitted by ``fydpad calibrate indentation``.
     correction_coef: tuple[float, ...] = ()
-    correction_xy_degree: int = 4
+    correction_xy_degree: int = 3
     correction_depth_degree: int = 2
-    #: The correction weighs each sensor's deflection (True, what ``fydpad calibrate
-    #: indentation`` fits) or the plane's estimate (False).
-    correction_per_sensor: bool = False
+    #: Written by ``fydpad calibrate indentation``; only true is read (the correction on
+    #: the plane estimate alone, false, is refused: refit the device).
+    correction_per_sensor: bool = True
     #: Sensor board ADC: bits and reference voltage (the board's hello line overrides).
     adc_bits: int = 10
     adc_vref_v: float = 5.0
@@ -89,15 +90,18 @@ class IRConfig:
                                                   for b in self.baseline_mm)
         ):
             raise ValueError("baseline_mm: expected three positive distances in mm")
+        if self.correction_coef and not self.correction_per_sensor:
+            raise ValueError("correction_per_sensor: false is a correction on the plane "
+                             "estimate alone, which is no longer read; refit the device with "
+                             "`fydpad calibrate indentation` (docs/calibration_files.md)")
         if self.correction_coef:
-            n = ((3 if self.correction_per_sensor else 1) * self.correction_depth_degree
+            n = (3 * self.correction_depth_degree
                  * (self.correction_xy_degree + 1) * (self.correction_xy_degree + 2) // 2)
             if len(self.correction_coef) != n:
                 raise ValueError(
-                    f"correction_coef: expected {n} coefficients for correction_xy_degree "
-                    f"{self.correction_xy_degree} and correction_depth_degree "
-                    f"{self.correction_depth_degree}"
-                    f"{' per sensor' if self.correction_per_sensor else ''}, "
+                    f"correction_coef: expected {n} coefficients (three sensors) for "
+                    f"correction_xy_degree {self.correction_xy_degree} and "
+                    f"correction_depth_degree {self.correction_depth_degree}, "
                     f"got {len(self.correction_coef)}")
         if len(self.sensor_period_s) != 3 or not all(
                 math.isfinite(t) and 0 <= t <= 1 for t in self.sensor_period_s):

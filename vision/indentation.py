@@ -188,80 +188,75 @@ def resolve_baseline_mm(
 
 @dataclass(frozen=True)
 class PlaneCorrection:
-    """Indentation beyond the plane, a linear model on features that all vanish with no
-    deflection (no indentation stays no indentation), u = x/50, v = y/50:
+    """Indentation beyond the plane: each sensor's own deflection e_i (positive down)
+    weighted by a polynomial of the centroid, u = x/50, v = y/50,
+    ``depth = sum_a sum_i sum_jk c e_i^a / 50^(a-1) u^j v^k``, a = 1..``depth_degree``,
+    j + k <= ``xy_degree`` (what ``fydpad calibrate indentation`` fits). Every term
+    vanishes with no deflection (no indentation stays no indentation).
 
-    - ``per_sensor`` (what ``fydpad calibrate indentation`` fits): each sensor's own
-      deflection e_i (positive down) weighted by a polynomial of the centroid,
-      ``depth = sum_a sum_i sum_jk c e_i^a / 50^(a-1) u^j v^k``, a = 1..``depth_degree``,
-      j + k <= ``xy_degree``. The plane is the case of weights linear in (x, y) (the
-      barycentric ones); free weights learn how the fabric really sags between each
-      sensor and the finger, sensors mounted off their nominal places included, so a
-      fit on presses holds for strokes elsewhere at other depths;
-    - otherwise on the plane estimate p alone,
-      ``depth = sum_a sum_jk c p^a / 50^(a-1) u^j v^k`` (device files written before
-      ``per_sensor`` existed).
-
+    The plane of eq. (2) is the case of weights linear in (x, y) (the barycentric ones).
     A real fabric is not a plane: it sags towards the finger, so the sensors (22-30 mm
     away) see less than the finger's depth, by a factor that depends on where the finger
-    is and, as the fabric wraps the finger, on the depth. Fitted by ridge least squares,
-    shrunk towards the plane (depth = p).
+    is and, as the fabric wraps the finger, on the depth. Free weights learn how the
+    fabric really sags between each sensor and the finger, sensors mounted off their
+    nominal places included, so a fit on presses holds for strokes elsewhere at other
+    depths. Fitted by ridge least squares, shrunk towards the plane.
     """
 
     coef: tuple[float, ...]
-    xy_degree: int = 4
+    xy_degree: int = 3
     depth_degree: int = 2
-    per_sensor: bool = False
 
     def __post_init__(self) -> None:
-        n = self.n_coef(self.xy_degree, self.depth_degree, self.per_sensor)
+        n = self.n_coef(self.xy_degree, self.depth_degree)
         if len(self.coef) != n:
             raise ValueError(f"correction: expected {n} coefficients for xy degree "
-                             f"{self.xy_degree} and depth degree {self.depth_degree}"
-                             f"{' per sensor' if self.per_sensor else ''}, "
+                             f"{self.xy_degree} and depth degree {self.depth_degree}, "
                              f"got {len(self.coef)}")
 
     @staticmethod
-    def n_coef(xy_degree: int, depth_degree: int, per_sensor: bool = False) -> int:
-        return (3 if per_sensor else 1) * depth_degree * (xy_degree + 1) * (xy_degree + 2) // 2
+    def n_coef(xy_degree: int, depth_degree: int) -> int:
+        return 3 * depth_degree * (xy_degree + 1) * (xy_degree + 2) // 2
 
     @staticmethod
-    def features(
-        plane_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike, xy_degree: int = 4,
-        depth_degree: int = 2, e_mm: ArrayLike | None = None,
-    ) -> NDArray[np.float64]:
-        """The model's features; per sensor when ``e_mm`` (n, 3, positive down) is given."""
+    def features(e_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike, xy_degree: int = 3,
+                 depth_degree: int = 2) -> NDArray[np.float64]:
+        """The model's features (n, ``n_coef``) from the deflections e_mm (n, 3)."""
         # Scaled to about [-1, 1] over the workspace, so the powers stay well conditioned.
         u, v = np.asarray(x_mm, np.float64) / 50.0, np.asarray(y_mm, np.float64) / 50.0
         mons = [u**i * v**j for i in range(xy_degree + 1) for j in range(xy_degree + 1 - i)]
-        inputs = [np.asarray(plane_mm, np.float64)] if e_mm is None else \
-            list(np.atleast_2d(np.asarray(e_mm, np.float64)).T)
         cols = []
         for a in range(1, depth_degree + 1):
-            for q in inputs:
+            for q in np.atleast_2d(np.asarray(e_mm, np.float64)).T:
                 qa = q**a / 50.0 ** (a - 1)
                 cols.extend(qa * m for m in mons)
         return np.stack(cols, axis=-1)
 
-    def apply(self, plane_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike,
-              e_mm: ArrayLike | None = None) -> NDArray[np.float64]:
-        """The corrected depth; a per-sensor correction needs ``e_mm`` (n, 3)."""
-        if self.per_sensor and e_mm is None:
-            raise ValueError("a per-sensor correction needs the sensors' deflections e_mm")
-        f = self.features(plane_mm, x_mm, y_mm, self.xy_degree, self.depth_degree,
-                          e_mm if self.per_sensor else None)
-        return f @ np.asarray(self.coef)
+    def apply_one(self, e0: float, e1: float, e2: float, x_mm: float, y_mm: float) -> float:
+        """``apply`` for one sample in Python floats: no arrays, for the per-frame path."""
+        u, v = x_mm / 50.0, y_mm / 50.0
+        c, k, acc = self.coef, 0, 0.0
+        for a in range(1, self.depth_degree + 1):
+            for e in (e0, e1, e2):
+                ea = e**a / 50.0 ** (a - 1)
+                for i in range(self.xy_degree + 1):
+                    eu = ea * u**i
+                    for j in range(self.xy_degree + 1 - i):
+                        acc += c[k] * eu * v**j
+                        k += 1
+        return acc
+
+    def apply(self, e_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike) -> NDArray[np.float64]:
+        """The corrected depth from the deflections e_mm (n, 3) at centroids (x, y)."""
+        return self.features(e_mm, x_mm, y_mm, self.xy_degree, self.depth_degree) \
+            @ np.asarray(self.coef)
 
     @classmethod
-    def identity(cls, xy_degree: int = 4, depth_degree: int = 2,
-                 sensors_mm: Sequence[Sequence[float]] | None = None) -> PlaneCorrection:
-        """depth = p: for a per-sensor correction (``sensors_mm`` given) the barycentric
-        weights of those sensors written as polynomials of (x, y)."""
-        n = cls.n_coef(xy_degree, depth_degree, sensors_mm is not None)
-        coef = np.zeros(n)
-        if sensors_mm is None:
-            coef[0] = 1.0
-            return cls(tuple(coef), xy_degree, depth_degree)
+    def identity(cls, xy_degree: int = 3, depth_degree: int = 2,
+                 sensors_mm: Sequence[Sequence[float]] = PAPER_SENSORS_MM) -> PlaneCorrection:
+        """depth = the plane: the barycentric weights of ``sensors_mm`` written as
+        polynomials of (x, y) (none for ``xy_degree`` 0, which cannot hold them)."""
+        coef = np.zeros(cls.n_coef(xy_degree, depth_degree))
         s = np.asarray(sensors_mm, np.float64)
         m_inv = np.linalg.inv(np.vstack([s[:, 0], s[:, 1], np.ones(3)]))
         # w_i = m_inv[i, 0] x + m_inv[i, 1] y + m_inv[i, 2], in u = x/50, v = y/50.
@@ -272,74 +267,65 @@ class PlaneCorrection:
                 coef[k * per + mons.index((0, 0))] = m_inv[k, 2]
                 coef[k * per + mons.index((1, 0))] = m_inv[k, 0] * 50.0
                 coef[k * per + mons.index((0, 1))] = m_inv[k, 1] * 50.0
-        return cls(tuple(float(c) for c in coef), xy_degree, depth_degree, True)
+        return cls(tuple(float(c) for c in coef), xy_degree, depth_degree)
 
     @staticmethod
-    def penalty(xy_degree: int = 4, depth_degree: int = 2, per_sensor: bool = False
-                ) -> NDArray[np.float64]:
+    def penalty(xy_degree: int = 3, depth_degree: int = 2) -> NDArray[np.float64]:
         """Ridge weight per term: (order in x, y plus extra power of the input) squared,
         at least 1, so higher orders give way first when data are few."""
-        reps = 3 if per_sensor else 1
-        return np.array([max(float(i + j + a - 1) ** 2, 1.0 if per_sensor else 0.0)
+        return np.array([max(float(i + j + a - 1) ** 2, 1.0)
                          for a in range(1, depth_degree + 1)
-                         for _ in range(reps)
+                         for _ in range(3)
                          for i in range(xy_degree + 1)
                          for j in range(xy_degree + 1 - i)])
 
     @classmethod
     def fit(
-        cls, plane_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike, truth_mm: ArrayLike,
-        xy_degree: int = 4, depth_degree: int = 2, ridge: float = 1e-2,
-        e_mm: ArrayLike | None = None, sensors_mm: Sequence[Sequence[float]] | None = None,
+        cls, e_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike, truth_mm: ArrayLike,
+        xy_degree: int = 3, depth_degree: int = 2, ridge: float = 1e-2,
+        sensors_mm: Sequence[Sequence[float]] = PAPER_SENSORS_MM,
     ) -> PlaneCorrection:
         """Ridge least squares of the true depth on the features, the ridge (relative to
-        the features' mean square) weighted by ``penalty`` and shrinking towards
-        depth = p, so sparse data (few press positions) cannot run away. Per sensor when
-        ``e_mm`` is given (then ``sensors_mm``, the nominal positions, set the prior)."""
-        per_sensor = e_mm is not None
-        n = cls.n_coef(xy_degree, depth_degree, per_sensor)
-        f = cls.features(plane_mm, x_mm, y_mm, xy_degree, depth_degree, e_mm)
+        the features' mean square) weighted by ``penalty`` and shrinking towards the
+        plane of the nominal ``sensors_mm``, so sparse data (few press positions) cannot
+        run away."""
+        n = cls.n_coef(xy_degree, depth_degree)
+        f = cls.features(e_mm, x_mm, y_mm, xy_degree, depth_degree)
         t = np.asarray(truth_mm, np.float64)
         ok = np.all(np.isfinite(f), axis=1) & np.isfinite(t)
         f, t = f[ok], t[ok]
         if t.size < 3 * n:
             raise ValueError(f"correction: need at least {3 * n} calibration samples with "
                              f"valid readings, got {t.size}")
-        if per_sensor:
-            prior = np.asarray(cls.identity(
-                xy_degree, depth_degree,
-                PAPER_SENSORS_MM if sensors_mm is None else sensors_mm).coef)
-        else:
-            prior = np.asarray(cls.identity(xy_degree, depth_degree).coef)
+        prior = np.asarray(cls.identity(xy_degree, depth_degree, sensors_mm).coef)
         lam = ridge * float(np.mean(np.sum(f * f, axis=1))) * np.diag(
-            cls.penalty(xy_degree, depth_degree, per_sensor))
+            cls.penalty(xy_degree, depth_degree))
         coef = np.linalg.solve(f.T @ f + lam, f.T @ t + lam @ prior)
-        return cls(tuple(float(c) for c in coef), xy_degree, depth_degree, per_sensor)
+        return cls(tuple(float(c) for c in coef), xy_degree, depth_degree)
 
     @classmethod
     def fit_cv(
-        cls, plane_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike, truth_mm: ArrayLike,
-        groups: ArrayLike, xy_degree: int = 4, depth_degree: int = 2,
-        ridges: Sequence[float] = (1e-3, 1e-2, 1e-1, 1.0, 10.0),
-        e_mm: ArrayLike | None = None, sensors_mm: Sequence[Sequence[float]] | None = None,
+        cls, e_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike, truth_mm: ArrayLike,
+        groups: ArrayLike, xy_degree: int = 3, depth_degree: int = 2,
+        ridges: Sequence[float] = (1e-4, 1e-3, 1e-2, 1e-1, 1.0),
+        sensors_mm: Sequence[Sequence[float]] = PAPER_SENSORS_MM,
     ) -> tuple[PlaneCorrection, float, dict[float, float]]:
         """The ridge chosen by two-fold cross-validation over ``groups`` (e.g. press
         numbers: even presses fit, odd ones score, and back), then fitted on all data.
         Returns the correction, its held-out RMSE and the RMSE per ridge tried."""
-        p, x, y, t = (np.asarray(a, np.float64) for a in (plane_mm, x_mm, y_mm, truth_mm))
-        e = None if e_mm is None else np.asarray(e_mm, np.float64)
+        e = np.atleast_2d(np.asarray(e_mm, np.float64))
+        x, y, t = (np.asarray(a, np.float64) for a in (x_mm, y_mm, truth_mm))
         half = np.asarray(groups) % 2
         scores: dict[float, float] = {}
         for ridge in ridges:
             held = np.full(t.size, np.nan)
             for g in (0, 1):
                 a, b = half == g, half != g
-                c = cls.fit(p[a], x[a], y[a], t[a], xy_degree, depth_degree, ridge,
-                            None if e is None else e[a], sensors_mm)
-                held[b] = c.apply(p[b], x[b], y[b], None if e is None else e[b])
+                c = cls.fit(e[a], x[a], y[a], t[a], xy_degree, depth_degree, ridge, sensors_mm)
+                held[b] = c.apply(e[b], x[b], y[b])
             scores[ridge] = rmse(held, t)
         best = min(scores, key=lambda r: scores[r])
-        final = cls.fit(p, x, y, t, xy_degree, depth_degree, best, e, sensors_mm)
+        final = cls.fit(e, x, y, t, xy_degree, depth_degree, best, sensors_mm)
         return final, scores[best], scores
 
 
@@ -389,8 +375,11 @@ class IndentationEstimator:
         plane_weights(self.sensors_mm, 0.0, 0.0)  # collinear sensors: fail now, not later
         s = np.asarray(self.sensors_mm, np.float64)
         # Barycentric weights are inv(M) @ [x, y, 1]: invert once, not per sample.
-        object.__setattr__(self, "_m_inv",
-                           np.linalg.inv(np.vstack([s[:, 0], s[:, 1], np.ones(3)])))
+        m_inv = np.linalg.inv(np.vstack([s[:, 0], s[:, 1], np.ones(3)]))
+        object.__setattr__(self, "_m_inv", m_inv)
+        # The same in Python floats for ``depth_at``, with the rest distances.
+        object.__setattr__(self, "_w_rows", tuple(tuple(float(c) for c in row) for row in m_inv))
+        object.__setattr__(self, "_rest", tuple(float(r) for r in self.rest_mm()))
 
     @classmethod
     def from_config(
@@ -409,8 +398,7 @@ class IndentationEstimator:
                                     else config.base_to_fabric_mm),
             baseline_mm=None if base is None else tuple(float(b) for b in base),  # type: ignore[arg-type]
             correction=PlaneCorrection(tuple(config.correction_coef), config.correction_xy_degree,
-                                       config.correction_depth_degree,
-                                       config.correction_per_sensor)
+                                       config.correction_depth_degree)
             if config.correction_coef else None,
             sensor_period_s=tuple(float(t) for t in config.sensor_period_s),  # type: ignore[arg-type]
         )
@@ -459,7 +447,7 @@ class IndentationEstimator:
         fl |= np.where(has_xy & np.any(w < -1e-9, axis=1), int(IRFlag.EXTRAPOLATED), 0)
         e = d - self.rest_mm()  # negative when the finger presses the fabric down
         plane = -np.sum(w * e, axis=1)  # indentation = -delta
-        depth = plane if self.correction is None else self.correction.apply(plane, xs, ys, -e)
+        depth = plane if self.correction is None else self.correction.apply(-e, xs, ys)
         bad = (fl & int(INVALID)) != 0
         plane = np.where(bad, np.nan, plane)
         depth = np.where(bad, np.nan, depth)
@@ -475,6 +463,19 @@ class IndentationEstimator:
         """Vectorised: volts[n, 3] and centroids (x, y)[n] -> indentation per sample."""
         d, flags = self.distances_mm(volts)
         return self.estimate_from_distances(d, x_mm, y_mm, contact, flags)
+
+    def depth_at(self, d0_mm: float, d1_mm: float, d2_mm: float, x_mm: float,
+                 y_mm: float) -> float:
+        """One contact sample's indentation from its distances, in Python floats (no
+        arrays: the per-frame path); the arithmetic of ``estimate_from_distances``, NaN
+        where a distance or the centroid is NaN. Flags are the caller's."""
+        (a0, b0, c0), (a1, b1, c1), (a2, b2, c2) = self._w_rows  # type: ignore[attr-defined]
+        r0, r1, r2 = self._rest  # type: ignore[attr-defined]
+        e0, e1, e2 = r0 - d0_mm, r1 - d1_mm, r2 - d2_mm  # positive down
+        if self.correction is not None:
+            return self.correction.apply_one(e0, e1, e2, x_mm, y_mm)
+        return ((a0 * x_mm + b0 * y_mm + c0) * e0 + (a1 * x_mm + b1 * y_mm + c1) * e1
+                + (a2 * x_mm + b2 * y_mm + c2) * e2)
 
     def estimate_one(
         self, volts: Sequence[float], x_mm: float, y_mm: float, contact: bool = True,

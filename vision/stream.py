@@ -17,6 +17,7 @@ import numpy as np
 from vision.config import IRConfig
 from vision.contact import Contact, ContactTracker
 from vision.indentation import (
+    INVALID,
     DistanceFilterState,
     IndentationEstimator,
     filter_distances_mm,
@@ -146,9 +147,10 @@ class LiveIndentation:
                                                                np.ones(int(before.sum()), bool))
             self._rest.clear()
             self._rest_n = 0
-        r = self.estimator.estimate_from_distances(dist.reshape(1, 3), [x_mm], [y_mm], [True],
-                                                   [flags])
-        return float(r.indentation_mm[0])
+        if flags & int(INVALID):
+            return math.nan
+        return self.estimator.depth_at(float(dist[0]), float(dist[1]), float(dist[2]), x_mm,
+                                       y_mm)
 
     def _keep_rest(self, t_ir_s: np.ndarray, volts: np.ndarray) -> None:
         """The newest ``keep`` samples, as whole batches (one per frame) where possible."""

@@ -28,9 +28,8 @@ def calibrated(pad: str) -> PlaneCorrection:
         offset = int(p["press"].max(initial=offset)) + 1
     d = {k: np.concatenate([p[k] for p in parts]) for k in ("plane", "e", "x", "y", "depth",
                                                               "press")}
-    corr, _, _ = PlaneCorrection.fit_cv(d["plane"], d["x"], d["y"], d["depth"], d["press"],
-                                        3, 2, (1e-4, 1e-3, 1e-2, 1e-1, 1.0), e_mm=d["e"],
-                                        sensors_mm=parts[0]["sensors"])
+    corr, _, _ = PlaneCorrection.fit_cv(d["e"], d["x"], d["y"], d["depth"], d["press"],
+                                        3, 2, sensors_mm=parts[0]["sensors"])
     return corr
 
 
@@ -53,7 +52,7 @@ def test_a_correction_fitted_on_taps_holds_for_slides_taps_and_lissajous(pad, tr
     corr = calibrated(pad)
     s = indentation_samples(pad, trajectory, seed)
     plane = rmse(s["plane"], s["depth"])
-    fixed = rmse(corr.apply(s["plane"], s["x"], s["y"], s["e"]), s["depth"])
+    fixed = rmse(corr.apply(s["e"], s["x"], s["y"]), s["depth"])
     print(pad, trajectory, seed, f"plane {plane:.2f} corrected {fixed:.2f}")
     assert s["depth"].size > 100
     assert fixed < plane, (pad, trajectory, plane, fixed)
@@ -95,4 +94,4 @@ def test_per_sensor_identity_is_the_plane():
     est = IndentationEstimator(sensors_mm=sensors, baseline_mm=(100.0, 100.0, 100.0))
     r = est.estimate_from_distances(100.0 - e, x, y)
     ident = PlaneCorrection.identity(3, 2, sensors)
-    np.testing.assert_allclose(ident.apply(r.plane_mm, x, y, e), r.plane_mm, atol=1e-9)
+    np.testing.assert_allclose(ident.apply(e, x, y), r.plane_mm, atol=1e-9)
