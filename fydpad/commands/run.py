@@ -562,6 +562,10 @@ def run(args: argparse.Namespace) -> int:
     r = stats.get("render", {})
     dropped = (f", {station.frames_dropped} dropped for --vision-hz"
                if station.frames_dropped else "")
+    camera_failures = stats.get("vision", {}).get("camera_read_failures")
+    if camera_failures:  # a live camera's dropped frames: counted, not fatal
+        dropped += (f", {camera_failures} dropped by the camera in "
+                    f"{stats['vision']['camera_outages']} outages")
     print(f"station ran {station.frames} frames ({station.contact_frames} with contact"
           f"{dropped}); "
           f"render {r.get('rate_hz', 0):.1f} Hz, {r.get('on_time_pct', 0):.2f} % on time, "
