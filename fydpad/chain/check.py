@@ -60,7 +60,7 @@ def scan_target(texture: str, speed_mm_s: float, seconds: float, rate_hz: float,
     """A texture's vibration as the pad's scans record it (``fydpad texture
     generate-scans``: DFT321 of the 3 axes, 10 Hz high-pass), at ``rate_hz``."""
     from fydpad.synth.texture_scans import TEXTURES, generate_scan
-    from fydpad.texture.dft321 import preprocess
+    from fydpad.texture.lpc.dft321 import preprocess
 
     if texture not in TEXTURES:
         raise ChainError(f"--target scan:{texture}: unknown texture; one of "

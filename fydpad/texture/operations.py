@@ -18,8 +18,6 @@ from numpy.typing import NDArray
 
 from fydpad.channels import open_channel
 from fydpad.errors import UserError
-from fydpad.texture.coverage import describe, inside
-from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluation.compare import (
     by_surface,
     compare_families,
@@ -48,6 +46,8 @@ from fydpad.texture.family import (
     finger_from_scan,
     save_model_json,
 )
+from fydpad.texture.lpc.coverage import describe, inside
+from fydpad.texture.lpc.dft321 import preprocess
 from fydpad.texture.plots import plot_against_ceiling, plot_spectra
 from vision.recording import CsvRowWriter
 

@@ -13,7 +13,7 @@ import pytest
 
 from fydpad.synth.texture_scans import generate_scan
 from fydpad.texture.evaluation.identify import band_level_distance_db, band_levels_db, identify
-from fydpad.texture.fit import fit_texture
+from fydpad.texture.lpc.fit import fit_texture
 
 F_HZ = np.arange(0.0, 501.0, 4.0)  # the Welch grid of evaluate (4 Hz bins, fs 1 kHz)
 

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from fydpad.errors import UserError
-from fydpad.texture.families import friction, grating, lpc
+from fydpad.texture.families import friction, grating
 from fydpad.texture.families.mlp import render as mlp
 from fydpad.texture.families.penn import render as penn
 from fydpad.texture.family import (
@@ -28,6 +28,7 @@ from fydpad.texture.family import (
     resample_finger,
     save_model_json,
 )
+from fydpad.texture.lpc import family as lpc
 from fydpad.texture.scan_io import read_scan
 from vision.recording import RecordingError, read_csv_columns
 
