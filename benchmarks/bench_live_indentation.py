@@ -1,6 +1,6 @@
 """The live station's per-frame indentation cost: every IR sample since the last frame
 through the ring (``IRBuffer``) and the Kalman filter (``LiveIndentation.update``),
-against the former newest-sample path (``IndentationEstimator.estimate_one``) as the
+against the newest-sample estimate (``IndentationEstimator.estimate_one``, a zero-order hold) as the
 baseline, measured in the same run.
 
 Samples per frame = board rate / vision rate: 100 Hz / 30 fps ~ 3, 100 Hz / 10 Hz = 10,
@@ -65,7 +65,7 @@ def newest_cost_us() -> float:
 
 def main() -> None:
     base = newest_cost_us()
-    print(f"newest sample (estimate_one, the former path): {base:.0f} us/frame")
+    print(f"newest sample (estimate_one, the baseline): {base:.0f} us/frame")
     print("samples/frame | us/frame (ring + filter + plane) | of which ring | x newest")
     for n in (3, 10, 33, 100):
         total, ring = frame_cost_us(n)

@@ -16,6 +16,7 @@ and the web view's guide shows step by step.
 
 from __future__ import annotations
 
+import textwrap
 from dataclasses import dataclass
 
 #: Target depths in mm, rotating along each row (slides are 2-20 mm deep, taps deeper).
@@ -114,8 +115,6 @@ def steps(workspace_mm: tuple[float, float] = (100.0, 70.0)) -> list[Step]:
 
 def protocol_text(workspace_mm: tuple[float, float] = (100.0, 70.0)) -> str:
     """The protocol as printed by ``fydpad calibrate indentation --protocol``."""
-    import textwrap
-
     head = (f"Indentation calibration protocol: {RECORDINGS} recordings, "
             f"{RECORDINGS * GRID[0] * GRID[1]} presses, {duration_s():.0f} s of recording "
             f"(about 2 minutes)")

@@ -266,6 +266,7 @@ def save_table(table: SoftnessTable, path: str | Path, source: str = "") -> Path
 
 def load_table(path: str | Path) -> SoftnessTable:
     """Read a table CSV; errors name the file (and line, column where it applies)."""
+    # lazy: vision.recording loads OpenCV, and fydpad.config imports this module
     from vision.recording import RecordingError, read_csv_columns
 
     try:

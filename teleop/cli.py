@@ -61,7 +61,7 @@ def load_config(path: str | None) -> TeleopConfig:
 
 
 def _cmd_slave(args: argparse.Namespace) -> int:
-    from teleop.realtime import realtime_scheduling
+    from teleop.realtime import realtime_scheduling  # command module: fast --help
 
     cfg = load_config(args.config)
     cfg.slave.robot = args.robot
@@ -84,6 +84,7 @@ def _cmd_slave(args: argparse.Namespace) -> int:
 
 
 def _run_slave(args: argparse.Namespace, cfg: TeleopConfig, scheduling: str) -> int:
+    # Imported after the scheduling policy is set (see _cmd_slave), and not for --help.
     from teleop.link import SlaveSocket
     from teleop.mapping import Mapping
     from teleop.slave import SlaveLoop, make_arm
@@ -129,7 +130,7 @@ def _run_slave(args: argparse.Namespace, cfg: TeleopConfig, scheduling: str) -> 
 
 
 def _cmd_keys(args: argparse.Namespace) -> int:
-    from teleop.keys import generate
+    from teleop.keys import generate  # loads ZeroMQ: not for --help
 
     try:
         files = generate(Path(args.dir))

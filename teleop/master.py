@@ -29,6 +29,7 @@ from teleop.report import (
     plot_tracking,
     truth_breakdown,
 )
+from teleop.slave import SlaveThread
 from vision.state import FingerState
 
 
@@ -45,6 +46,12 @@ class StreamLog:
     t0_s: float = 0.0  # master clock of recording time t_s0
     t_s0: float = 0.0
     next_seq: int = 1  # where a following pass continues the sequence
+
+    def record(self, fs: FingerState, t_due_s: float) -> None:
+        """One recording sample, due at ``t_due_s`` on the master's clock."""
+        self.t_s.append(t_due_s)
+        self.master_mm.append(_position(fs))
+        self.contact.append(bool(fs.contact))
 
     def offset_s(self) -> float:
         """Slave clock - master clock, from the echo with the shortest round trip (NTP)."""
@@ -80,6 +87,11 @@ class StreamLog:
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return (np.array(self.t_s), np.array(self.master_mm, float).reshape(-1, 3),
                 np.array(self.contact, bool))
+
+
+def rate_due(rate_hz: float | None, t_s: float, last_sent_t_s: float) -> bool:
+    """Whether the sample at recording time ``t_s`` is sent at ``rate_hz`` (None: all)."""
+    return rate_hz is None or t_s - last_sent_t_s >= 1.0 / rate_hz - 1e-6
 
 
 def _position(fs: FingerState) -> tuple[float, float, float]:
@@ -170,10 +182,8 @@ def _stream_all(first: FingerState, it: Iterable[FingerState], log: StreamLog,
     for fs in _chain(first, it):
         t_due = log.t0_s + (fs.t_s - log.t_s0)
         collect_until(t_due)
-        log.t_s.append(t_due)
-        log.master_mm.append(_position(fs))
-        log.contact.append(bool(fs.contact))
-        if rate_hz is None or fs.t_s - last_sent_t >= 1.0 / rate_hz - 1e-6:
+        log.record(fs, t_due)
+        if rate_due(rate_hz, fs.t_s, last_sent_t):
             send(fs, t_due)
             last_sent_t = fs.t_s
 
@@ -311,8 +321,6 @@ def run_local_sim(states: Sequence[FingerState], cfg: TeleopConfig | None = None
                   on_sample: Callable[[], None] | None = None) -> Session:
     """The demo: a simulated slave in a thread of this process on a random loopback port,
     driven over a real socket by run_session; optionally the Fig. 11 plot."""
-    from teleop.slave import SlaveThread
-
     cfg = cfg or TeleopConfig()
     # The slave's thread (and ZeroMQ's, if this makes the first socket) inherit it.
     with (realtime_scheduling(cfg.link.rt_priority),

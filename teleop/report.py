@@ -155,10 +155,11 @@ def plot_tracking(path: str | Path, t_s: np.ndarray, master_mm: np.ndarray,
                   baseline: tuple[np.ndarray, np.ndarray] | None = None,
                   title: str = "") -> Path:
     """Master and slave per axis over time, like the paper's Fig. 11; writes a PNG."""
+    # lazy: matplotlib loads only when a plot is asked for; Agg before pyplot (no display)
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # after use("Agg")
 
     fig, axs = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
     labels = ("x (mm)", "y (mm)", "z indentation (mm)")

@@ -25,6 +25,7 @@ from teleop.mapping import Mapping
 from teleop.predict import IMMPredictor, Predictor
 from teleop.safety import MotionLimiter, Watchdog
 from teleop.slaves import Arm, ArmFault
+from teleop.slaves.sim import SimArm
 
 log = logging.getLogger(__name__)
 
@@ -329,10 +330,10 @@ def make_arm(cfg: TeleopConfig) -> Arm:
     """The arm named by ``cfg.slave.robot``."""
     mapping = Mapping(cfg.mapping)
     if cfg.slave.robot == "sim":
-        from teleop.slaves.sim import SimArm
         return SimArm(cfg.slave.sim_joint_speed_rad_s, lag_s=0.002,
                       tool_down=tuple(mapping.tool_down()))
     if cfg.slave.robot == "ur":
+        # lazy: loads scipy.spatial, which the sim arm does not need
         from teleop.slaves.ur import URArm
         return URArm(cfg.slave, tool_down=tuple(mapping.tool_down()))
     raise ValueError(f"slave.robot must be 'sim' or 'ur', got {cfg.slave.robot!r}")

@@ -17,7 +17,7 @@ import numpy as np
 from teleop import protocol as P
 from teleop.config import TeleopConfig
 from teleop.mapping import Mapping
-from teleop.master import Session, StreamLog, _position, build_report
+from teleop.master import Session, StreamLog, _position, build_report, rate_due
 from teleop.slave import SlaveLoop, make_arm
 from teleop.slaves import Arm
 from vision.state import FingerState
@@ -69,10 +69,8 @@ def _pass(loop: SlaveLoop, mem: _MemorySocket, clock: _Clock, states: Sequence[F
     last = -math.inf
     for fs in states:
         t_due = log.t0_s + fs.t_s - log.t_s0
-        log.t_s.append(t_due)
-        log.master_mm.append(_position(fs))
-        log.contact.append(bool(fs.contact))
-        if rate_hz is None or fs.t_s - last >= 1.0 / rate_hz - 1e-6:
+        log.record(fs, t_due)
+        if rate_due(rate_hz, fs.t_s, last):
             send(fs, t_due)
             last = fs.t_s
     t_end = log.t0_s + states[-1].t_s - log.t_s0 + tail_s

@@ -3,7 +3,11 @@ import statement counts, at module top or inside a function.
 
 - ``vision`` imports nothing of ``fydpad`` or ``teleop``;
 - ``teleop`` imports nothing of ``fydpad``;
-- no import cycle anywhere.
+- no import cycle anywhere;
+- a library module imports at its top; an import inside a function says why in a comment
+  on its line or just above it (or above the block of imports it opens). Command modules
+  (``fydpad.cli``, ``fydpad.commands.*``, ``teleop.cli``) import their libraries inside the
+  command for a fast ``--help``, the one reason there, so they are not checked.
 """
 
 from __future__ import annotations
@@ -101,6 +105,71 @@ def _crossing(src: str, forbidden: tuple[str, ...]) -> list[str]:
     return sorted(f"{m} imports {t}" for m, targets in GRAPH.items()
                   if m.split(".")[0] == src for t in targets
                   if t.split(".")[0] in forbidden)
+
+
+def _is_command(module: str) -> bool:
+    return module in ("fydpad.cli", "teleop.cli") or module.startswith("fydpad.commands.")
+
+
+def unexplained_local_imports(source: str) -> list[int]:
+    """Lines of the imports inside functions with no comment on their lines, nor on the
+    line above them or above the run of imports they stand in."""
+    lines = source.splitlines()
+    out: set[int] = set()
+    for fn in ast.walk(ast.parse(source)):
+        if not isinstance(fn, ast.FunctionDef | ast.AsyncFunctionDef):
+            continue
+        imports = [n for n in ast.walk(fn) if isinstance(n, ast.Import | ast.ImportFrom)]
+        in_import = {i for n in imports for i in range(n.lineno, (n.end_lineno or n.lineno) + 1)}
+        for n in imports:
+            if any("#" in lines[i - 1] for i in range(n.lineno, (n.end_lineno or n.lineno) + 1)):
+                continue
+            above = n.lineno - 1
+            while above in in_import:
+                above -= 1
+            if above < 1 or not lines[above - 1].strip().startswith("#"):
+                out.add(n.lineno)
+    return sorted(out)
+
+
+#: Library modules with local imports that do not yet say why (15 imports in these 9
+#: modules). The set only shrinks: the test fails when a module listed here says why for
+#: all of its local imports, so that it leaves the set.
+NOT_YET_EXPLAINED = {
+    "fydpad.chain.check",
+    "fydpad.synth.trajectory",
+    "fydpad.texture.identify",
+    "fydpad.texture.penn",
+    "fydpad.texture.plots",
+    "fydpad.texture.scan_generator",
+    "fydpad.web.experiment",
+    "fydpad.web.server",
+    "fydpad.web.stimuli",
+}
+
+
+def test_every_local_import_in_library_code_says_why():
+    found = {m: unexplained_local_imports(p.read_text(encoding="utf-8"))
+             for m, p in MODULES.items()
+             if not _is_command(m)}
+    assert {m: lines for m, lines in found.items() if lines and m not in NOT_YET_EXPLAINED} == {}
+    assert sorted(m for m in NOT_YET_EXPLAINED if m in found and not found[m]) == []
+
+
+def test_the_local_import_check_sees_a_missing_reason():
+    source = (
+        "def f():\n"
+        "    import os\n"                       # 2: no reason
+        "    # lazy: a reason for the block\n"
+        "    import sys\n"
+        "    from json import (\n"
+        "        dumps,\n"
+        "    )\n"
+        "    x = 1\n"
+        "    import re  # lazy: on its line\n"
+        "    import csv\n"                      # 10: the line above is code
+    )
+    assert unexplained_local_imports(source) == [2, 10]
 
 
 def test_vision_imports_nothing_of_the_other_packages():

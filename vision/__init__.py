@@ -14,11 +14,11 @@ def __getattr__(name: str) -> Any:
     # Loaded when first asked for, not on ``import vision``: vision.contact loads OpenCV,
     # which every ``import vision.errors`` (the commands' start) would otherwise pay for.
     if name in ("Contact", "ContactTracker"):
-        from vision import contact
+        from vision import contact  # lazy: OpenCV, see above
 
         return getattr(contact, name)
     if name == "FingerState":
-        from vision.state import FingerState
+        from vision.state import FingerState  # lazy, as the names above
 
         return FingerState
     raise AttributeError(f"module 'vision' has no attribute {name!r}")

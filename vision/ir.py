@@ -6,6 +6,9 @@ millimetres: at 1.25 V it gives about 10.5, which matches the sensor's datasheet
 curve at 10.5 cm. The fit is valid from about 0.42 V (30 cm) to 2.75 V (4 cm);
 outside that range it is not extrapolated. Between about 2.2 V and 2.5 V the curve
 is nearly flat, so distances there (roughly 5-6 cm) are resolved poorly.
+
+Voltage to distance, per sensor, is :func:`vision.indentation.sensor_distances_mm`;
+this module holds the curve and its inverse (the simulated sensors' output).
 """
 
 from __future__ import annotations
@@ -17,18 +20,6 @@ from numpy.typing import ArrayLike, NDArray
 PAPER_POLY_CM: tuple[float, ...] = (-4.6327, 39.954, -133.8297, 220.8604, -188.5623, 79.0712)
 #: The range of voltages over which eq. (1) is valid (30 cm to 4 cm).
 VALID_VOLTAGE_RANGE_V: tuple[float, float] = (0.42, 2.75)
-
-
-def voltage_to_distance_mm(
-    voltage_v: ArrayLike,
-    poly_cm: ArrayLike = PAPER_POLY_CM,
-    valid_range_v: tuple[float, float] = VALID_VOLTAGE_RANGE_V,
-) -> NDArray[np.float64]:
-    """Eq. (1): distance in mm from sensor voltage; NaN where the voltage is out of range."""
-    v = np.asarray(voltage_v, dtype=np.float64)
-    d_mm = np.polyval(np.asarray(poly_cm, dtype=np.float64), v) * 10.0
-    valid = (v >= valid_range_v[0]) & (v <= valid_range_v[1])
-    return np.where(valid, d_mm, np.nan)
 
 
 def distance_to_voltage_v(

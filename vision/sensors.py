@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from vision.config import ForceConfig, IRConfig
 from vision.errors import DeviceFault
@@ -395,13 +395,3 @@ class _View:
 
     def close(self) -> None:
         self._board.close()
-
-
-def volts_array(samples: Sequence[IRSample]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(t_s[n], volts[n, 3]) from a list of samples, invalid voltages as NaN."""
-    t = np.array([s.t_s for s in samples], np.float64)
-    v = np.array([[x if ok else np.nan for x, ok in zip(s.volts, s.valid, strict=True)]
-                  for s in samples], np.float64).reshape(-1, 3)
-    return t, v
-
-

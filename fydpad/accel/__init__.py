@@ -12,15 +12,18 @@ def open_accelerometer(spec: str, plant: object | None = None,
     AccelError says what to fix."""
     kind, _, arg = spec.partition(":")
     if kind == "sim":
+        # lazy, as each backend: fydpad.config imports this package (for accel.config)
         from fydpad.accel.sim import SimAccelerometer
         from fydpad.motors.sim import FabricMotorPlant
         if not isinstance(plant, FabricMotorPlant):
             raise AccelError("accelerometer 'sim' needs the simulated motors (--motors sim)")
         return SimAccelerometer(plant)
     if kind == "replay" and arg:
+        # lazy: vision.recording loads OpenCV
         from fydpad.accel.replay import ReplayAccelerometer
         return ReplayAccelerometer(arg)
     if kind == "serial":
+        # lazy, as each backend: fydpad.config imports this package (for accel.config)
         from fydpad.accel.serial import DEFAULT_BAUD, SerialAccelerometer
         from vision.serial_line import parse_serial_spec
         try:

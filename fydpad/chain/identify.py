@@ -8,11 +8,12 @@ from collections.abc import Callable
 
 import numpy as np
 
+from fydpad.accel.sim import FULL_SCALE_M_S2
 from fydpad.chain import ChainError
 from fydpad.chain.estimate import check_coherence, check_response, welch_tf
 from fydpad.chain.excitation import band_noise, check_band
 from fydpad.chain.measure import check_force, drive_signal
-from fydpad.chain.tf_file import TfEntry, TfSet
+from fydpad.chain.tf_file import TfEntry
 
 #: Peak of the excitation, as a share of eq. 3's vibration headroom.
 LEVEL = 0.8
@@ -23,8 +24,6 @@ def accel_limits(accel) -> tuple[float, float | None]:
     lsb = float(getattr(accel, "lsb_m_s2", 0.0) or 0.0)
     full = getattr(accel, "full_scale_m_s2", None)
     if full is None and type(accel).__name__ == "SimAccelerometer":
-        from fydpad.accel.sim import FULL_SCALE_M_S2
-
         full = FULL_SCALE_M_S2
     return lsb, full
 
@@ -60,27 +59,6 @@ def identify_entry(
     check_coherence(est, band_hz, what)
     f_mean, f_sd = check_force(run.force_n, force_n, force_tolerance_n, what)
     return TfEntry(float(stiffness_n_per_mm), float(theta), f_mean, f_sd, est)
-
-
-def identify_set(session, stiffnesses: list[float], seconds: float,
-                 band_hz: tuple[float, float], level: float = LEVEL, seed: int = 0,
-                 nperseg: int = 512, force_n: float = 0.3, force_tolerance_n: float = 0.1,
-                 axis: str = "x", provenance: dict | None = None,
-                 progress: Callable[[int], None] | None = None) -> TfSet:
-    """Every stiffness in turn (each with its own seed), one :class:`TfSet`."""
-    if not stiffnesses:
-        raise ChainError("--stiffness: give at least one stiffness (N/mm)")
-    entries = [identify_entry(session, k, seconds, band_hz, level, seed + i, nperseg,
-                              force_n, force_tolerance_n, axis, progress)
-               for i, k in enumerate(stiffnesses)]
-    return TfSet(
-        rate_hz=session.rate_hz, channel="vibration", band_hz=tuple(band_hz),
-        entries=entries,
-        excitation={"kind": "band-limited random", "seconds": seconds, "seed": seed,
-                    "peak_duty": level * session.drive.composer.vibration_limit,
-                    "nperseg": nperseg, "force_n": force_n},
-        provenance=dict(provenance or {}, motors=session.motors, accel=session.accel_spec,
-                        axis=axis))
 
 
 def nominal_peak(est, band_hz) -> float:

@@ -4,6 +4,7 @@ they share, the pacing and the load cell (simulated plant or the real device).""
 from __future__ import annotations
 
 import math
+import threading
 import time
 import warnings
 from contextlib import ExitStack
@@ -11,9 +12,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from fydpad.accel import open_accelerometer
 from fydpad.accel.base import AccelError
 from fydpad.chain import ChainError
 from fydpad.chain.measure import press_to_force, settle
+from fydpad.motors.drive import build_drive
+from fydpad.pacing import LoopTimer
 
 #: Ticks allowed for a new stiffness position to settle before measuring.
 SETTLE_S = 1.0
@@ -72,8 +76,6 @@ class ChainSession:
         at the render rate on the device."""
         if self.plant is not None:
             return None
-        from fydpad.pacing import LoopTimer
-
         timer = LoopTimer(self.rate_hz, "chain")
         timer.start()
         return timer.wait
@@ -108,8 +110,6 @@ class LoadCellThread:
     (a held force it did not measure is never reported)."""
 
     def __init__(self, board, max_age_s: float) -> None:
-        import threading
-
         self.board = board
         self.port = board.port
         self.max_age_s = float(max_age_s)
@@ -154,9 +154,6 @@ def open_session(config, motors: str = "sim", accel_spec: str | None = None,
     accelerometer (``accel_spec``, default the config's ``[accel] device``) and, on the
     device, the load cell of the serial sensor board. ChainError names the device that
     failed; whatever was opened before it is closed again."""
-    from fydpad.accel import open_accelerometer
-    from fydpad.motors.drive import build_drive
-
     accel_spec = accel_spec or config.accel.device
     with ExitStack() as opened:  # closes what is open if a later device fails
         drive = build_drive(replace(config.motors, backend=motors), config.pwm, config.qb,
@@ -189,6 +186,8 @@ def open_session(config, motors: str = "sim", accel_spec: str | None = None,
 
 def _open_load_cell(config, sensors_spec: str) -> LoadCellThread:
     """The sensor board of ``--sensors`` and its load-cell thread; ChainError naming it."""
+    # lazy: vision.sensors loads OpenCV (through vision.recording); only the device's load
+    # cell needs it
     from vision.sensors import SensorError, SerialBoard, parse_serial_spec
 
     try:

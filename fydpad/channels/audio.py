@@ -34,7 +34,7 @@ DEFAULT_DEVICE_RATE_HZ = 48000.0
 def import_sounddevice() -> Any:
     """The ``sounddevice`` module, or ChannelError saying what is missing."""
     try:
-        import sounddevice
+        import sounddevice  # the optional extra ``audio``, loaded when a card is opened
     except ImportError as exc:
         raise ChannelError(f"audio channel: the sounddevice package is missing ({exc}); "
                            f"{INSTALL_HINT}") from None

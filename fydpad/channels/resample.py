@@ -67,9 +67,3 @@ class Resampler:
         self._hist = buf[len(buf) - (self._k - 1):] if self._k > 1 else np.zeros(0)
         self._n_in, self._n_out = n_in_end, n_end
         return y
-
-
-def resample_oneshot(x: NDArray[np.float64], rate_in_hz: float,
-                     rate_out_hz: float) -> NDArray[np.float64]:
-    """The whole signal at once (same outputs as any block split)."""
-    return Resampler(rate_in_hz, rate_out_hz).process(x)

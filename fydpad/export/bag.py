@@ -21,10 +21,15 @@ from typing import Any
 import cv2
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
 
 from fydpad.config import StationConfig
 from fydpad.errors import UserError
+from fydpad.export.slave_log import read_slave_log
+from teleop.mapping import rpy_matrix
+from vision.indentation import IndentationEstimator
 from vision.recording import (
+    PadRecording,
     RecordingError,
     find_video,
     read_csv_columns,
@@ -110,8 +115,6 @@ class RecordingFiles:
 
 def _quat_from_matrix(m: NDArray[np.float64]) -> tuple[float, float, float, float]:
     """(x, y, z, w) of a rotation matrix."""
-    from scipy.spatial.transform import Rotation
-
     x, y, z, w = Rotation.from_matrix(m).as_quat()
     return float(x), float(y), float(z), float(w)
 
@@ -120,6 +123,7 @@ class _Bag:
     """A rosbags Writer with one connection per topic and a message count per topic."""
 
     def __init__(self, path: Path) -> None:
+        # rosbags: the optional extra ``ros``, checked by require_rosbags before export
         from rosbags.rosbag2 import StoragePlugin, Writer
         from rosbags.typesys import Stores, get_typestore
 
@@ -177,7 +181,7 @@ class _Bag:
 def _latched_qos() -> Any:
     """/tf_static's QoS as tf2 publishes it (transient local, reliable, keep last 1), so
     ``ros2 bag play`` offers it latched and late subscribers still get the frames."""
-    from rosbags.interfaces import (
+    from rosbags.interfaces import (  # the optional extra ``ros``
         Qos,
         QosDurability,
         QosHistory,
@@ -198,8 +202,6 @@ def _workspace_m(x_mm: float, y_mm: float, indentation_mm: float) -> tuple[float
 
 def _write_tf(bag: _Bag, config: StationConfig) -> list[Any]:
     """base_link -> fydpad_workspace (the mapping), fydpad_workspace -> each IR sensor."""
-    from teleop.mapping import rpy_matrix
-
     T = bag.T
     m = config.teleop.mapping
     rot = rpy_matrix(*m.rpy_deg)
@@ -245,8 +247,6 @@ def _finger_rows(files: RecordingFiles, config: StationConfig,
 
 
 def _frames(recdir: Path) -> Iterator[tuple[float, NDArray[np.uint8]]]:
-    from vision.recording import PadRecording
-
     rec = PadRecording(recdir)
     for _, t_s, frame in rec.frames():
         yield t_s, frame
@@ -381,8 +381,6 @@ def _ir_events(bag: _Bag, files: RecordingFiles, meta: Any, config: StationConfi
     p = files.optional("ir.csv")
     if p is None:
         return
-    from vision.indentation import IndentationEstimator
-
     T = bag.T
     cols = read_csv_columns(p, ("t_s", "v0", "v1", "v2"))
     volts = np.column_stack([cols["v0"], cols["v1"], cols["v2"]])
@@ -416,8 +414,6 @@ def _vibration_events(bag: _Bag, files: RecordingFiles, events: list) -> None:
 def _slave_events(bag: _Bag, files: RecordingFiles, events: list) -> None:
     if files.slave_log is None:
         return
-    from fydpad.export.slave_log import read_slave_log
-
     cols = read_slave_log(files.slave_log)
     for k, t_s in enumerate(cols["t_s"]):
         t = float(t_s)

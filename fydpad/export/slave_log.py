@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from teleop import protocol as P
 from vision.recording import CsvRowWriter, read_csv_columns
 
 SLAVE_LOG_COLUMNS = ("t_s", "cmd_x_mm", "cmd_y_mm", "cmd_z_mm",
@@ -24,8 +25,6 @@ def slave_rows(session: object) -> NDArray[np.float64]:
     The slave stamps its ticks on its own clock; the pass's offset maps them to the
     master's, and the pass's start maps that to the recording's ``t_s``.
     """
-    from teleop import protocol as P
-
     main = session.main  # type: ignore[attr-defined]
     off = main.offset_s()
     ticks = sorted({st.t_slave_s: st for _, st in main.states

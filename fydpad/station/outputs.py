@@ -21,15 +21,24 @@ from __future__ import annotations
 
 import copy
 import math
+import os
 import re
 import threading
 import time
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from fydpad.channels.audio import (
+    AudioChannel,
+    import_sounddevice,
+    parse_audio_spec,
+    resolve_output_device,
+)
 from fydpad.channels.base import ChannelError
+from fydpad.channels.files import CsvChannel, WavChannel
 from fydpad.channels.ring import SampleRing
 from fydpad.texture.family import FingerBlock, TickPosition
 
@@ -104,18 +113,9 @@ def check_channel(text: str, families: list[Any], rate_hz: float = 1000.0) -> st
     """Check a ``--channel`` before the station starts (the render process opens it):
     the spec, the signal, a file's folder, the sound card and its rate. Returns the
     signal; ChannelError names what is wrong."""
-    import os
-    from pathlib import Path
-
     spec = parse_channel_spec(text)
     signal = resolve_signal(spec, families)
     if spec.is_audio:
-        from fydpad.channels.audio import (
-            import_sounddevice,
-            parse_audio_spec,
-            resolve_output_device,
-        )
-
         first = next(f for f in families if f is not None and signal in f.channels)
         rate = rate_hz if signal in ("vibration", "tension") else first.channels[signal]
         device, card_hz = parse_audio_spec(spec.target, rate)
@@ -244,16 +244,10 @@ def open_target(spec: ChannelSpec, rate_hz: float, signal: str) -> Any:
     its rate) or a file written at ``rate_hz`` by a thread."""
     kind, _, arg = spec.target.partition(":")
     if spec.is_audio:
-        from fydpad.channels.audio import AudioChannel, parse_audio_spec
-
         device, card_hz = parse_audio_spec(spec.target, rate_hz)
         return AudioChannel(device, rate_hz, card_hz, signal, full_scale=spec.full_scale)
     if kind == "wav":
-        from fydpad.channels.files import WavChannel
-
         return FileWriter(WavChannel(arg, rate_hz, signal, full_scale=spec.full_scale))
-    from fydpad.channels.files import CsvChannel
-
     return FileWriter(CsvChannel(arg, rate_hz, signal))
 
 

@@ -19,6 +19,7 @@ drops rows, counted in the stats (``commands_log.dropped``), never a tick.
 
 from __future__ import annotations
 
+import importlib
 import multiprocessing as mp
 import os
 import sys
@@ -73,8 +74,6 @@ class NullChain:
 def build_chain(spec: RenderSpec) -> RenderChain:
     """The render chain for ``spec``; backends are imported here, inside the process."""
     if spec.chain is not None:
-        import importlib
-
         module, _, name = spec.chain.partition(":")
         return getattr(importlib.import_module(module), name)(spec)
     if spec.motors == "none" and spec.texture is None and not spec.textures:

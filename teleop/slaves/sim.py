@@ -36,6 +36,7 @@ class SimArm:
         self.resyncs = 0
 
     def start(self, home_mm: np.ndarray) -> None:
+        # lazy: pybullet loads when the arm starts, not with every import of teleop.slave
         import pybullet as p
         import pybullet_data
 

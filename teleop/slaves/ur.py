@@ -35,9 +35,10 @@ CHECK_PSTOP = ("protective stop on {host}: check the teach pendant for the cause
 
 def _connect_rtde(host: str, frequency_hz: float) -> tuple[Any, Any]:
     if host == SIM_HOST:  # the UR5e in MuJoCo behind the same calls (teleop/slaves/ur_sim.py)
-        from teleop.slaves.ur_sim import connect_sim
+        from teleop.slaves.ur_sim import connect_sim  # MuJoCo: the optional extra ``mujoco``
 
         return connect_sim(frequency_hz)
+    # lazy: ur-rtde loads only for a real controller (the sim above needs none of it)
     import rtde_control
     import rtde_receive
 

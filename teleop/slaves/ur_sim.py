@@ -63,7 +63,7 @@ class SimURController:
     """The UR5e and its controller state; one instance behind both interfaces."""
 
     def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
-        import mujoco
+        import mujoco  # the optional extra ``mujoco``; connect_sim checks it first
 
         self._mj = mujoco
         self.model = mujoco.MjModel.from_xml_path(str(MODEL_PATH))

@@ -328,8 +328,8 @@ def test_the_documented_example_lines_parse():
 
 def test_a_clocked_part_never_sends_a_sample_before_its_time():
     # A sample sent before its time on the device's clock gives an older value a later
-    # time: the send loop's catch-up used to run 1-2 samples ahead (1.2-1.4 ms early),
-    # which held the device-path identification's coherence at 0.02-0.3.
+    # time: a catch-up running 1-2 samples ahead (1.2-1.4 ms early) holds the device-path
+    # identification's coherence at 0.02-0.3.
     sent: list[tuple[int, float]] = []
     emu = AccelEmulator(clocked=True)
 

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fydpad.chain.identify import identify_set, nominal_peak
+from fydpad.chain.identify import identify_entry, nominal_peak
+from fydpad.chain.tf_file import TfSet
 from tests.chain.conftest import BAND_HZ, lock_in
 
 
@@ -60,7 +61,10 @@ def test_force_held_and_reported(identified):
 
 
 def test_stiffness_moves_the_resonance(session):
-    tfs = identify_set(session, [0.45, 1.0], 8.0, BAND_HZ, nperseg=256)
+    # each stiffness with its own seed, as `fydpad chain identify` runs them
+    entries = [identify_entry(session, k, 8.0, BAND_HZ, seed=i, nperseg=256)
+               for i, k in enumerate([0.45, 1.0])]
+    tfs = TfSet(session.rate_hz, "vibration", BAND_HZ, entries)
     peaks = [nominal_peak(e.estimate, BAND_HZ) for e in tfs.entries]
     thetas = [e.theta_rad for e in tfs.entries]
     assert thetas[1] > thetas[0] + 0.5

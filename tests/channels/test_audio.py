@@ -20,7 +20,7 @@ import pytest
 
 from fydpad.channels import ChannelError, open_channel
 from fydpad.channels.audio import parse_audio_spec
-from fydpad.channels.resample import resample_oneshot
+from fydpad.channels.resample import Resampler
 from fydpad.channels.ring import RingFeed, SampleRing
 
 PROBE = Path(__file__).with_name("audio_probe.py")
@@ -60,7 +60,7 @@ def test_feed_plays_the_resampled_signal_block_by_block():
         feed.write(x[k:k + 1])  # 1 ms blocks: the resampler's state carries over
     out = np.empty(len(x) * 48 + 100, np.float32)
     assert feed.fill(out) == len(x) * 48
-    ref = resample_oneshot(x, 1000, 48000)
+    ref = Resampler(1000, 48000).process(x)  # the whole signal at once
     np.testing.assert_allclose(out[:len(ref)], ref, atol=1e-6)  # float32 on the card
     assert not np.any(out[len(ref):])
     assert feed.n_underruns == 1 and feed.n_underrun_frames == 100
@@ -115,7 +115,7 @@ def test_nan_and_inf_play_as_silence_and_are_counted(rate_in_hz):
     assert np.isfinite(out).all()
     clean = x.copy()
     clean[[10, 50, 51]] = 0.0
-    ref = clean if feed.resampler is None else resample_oneshot(clean, rate_in_hz, 48000)
+    ref = clean if feed.resampler is None else Resampler(rate_in_hz, 48000).process(clean)
     np.testing.assert_allclose(out, ref[:len(out)], atol=1e-6)
 
 
@@ -196,7 +196,7 @@ def test_written_samples_arrive_in_the_callback(probed, i, rate_hz):
     st = json.loads((d / "stats.json").read_text())
     x = np.load(d / "written.npy")
     played = np.load(d / "played.npy")
-    ref = resample_oneshot(x, 1000, rate_hz)  # what the 1 kHz signal is at the card's rate
+    ref = Resampler(1000, rate_hz).process(x)  # what the 1 kHz signal is at the card's rate
     assert st["device_rate_hz"] == rate_hz and st["written"] == 300
     assert st["pushed_frames"] == len(ref) and st["played_frames"] == len(ref)
     assert len(played) == len(ref)

@@ -13,7 +13,7 @@ from fydpad.calibration_examples import (
 )
 from fydpad.cli import main
 from fydpad.config import load_config
-from vision.ir import voltage_to_distance_mm
+from tests.ir_curve import voltage_to_distance_mm
 
 
 def test_ir_example_fits_back_to_its_sensors(tmp_path, capsys):

@@ -11,6 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from tests.ir_curve import voltage_to_distance_mm
 from tests.sensing.fabric_model import MembraneFabric, random_presses, synth_ir
 from vision.config import PAPER_SENSORS_MM, IRConfig
 from vision.indentation import (
@@ -33,7 +34,7 @@ from vision.indentation import (
     rmse,
     sensor_distances_mm,
 )
-from vision.ir import PAPER_POLY_CM, distance_to_voltage_v, voltage_to_distance_mm
+from vision.ir import PAPER_POLY_CM, distance_to_voltage_v
 from vision.stream import CausalIndentation
 
 BASELINE_MM = (99.0, 101.0, 100.5)  # sensors mounted a little unevenly

@@ -78,7 +78,7 @@ def test_live_indentation_equals_the_recording_path(session):
 
 def test_live_indentation_is_no_worse_than_the_newest_sample(session):
     """Against truth.csv, over the frames in contact in both: the filter against a
-    zero-order hold of the newest IR sample at each frame (the former live path), with
+    zero-order hold of the newest IR sample at each frame (``estimate_one``), with
     the same rest distances and centroids, so only the IR sampling differs."""
     name, rec, states, station, _, _ = session
     truth = rec.read_truth()

@@ -54,7 +54,7 @@ def _attach_and_report(shared: SharedFingerState, out) -> None:
 
 
 def test_attaching_in_another_process_keeps_the_published_state():
-    # Regression: attaching used to reset the values to NaN under a published sequence.
+    # Attaching must not reset the values to NaN under a published sequence.
     ctx = mp.get_context("spawn")
     s = SharedFingerState()
     st = FingerState(t_s=2.0, contact=True, x_mm=1.0, y_mm=2.0)
