@@ -87,8 +87,12 @@ def test_full_loop_on_the_board_holds_a_position(emu):
         drive = MotorDrive(m)
         drive.start()
         drive.set_theta_rad(0.7)
+        n0 = emu.received.count(qp.CMD_SET_INPUTS)
         for _ in range(1500):
             drive.tick(0.0)
+        # The emulator (a thread here) may be behind a loaded machine: the plant as of
+        # every duty sent, not as of those it has read so far.
+        assert _wait(lambda: emu.received.count(qp.CMD_SET_INPUTS) >= n0 + 1500)
         assert emu.plant.theta_rad[0] == pytest.approx(0.7, abs=0.01)
         drive.safe_stop()
         assert _wait(lambda: emu.activation == 0)
