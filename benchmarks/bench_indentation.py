@@ -48,11 +48,11 @@ def membrane_data(n: int, seed: int):
     est = IndentationEstimator(baseline_mm=baseline)
     r = est.estimate(v, x, y)
     groups = np.arange(n) % 2
-    return r.plane_mm, r.flags, x, y, d, groups, est, v
+    return r.plane_mm, r.deflection_mm, r.flags, x, y, d, groups, est, v
 
 
 def recording_data(paths: list[str]):
-    planes, flags, xs, ys, ds, groups = [], [], [], [], [], []
+    planes, es, flags, xs, ys, ds, groups = [], [], [], [], [], [], []
     for k, p in enumerate(paths):
         rec = PadRecording(p)
         ir, truth = rec.read_ir(), rec.read_truth()
@@ -62,6 +62,7 @@ def recording_data(paths: list[str]):
                                      truth.contact, truth.x_mm, truth.y_mm)
         c = truth.contact
         planes.append(r.plane_mm[c])
+        es.append(r.deflection_mm[c])
         flags.append(r.flags[c])
         xs.append(truth.x_mm[c])
         ys.append(truth.y_mm[c])
@@ -69,18 +70,18 @@ def recording_data(paths: list[str]):
         # One recording: alternate presses (contact runs) between the halves.
         run = np.cumsum(np.diff(np.concatenate([[0], c.astype(int)])) == 1)[c]
         groups.append(run % 2 if len(paths) == 1 else np.full(int(c.sum()), k % 2))
-    return tuple(np.concatenate(a) for a in (planes, flags, xs, ys, ds, groups))
+    return tuple(np.concatenate(a) for a in (planes, es, flags, xs, ys, ds, groups))
 
 
-def report(plane, flags, x, y, d, groups) -> None:
+def report(plane, e, flags, x, y, d, groups) -> None:
     ok = (flags & int(IRFlag.INVALID_V0 | IRFlag.INVALID_V1 | IRFlag.INVALID_V2)) == 0
     ok &= d <= 50.0
     corrected = np.full_like(plane, np.nan)
     for g in (0, 1):
         fit = ok & (groups == g)
         score = ok & (groups != g)
-        corr = PlaneCorrection.fit(plane[fit], x[fit], y[fit], d[fit])
-        corrected[score] = corr.apply(plane[score], x[score], y[score])
+        corr = PlaneCorrection.fit(e[fit], x[fit], y[fit], d[fit])
+        corrected[score] = corr.apply(e[score], x[score], y[score])
     print(f"samples {int(ok.sum())} valid of {ok.size}; flat-region readings "
           f"{np.mean((flags & int(IRFlag.FLAT_REGION)) != 0) * 100:.1f} %")
     print(f"{'depth [mm]':>12} {'n':>6} {'plane RMSE':>11} {'corrected':>10}")
@@ -117,9 +118,9 @@ def main() -> None:
         print(f"recordings: {', '.join(args.recordings)}")
         report(*recording_data(args.recordings))
         return
-    plane, flags, x, y, d, groups, est, v = membrane_data(args.presses, args.seed)
+    plane, e, flags, x, y, d, groups, est, v = membrane_data(args.presses, args.seed)
     print(f"analytic membrane (tests/sensing/fabric_model.py), {args.presses} presses")
-    report(plane, flags, x, y, d, groups)
+    report(plane, e, flags, x, y, d, groups)
     timing(est, v)
 
 

@@ -8,7 +8,7 @@ cross-validation over presses, as ``fydpad calibrate indentation`` does); 20 s s
 of ``walk`` (slides), ``tapping`` and ``lissajous`` with other seeds score it. The true
 centroids are used, so the figures are the indentation's alone.
 
-Usage: python benchmarks/bench_indentation_fabrics.py [--seeds 201 202] [--plane-form]
+Usage: python benchmarks/bench_indentation_fabrics.py [--seeds 201 202]
 Target: corrected RMSE <= 1.0 mm on every pad and trajectory.
 """
 
@@ -27,22 +27,16 @@ XY_DEGREE, DEPTH_DEGREE = 3, 2
 RIDGES = (1e-4, 1e-3, 1e-2, 1e-1, 1.0)
 
 
-def calibrate(pad: str, per_sensor: bool = True) -> tuple[PlaneCorrection, float]:
-    """The correction from three tapping sessions of the pad, and its held-out RMSE;
-    ``per_sensor`` False: the form on the plane estimate alone (degree 4 in x, y)."""
+def calibrate(pad: str) -> tuple[PlaneCorrection, float]:
+    """The correction from three tapping sessions of the pad, and its held-out RMSE."""
     parts = [indentation_samples(pad, "tapping", s) for s in CAL_SEEDS]
     offset = 0
     for p in parts:  # presses of different sessions are different presses
         p["press"] = p["press"] + offset
         offset = int(p["press"].max(initial=offset)) + 1
-    d = {k: np.concatenate([p[k] for p in parts]) for k in ("plane", "e", "x", "y", "depth",
-                                                              "press")}
-    if not per_sensor:
-        corr, held, _ = PlaneCorrection.fit_cv(d["plane"], d["x"], d["y"], d["depth"],
-                                               d["press"], 4, DEPTH_DEGREE)
-        return corr, held
-    corr, held, _ = PlaneCorrection.fit_cv(d["plane"], d["x"], d["y"], d["depth"], d["press"],
-                                           XY_DEGREE, DEPTH_DEGREE, RIDGES, e_mm=d["e"],
+    d = {k: np.concatenate([p[k] for p in parts]) for k in ("e", "x", "y", "depth", "press")}
+    corr, held, _ = PlaneCorrection.fit_cv(d["e"], d["x"], d["y"], d["depth"], d["press"],
+                                           XY_DEGREE, DEPTH_DEGREE, RIDGES,
                                            sensors_mm=parts[0]["sensors"])
     return corr, held
 
@@ -51,22 +45,20 @@ def score(pad: str, corr: PlaneCorrection, trajectory: str, seed: int) -> tuple[
     """(plane RMSE, corrected RMSE) in mm on one unseen session."""
     s = indentation_samples(pad, trajectory, seed)
     return (rmse(s["plane"], s["depth"]),
-            rmse(corr.apply(s["plane"], s["x"], s["y"], s["e"]), s["depth"]))
+            rmse(corr.apply(s["e"], s["x"], s["y"]), s["depth"]))
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--seeds", type=int, nargs="+", default=[201])
-    ap.add_argument("--plane-form", action="store_true",
-                    help="fit the correction on the plane estimate alone, for comparison")
     args = ap.parse_args()
     print("| pad | held-out taps | " + " | ".join(f"{t} plane / corrected" for t in TRAJECTORIES)
           + " |")
     print("| --- | ---: |" + " ---: |" * len(TRAJECTORIES))
     worst = 0.0
     for pad in TEST_PADS:
-        corr, held = calibrate(pad, per_sensor=not args.plane_form)
+        corr, held = calibrate(pad)
         cells = []
         for t in TRAJECTORIES:
             res = np.array([score(pad, corr, t, s) for s in args.seeds])

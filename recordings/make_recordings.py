@@ -81,6 +81,7 @@ def make_calibration() -> None:
         *notes,
         "[ir]",
         "correction_coef = [" + ", ".join(repr(float(c)) for c in ir.correction_coef) + "]",
+        "correction_per_sensor = true",
         f"correction_xy_degree = {ir.correction_xy_degree}",
         f"correction_depth_degree = {ir.correction_depth_degree}",
         "",

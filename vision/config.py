@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from vision.ir import PAPER_POLY_CM, VALID_VOLTAGE_RANGE_V
+from vision.ir import PAPER_POLY_CM, SENSOR_PERIOD_S, VALID_VOLTAGE_RANGE_V
 
 #: Standard gravity, for masses in grams to forces in newtons.
 G_M_S2 = 9.80665
@@ -41,19 +41,23 @@ class IRConfig:
     )
     base_to_fabric_mm: float = 100.0
     baseline_mm: tuple[float, float, float] | None = None
-    #: Correction beyond the plane (``vision.indentation.PlaneCorrection``): its
-    #: coefficients, empty for none; fitted from calibration data.
+    #: Correction beyond the plane (``vision.indentation.PlaneCorrection``: each sensor's
+    #: deflection weighted by a polynomial of the centroid): its coefficients, empty for
+    #: none; fitted by ``fydpad calibrate indentation``.
     correction_coef: tuple[float, ...] = ()
-    correction_xy_degree: int = 4
+    correction_xy_degree: int = 3
     correction_depth_degree: int = 2
-    #: The correction weighs each sensor's deflection (True, what ``fydpad calibrate
-    #: indentation`` fits) or the plane's estimate (False).
-    correction_per_sensor: bool = False
+    #: Written by ``fydpad calibrate indentation``; only true is read (the correction on
+    #: the plane estimate alone, false, is refused: refit the device).
+    correction_per_sensor: bool = True
     #: Sensor board ADC: bits and reference voltage (the board's hello line overrides).
     adc_bits: int = 10
     adc_vref_v: float = 5.0
     #: Sample rate the board is asked for, in Hz.
     rate_hz: float = 100.0
+    #: Each sensor's own measurement period, in s: it measures that often and holds its
+    #: output in between, so the board reads repeats and readings up to a period old.
+    sensor_period_s: tuple[float, float, float] = (SENSOR_PERIOD_S,) * 3
     #: Serial port of the sensor board ("" when there is none) and its speed.
     serial_port: str = ""
     serial_baud: int = 115200
@@ -86,16 +90,23 @@ class IRConfig:
                                                   for b in self.baseline_mm)
         ):
             raise ValueError("baseline_mm: expected three positive distances in mm")
+        if self.correction_coef and not self.correction_per_sensor:
+            raise ValueError("correction_per_sensor: false is a correction on the plane "
+                             "estimate alone, which is no longer read; refit the device with "
+                             "`fydpad calibrate indentation` (docs/calibration_files.md)")
         if self.correction_coef:
-            n = ((3 if self.correction_per_sensor else 1) * self.correction_depth_degree
+            n = (3 * self.correction_depth_degree
                  * (self.correction_xy_degree + 1) * (self.correction_xy_degree + 2) // 2)
             if len(self.correction_coef) != n:
                 raise ValueError(
-                    f"correction_coef: expected {n} coefficients for correction_xy_degree "
-                    f"{self.correction_xy_degree} and correction_depth_degree "
-                    f"{self.correction_depth_degree}"
-                    f"{' per sensor' if self.correction_per_sensor else ''}, "
+                    f"correction_coef: expected {n} coefficients (three sensors) for "
+                    f"correction_xy_degree {self.correction_xy_degree} and "
+                    f"correction_depth_degree {self.correction_depth_degree}, "
                     f"got {len(self.correction_coef)}")
+        if len(self.sensor_period_s) != 3 or not all(
+                math.isfinite(t) and 0 <= t <= 1 for t in self.sensor_period_s):
+            raise ValueError("sensor_period_s: expected three periods in s, 0-1 (0: the "
+                             "board's samples are the measurements)")
         if not 1 <= self.adc_bits <= 24:
             raise ValueError("adc_bits: expected 1-24")
         if not self.adc_vref_v > 0 or not self.rate_hz > 0 or not self.serial_timeout_s > 0:

@@ -20,6 +20,9 @@ from numpy.typing import ArrayLike, NDArray
 PAPER_POLY_CM: tuple[float, ...] = (-4.6327, 39.954, -133.8297, 220.8604, -188.5623, 79.0712)
 #: The range of voltages over which eq. (1) is valid (30 cm to 4 cm).
 VALID_VOLTAGE_RANGE_V: tuple[float, float] = (0.42, 2.75)
+#: The sensor's own measurement period (datasheet: 16.5 +- 3.7 ms): it measures that
+#: often and holds its output in between, whatever the rate the board reads it at.
+SENSOR_PERIOD_S = 0.0165
 
 
 def distance_to_voltage_v(

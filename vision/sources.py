@@ -64,6 +64,9 @@ class CameraConfig:
     maximise_contrast_brightness: bool = True
     #: Seconds to wait for the first frame before calling the camera silent.
     first_frame_timeout_s: float = 5.0
+    #: Seconds without a frame, once frames came, before the camera is given up (a live
+    #: camera drops single frames: those are counted, not fatal).
+    outage_timeout_s: float = 2.0
     #: Lens model from ``fydpad calibrate camera`` (absent: no undistortion).
     intrinsics: CameraIntrinsics | None = None
     #: Image-to-workspace homography from ``fydpad calibrate workspace`` (absent: the
@@ -97,6 +100,10 @@ class VideoSource:
         return f"video {self.recording.video_path}"
 
 
+#: Outages a live camera lists one by one (``CameraSource.dropouts``); more are counted.
+MAX_DROPOUTS = 10_000
+
+
 class CameraSource:
     """A live camera through OpenCV (device index or path).
 
@@ -125,23 +132,53 @@ class CameraSource:
             int(self._cap.get(cv2.CAP_PROP_FRAME_WIDTH)) or w,
             int(self._cap.get(cv2.CAP_PROP_FRAME_HEIGHT)) or h,
         )
+        #: Reads that failed after the first frame (frames the camera dropped).
+        self.read_failures = 0
+        #: One per outage: [t_s of the last good frame (frames.csv's clock), its index,
+        #: failed reads, seconds without a frame]; beyond MAX_DROPOUTS only counted.
+        self.dropouts: list[list] = []
+        self.dropouts_unlisted = 0
 
     def frames(self) -> Iterator[Frame]:
+        """Frames until the camera fails for ``outage_timeout_s`` in a row; a failed read
+        in between is a dropped frame, counted in ``read_failures`` and ``dropouts``."""
         t0: float | None = None
         k = 0
         deadline = time.monotonic() + self.config.first_frame_timeout_s
+        failing_since: float | None = None
+        last_t_s, outage = 0.0, [0.0, 0, 0, 0.0]
+        retry_s = 0.25 / max(self.fps, 1.0)  # a failed read returns at once: no busy loop
         while True:
             ok, image = self._cap.read()
             now = time.monotonic()
-            if not ok:
-                if t0 is None and now < deadline:
-                    time.sleep(0.01)
-                    continue
-                state = "gave no frames" if t0 is None else f"stopped after {k} frames"
-                raise SourceError(f"camera {self.config.device!r}: {state}")
+            if not ok or image is None:
+                if t0 is None:
+                    if now < deadline:
+                        time.sleep(0.01)
+                        continue
+                    raise SourceError(f"camera {self.config.device!r}: gave no frames in "
+                                      f"{self.config.first_frame_timeout_s:g} s")
+                self.read_failures += 1
+                if failing_since is None:
+                    failing_since, outage = now, [last_t_s, k - 1, 0, 0.0]
+                    if len(self.dropouts) < MAX_DROPOUTS:
+                        self.dropouts.append(outage)
+                    else:
+                        self.dropouts_unlisted += 1
+                outage[2] += 1
+                outage[3] = now - failing_since
+                if now - failing_since >= self.config.outage_timeout_s:
+                    raise SourceError(
+                        f"camera {self.config.device!r}: no frame for "
+                        f"{now - failing_since:.1f} s after frame {k - 1} ({k} frames, "
+                        f"{self.read_failures} failed reads in all); is it still plugged in?")
+                time.sleep(retry_s)
+                continue
+            failing_since = None
             if t0 is None:
                 t0 = now
-            yield Frame(k, now - t0, image)
+            last_t_s = now - t0
+            yield Frame(k, last_t_s, image)
             k += 1
 
     def close(self) -> None:

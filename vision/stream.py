@@ -17,6 +17,7 @@ import numpy as np
 from vision.config import IRConfig
 from vision.contact import Contact, ContactTracker
 from vision.indentation import (
+    INVALID,
     DistanceFilterState,
     IndentationEstimator,
     filter_distances_mm,
@@ -67,7 +68,8 @@ class CausalIndentation:
     to a :class:`LiveIndentation` that keeps every sample before the first contact for
     the rest distances, so a recording and a live station fed the same samples at the
     same frames give the same indentation: ``filter_distances_mm`` (a Kalman filter per
-    sensor fed every IR sample up to the frame and predicted to the frame time); the
+    sensor fed every new measurement up to the frame, each at its measurement time, the
+    sensors' held outputs skipped, and predicted to the frame time); the
     rest distances the configured or ``meta.json`` ones, else estimated at the first
     contact from the samples taken before it (less a margin) and kept.
     """
@@ -130,7 +132,8 @@ class LiveIndentation:
         t_q = max(t_s, float(t_ir_s[-1])) if t_ir_s.size else t_s
         # The filter follows every sample, with or without contact, so it has settled
         # on the fabric when the finger lands.
-        dist, flags, self._filter = filter_distances_mm(self._filter, t_ir_s, d, fl, t_q)
+        dist, flags, self._filter = filter_distances_mm(
+            self._filter, t_ir_s, d, fl, t_q, sensor_period_s=self.estimator.sensor_period_s)
         if self.estimator.baseline_mm is None and t_ir_s.size:
             self._keep_rest(t_ir_s, volts)
         if not contact:
@@ -144,9 +147,10 @@ class LiveIndentation:
                                                                np.ones(int(before.sum()), bool))
             self._rest.clear()
             self._rest_n = 0
-        r = self.estimator.estimate_from_distances(dist.reshape(1, 3), [x_mm], [y_mm], [True],
-                                                   [flags])
-        return float(r.indentation_mm[0])
+        if flags & int(INVALID):
+            return math.nan
+        return self.estimator.depth_at(float(dist[0]), float(dist[1]), float(dist[2]), x_mm,
+                                       y_mm)
 
     def _keep_rest(self, t_ir_s: np.ndarray, volts: np.ndarray) -> None:
         """The newest ``keep`` samples, as whole batches (one per frame) where possible."""

@@ -366,7 +366,7 @@ def run_indentation(args: argparse.Namespace) -> int:
             raise UserError("the recordings state different IR sensor positions: calibrate "
                             "one device at a time")
     data = {k: np.concatenate([part[k] for part in parts]) for k in parts[0]}
-    need = 3 * PlaneCorrection.n_coef(args.xy_degree, args.depth_degree, per_sensor=True)
+    need = 3 * PlaneCorrection.n_coef(args.xy_degree, args.depth_degree)
     n = int(data["depth"].size)
     names = ", ".join(args.recdirs)
     if n < need:
@@ -376,9 +376,8 @@ def run_indentation(args: argparse.Namespace) -> int:
         raise UserError(f"{names}: a single press; record several, at different places")
     try:
         final, held_rmse, scores = PlaneCorrection.fit_cv(
-            data["plane"], data["x"], data["y"], data["depth"], data["press"],
-            args.xy_degree, args.depth_degree, ridges=(1e-4, 1e-3, 1e-2, 1e-1, 1.0),
-            e_mm=data["e"], sensors_mm=sensors)
+            data["e"], data["x"], data["y"], data["depth"], data["press"],
+            args.xy_degree, args.depth_degree, sensors_mm=sensors)
     except ValueError as exc:
         raise UserError(f"{names}: {exc}") from None
     d = data["depth"]

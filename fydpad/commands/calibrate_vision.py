@@ -36,7 +36,8 @@ def register_camera(sub: argparse._SubParsersAction) -> None:
             "undistorts contact positions."
         ),
     )
-    p.add_argument("source", metavar="IMAGES", help="a directory of images, or a video file")
+    p.add_argument("source", metavar="IMAGES", nargs="?",
+                   help="a directory of images, or a video file")
     p.add_argument("--board", default="7x5", metavar="COLSxROWS",
                    help="squares across and down (default: %(default)s)")
     p.add_argument("--square-mm", type=float, default=12.0, help="square side (default: 12)")
@@ -45,8 +46,11 @@ def register_camera(sub: argparse._SubParsersAction) -> None:
                    help="ArUco dictionary of the board (default: %(default)s)")
     p.add_argument("--every", type=int, default=10, metavar="N",
                    help="from a video, use every N-th frame (default: %(default)s)")
-    p.add_argument("--out", metavar="TOML", required=True,
+    p.add_argument("--out", metavar="TOML",
                    help="configuration file to write (the --config file updated, or new)")
+    p.add_argument("--example", metavar="DIR",
+                   help="write sample board views (DIR/charuco/, rendered through a known "
+                        "wide-angle lens) to try the command on, and exit")
     add_config_argument(p)
     p.set_defaults(func=run_camera)
 
@@ -128,6 +132,16 @@ def run_camera(args: argparse.Namespace) -> int:
     from fydpad.config import load_config, save_config
     from vision.calibration import CalibrationError, calibrate_charuco
 
+    if args.example:
+        from fydpad.calibration_examples import write_camera_example
+
+        folder = write_camera_example(Path(args.example))
+        print(f"wrote {folder}/ ({len(list(folder.glob('*.png')))} board views): fit them "
+              f"with `fydpad calibrate camera {folder} --out camera.toml`")
+        return 0
+    if args.source is None or args.out is None:
+        raise UserError("calibrate camera: give IMAGES and --out TOML (or --example DIR for "
+                        "sample board views)")
     config = load_config(args.config)
     spec = _board_spec(args)
     try:

@@ -46,8 +46,12 @@ def register(sub: argparse._SubParsersAction) -> None:
             "they are errors and no table is written."
         ),
     )
-    c.add_argument("data", metavar="DATA.csv", help="indenter samples at several theta")
-    c.add_argument("--out", metavar="TABLE", required=True, help="softness table CSV to write")
+    c.add_argument("data", metavar="DATA.csv", nargs="?",
+                   help="indenter samples at several theta")
+    c.add_argument("--out", metavar="TABLE", help="softness table CSV to write")
+    c.add_argument("--example", metavar="DIR",
+                   help="write sample indenter data of the simulated fabric "
+                        "(DIR/softness_indenter.csv) to try the command on, and exit")
     c.add_argument("--plot", metavar="PNG", help="draw the data and fitted lines (Fig. 6)")
     c.add_argument("--strict", action="store_true",
                    help="refuse a table with a poor fit or a non-monotonic k(theta)")
@@ -60,7 +64,11 @@ def register(sub: argparse._SubParsersAction) -> None:
             f"({', '.join(f'{k} {v.lambda_n_per_mm} N/mm' for k, v in SPECIMENS.items())})."
         ),
     )
-    s.add_argument("data", metavar="DATA.csv", help="indenter samples on one specimen")
+    s.add_argument("data", metavar="DATA.csv", nargs="?",
+                   help="indenter samples on one specimen")
+    s.add_argument("--example", metavar="DIR",
+                   help="write sample indenter data of two specimens (the paper's S1 and S2 "
+                        "lambdas: DIR/specimen_S1.csv, DIR/specimen_S2.csv), and exit")
     s.add_argument("--name", help="specimen name (default: the file's stem)")
     s.add_argument("--plot", metavar="PNG", help="draw the data and the fitted line")
     s.set_defaults(func=run_fit_specimen)
@@ -86,6 +94,16 @@ def _fit_quietly(fn, *args, **kwargs):
 def run_calibrate(args: argparse.Namespace) -> int:
     import numpy as np
 
+    if args.example:
+        from fydpad.calibration_examples import write_softness_example
+
+        path = write_softness_example(Path(args.example))
+        print(f"wrote {path}: fit it with `fydpad softness calibrate {path} --out "
+              "softness_table.csv`")
+        return 0
+    if args.data is None or args.out is None:
+        raise UserError("softness calibrate: give DATA.csv and --out TABLE (or --example DIR "
+                        "for sample data)")
     cols = _read(args.data, ("indentation_mm", "force_n"), ("theta_rad", "theta_deg"))
     if "theta_rad" in cols:
         theta = cols["theta_rad"]
@@ -116,6 +134,16 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
 
 def run_fit_specimen(args: argparse.Namespace) -> int:
+    if args.example:
+        from fydpad.calibration_examples import write_specimen_example
+
+        path = write_specimen_example(Path(args.example))
+        print(f"wrote {path} and {path.with_name('specimen_S2.csv')}: fit each with "
+              f"`fydpad softness fit-specimen {path}`")
+        return 0
+    if args.data is None:
+        raise UserError("softness fit-specimen: give DATA.csv (or --example DIR for sample "
+                        "data)")
     cols = _read(args.data, ("indentation_mm", "force_n"))
     name = args.name or Path(args.data).stem
     try:

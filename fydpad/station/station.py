@@ -391,6 +391,14 @@ class Station:
 
     # -- loops ------------------------------------------------------------------
 
+    def _camera_dropped(self) -> dict:
+        """A live camera's failed reads (dropped frames, counted, not fatal) and outages."""
+        failures = getattr(self.source, "read_failures", None)
+        if failures is None:
+            return {}
+        return {"camera_read_failures": failures,
+                "camera_outages": len(self.source.dropouts) + self.source.dropouts_unlisted}
+
     def _vision_rate_hz(self) -> float:
         hz = self.options.vision_hz
         return self.source.fps if hz is None else min(float(hz), self.source.fps)
@@ -440,7 +448,8 @@ class Station:
                 self.shared.publish(state, arrival, frame.index)
                 self.snapshot.publish(View(frame.index, frame.image, contact, state))
                 if timer.stats_due():
-                    self.live_stats["vision"] = timer.stats().as_dict()
+                    self.live_stats["vision"] = {**timer.stats().as_dict(),
+                                                 **self._camera_dropped()}
                 self.last_state = state
                 self.frames += 1
                 if opts.teleop_send is not None:
@@ -461,7 +470,8 @@ class Station:
             self.faults.append(f"vision loop: {exc}")
         finally:
             self.stats["vision"] = {**timer.stats().as_dict(),
-                                    "frames_dropped": self.frames_dropped}
+                                    "frames_dropped": self.frames_dropped,
+                                    **self._camera_dropped()}
             if self.latest.ir_buffer is not None:
                 # lost > 0: the vision loop fell behind by more than the ring holds.
                 self.stats["vision"]["ir_samples"] = self.latest.ir_buffer.stats()
@@ -505,6 +515,10 @@ class Station:
             lost = render.get("commands_log", {}).get("dropped", 0)
             if lost:
                 events.write(t_end, "lost_rows", f"commands.csv: {lost} rows")
+            # A live camera's outages, on the frames' clock (frames.csv's t_s).
+            for t_s, index, failed, gap_s in getattr(self.source, "dropouts", ()):
+                events.write(t_s, "camera_dropout", f"{self.source}: {failed} failed reads "
+                             f"over {gap_s:.3f} s after frame {index}")
             channels = (render.get("chain") or {}).get("channels") or {}
             for name, st in channels.items():
                 if st.get("dropped_samples"):

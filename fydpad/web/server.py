@@ -44,6 +44,8 @@ STATIC = Path(__file__).parent / "static"
 SAMPLE_CAPACITY = 1200
 JPEG_MIN_INTERVAL_S = 0.1  # <= 10 fps
 FLIPS = ("none", "horizontal", "vertical", "both")
+#: The response header of /api/frame.jpg carrying the shown frame's numbers.
+FRAME_HEADER = "X-Fydpad-Frame"
 
 
 
@@ -58,6 +60,15 @@ def _num(v) -> float | None:
     except (TypeError, ValueError):
         return None
     return f if math.isfinite(f) else None
+
+
+def frame_numbers(view) -> dict:
+    """The numbers the overlay of ``view``'s image draws, and the readout under it shows:
+    one frame's (None where there is no value)."""
+    s, c = view.state, view.contact
+    return {"index": view.frame_index, "t_s": _num(s.t_s), "contact": c is not None,
+            "x_mm": _num(c.x_mm) if c else None, "y_mm": _num(c.y_mm) if c else None,
+            "indentation_mm": _num(s.indentation_mm), "force_n": _num(s.force_n)}
 
 
 def is_loopback(host: str) -> bool:
@@ -147,7 +158,8 @@ class WebView:
         self.token = token
         self.samples: collections.deque = collections.deque(maxlen=SAMPLE_CAPACITY)
         self._last_index = -1
-        self._jpeg: tuple[float, int, bytes] | None = None
+        #: (encoded at, frame index, JPEG, that frame's numbers as JSON): one frame's.
+        self._jpeg: tuple[float, int, bytes, str] | None = None
         self.jpeg_encoded = 0
         self.session: ExperimentSession | None = None
         self.stimulus = StationStimulus(station, texture_hook)
@@ -246,6 +258,9 @@ class WebView:
         })
 
     async def frame_jpg(self, request):
+        """The annotated camera image of one frame, and that frame's numbers in the
+        ``X-Fydpad-Frame`` header (JSON): the page writes its readout from the header of
+        the image it shows, so the overlay and the text always belong to one frame."""
         now = time.monotonic()
         view = self.station.snapshot.latest()
         if view is None:
@@ -254,14 +269,16 @@ class WebView:
         if cached is None or (cached[1] != view.frame_index
                               and now - cached[0] >= JPEG_MIN_INTERVAL_S):
             tr = self.station.tracker
-            img = annotate_frame(view.raw_frame, tr.image_flip, tr.roi_px, view.contact)
+            img = annotate_frame(view.raw_frame, tr.image_flip, tr.roi_px, view.contact,
+                                 label=f"frame {view.frame_index}")
             ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 80])
             if not ok:
                 return web.Response(status=500, text="JPEG encoding failed")
-            cached = self._jpeg = (now, view.frame_index, buf.tobytes())
+            cached = self._jpeg = (now, view.frame_index, buf.tobytes(),
+                                   json.dumps(frame_numbers(view), allow_nan=False))
             self.jpeg_encoded += 1
         return web.Response(body=cached[2], content_type="image/jpeg",
-                            headers={"Cache-Control": "no-store"})
+                            headers={"Cache-Control": "no-store", FRAME_HEADER: cached[3]})
 
     # -- setup ----------------------------------------------------------------------------
 

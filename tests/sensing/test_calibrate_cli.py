@@ -165,7 +165,6 @@ def test_calibrate_indentation_fits_the_correction_from_recordings(tmp_path: Pat
     section = tomllib.loads(out.read_text())["ir"]
     assert section["correction_per_sensor"] is True
     cfg = IRConfig(correction_coef=tuple(section["correction_coef"]),
-                   correction_per_sensor=True,
                    correction_xy_degree=section["correction_xy_degree"],
                    correction_depth_degree=section["correction_depth_degree"],
                    baseline_mm=(99.0, 101.0, 100.5))

@@ -41,6 +41,7 @@ def test_the_demo_loads_the_bundled_device_configuration(tmp_path: Path):
     given = tmp_path / "mine.toml"
     assert demo_config_path(str(given)) == given
     ir = load_config(DEVICE).ir
+    assert ir.correction_per_sensor
     assert len(ir.correction_coef) == PlaneCorrection.n_coef(ir.correction_xy_degree,
                                                               ir.correction_depth_degree)
 
@@ -53,11 +54,11 @@ def test_the_device_calibration_corrects_fresh_sessions(seed: int):
     s = session(seed)  # 60 s of taps at random places, truth's centroids
     d = s["depth"]
     plane = rmse(s["plane"], d)
-    corrected = rmse(corr.apply(s["plane"], s["x"], s["y"]), d)
-    # Measured: seed 21 plane 1.87 -> corrected 0.92 mm (deeper than 30 mm: 2.50 -> 1.14),
-    # seed 22 2.18 -> 0.83 mm (3.40 -> 0.84).
-    assert corrected < 0.6 * plane
-    assert corrected < 1.5
+    corrected = rmse(corr.apply(s["e"], s["x"], s["y"]), d)
+    # Measured: seed 21 plane 1.81 -> corrected 0.34 mm (deeper than 30 mm: 2.52 -> 0.38),
+    # seed 22 2.13 -> 0.33 mm (3.43 -> 0.32).
+    assert corrected < 0.3 * plane
+    assert corrected < 0.6
     deep = d > 30.0
-    assert rmse(corr.apply(s["plane"][deep], s["x"][deep], s["y"][deep]), d[deep]) < \
-        0.6 * rmse(s["plane"][deep], d[deep])
+    assert rmse(corr.apply(s["e"][deep], s["x"][deep], s["y"][deep]), d[deep]) < \
+        0.3 * rmse(s["plane"][deep], d[deep])

@@ -153,6 +153,25 @@ def test_vectorised_and_per_sample_paths_agree():
             assert one == pytest.approx(r.indentation_mm[k], rel=1e-12)
 
 
+def test_the_per_frame_path_equals_the_vectorised_one():
+    """``depth_at`` (Python floats, no arrays: the stream's per-frame path) gives what
+    ``estimate_from_distances`` gives, with and without a correction, NaN included."""
+    rng = np.random.default_rng(12)
+    x, y = rng.uniform(-50, 50, 300), rng.uniform(-35, 35, 300)
+    d = np.asarray(BASELINE_MM) - rng.uniform(0, 25, (300, 3))
+    d[5, 1] = np.nan
+    x[9] = np.nan
+    e = rng.uniform(0, 20, (400, 3))
+    corr = PlaneCorrection.fit(e, rng.uniform(-50, 50, 400), rng.uniform(-35, 35, 400),
+                               e.mean(axis=1) * 1.3 + 0.01 * e[:, 0] ** 2)
+    for c in (None, corr):
+        est = IndentationEstimator(baseline_mm=BASELINE_MM, correction=c)
+        r = est.estimate_from_distances(d, x, y)
+        one = np.array([est.depth_at(*d[k], x[k], y[k]) for k in range(300)])
+        np.testing.assert_allclose(one, r.indentation_mm, rtol=1e-12, atol=1e-9)
+        assert np.isnan(one[5]) and np.isnan(one[9])
+
+
 def test_rest_distances_ignore_spikes_and_follow_the_format_rule():
     rng = np.random.default_rng(3)
     d = np.asarray(BASELINE_MM) + rng.normal(0, 0.3, (200, 3))
@@ -194,8 +213,9 @@ def test_indentation_target_on_a_non_planar_fabric():
     est = IndentationEstimator(baseline_mm=BASELINE_MM)
     xc, yc, dc = random_presses(1500, rng)
     cal = est.estimate(synth_ir(fabric, xc, yc, dc, rng, BASELINE_MM), xc, yc)
-    corrected = IndentationEstimator(baseline_mm=BASELINE_MM,
-                                     correction=PlaneCorrection.fit(cal.plane_mm, xc, yc, dc))
+    corrected = IndentationEstimator(
+        baseline_mm=BASELINE_MM,
+        correction=PlaneCorrection.fit(cal.deflection_mm, xc, yc, dc))
     x, y, d = random_presses(3000, rng)
     v = synth_ir(fabric, x, y, d, rng, BASELINE_MM)
     plane = est.estimate(v, x, y)
@@ -217,18 +237,28 @@ def test_indentation_target_on_a_non_planar_fabric():
 def test_correction_from_configuration_round_trips():
     rng = np.random.default_rng(5)
     x, y, d = random_presses(400, rng)
-    p = d * (0.8 + 0.001 * x)
-    corr = PlaneCorrection.fit(p, x, y, d)
-    cfg = IRConfig(correction_coef=corr.coef, baseline_mm=BASELINE_MM)
+    e = d[:, None] * np.array([0.5, 0.3, 0.4]) * (1.0 + 0.002 * x[:, None])
+    corr = PlaneCorrection.fit(e, x, y, d)
+    cfg = IRConfig(correction_coef=corr.coef, correction_xy_degree=corr.xy_degree,
+                   correction_depth_degree=corr.depth_degree, baseline_mm=BASELINE_MM)
     est = IndentationEstimator.from_config(cfg)
     assert est.correction == corr
-    np.testing.assert_allclose(corr.apply(p, x, y), d, atol=0.05)
+    np.testing.assert_allclose(corr.apply(e, x, y), d, atol=0.05)
     with pytest.raises(ValueError, match="coefficients"):
         PlaneCorrection((1.0, 2.0))
     with pytest.raises(ValueError, match="correction_coef"):
         IRConfig(correction_coef=(1.0, 2.0))
     with pytest.raises(ValueError, match="calibration samples"):
-        PlaneCorrection.fit(p[:10], x[:10], y[:10], d[:10])
+        PlaneCorrection.fit(e[:10], x[:10], y[:10], d[:10])
+
+
+def test_a_correction_on_the_plane_estimate_alone_is_refused():
+    """Device files from before the per-sensor form (``correction_per_sensor = false``)
+    are refused with a message saying how to refit, not read as something else."""
+    coef = PlaneCorrection.identity().coef
+    with pytest.raises(ValueError, match=r"correction_per_sensor.*fydpad calibrate indentation"):
+        IRConfig(correction_coef=coef, correction_per_sensor=False)
+    assert IRConfig(correction_coef=coef).correction_per_sensor
 
 
 def test_meta_values_take_precedence_over_the_configuration():

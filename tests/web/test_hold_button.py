@@ -46,7 +46,11 @@ def test_hold_button_holds_the_robot_and_is_recorded(tmp_path):
     write_blob_recording(tmp_path / "rec", positions, fps=15.0)
     config = tmp_path / "pad.toml"
     save_config(StationConfig(), config)
-    with SlaveThread(TeleopConfig(), bind="tcp://127.0.0.1:*") as slave:
+    slave_cfg = TeleopConfig()
+    # The subject is the hold, not the watchdog: a station starved by a loaded machine
+    # must not trip a 250 ms watchdog and re-take the arm (a second hold count).
+    slave_cfg.safety.watchdog_s = slave_cfg.safety.max_age_s = 5.0
+    with SlaveThread(slave_cfg, bind="tcp://127.0.0.1:*") as slave:
         proc, base, token, err = start_station(
             ["--replay", str(tmp_path / "rec"), "--config", str(config), "--web", "0.0.0.0:0",
              "--teleop", slave.endpoint, "--record", str(tmp_path / "session"),

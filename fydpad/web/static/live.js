@@ -57,7 +57,11 @@ function showStats(st) {
   });
   $("loops").innerHTML = "<tr><th>loop</th><th>rate Hz</th><th>on time %</th><th>jitter p50 ms</th><th>jitter p99 ms</th></tr>" + rows.join("");
   const f = st.frame_to_command_ms;
-  $("f2c").textContent = f ? `frame to command p50 ${fmt(f.p50)} ms, p99 ${fmt(f.p99)} ms` : "";
+  const v = st.vision || {};
+  // A live camera drops frames now and then: counted and shown, never fatal.
+  const cam = v.camera_read_failures === undefined ? "" :
+    `; camera dropped ${v.camera_read_failures} frames (${v.camera_outages} outages)`;
+  $("f2c").textContent = (f ? `frame to command p50 ${fmt(f.p50)} ms, p99 ${fmt(f.p99)} ms` : "") + cam;
 }
 
 let firstSettings = true;
@@ -68,12 +72,6 @@ async function poll() {
       const j = await r.json();
       addSamples(j.samples);
       frameInfo = j.frame;
-      const last = j.samples.length ? j.samples[j.samples.length - 1] : null;
-      if (last) {
-        $("readout").innerHTML = last[2]
-          ? `contact x <span id="x">${fmt(last[3])}</span> mm  y <span id="y">${fmt(last[4])}</span> mm  z ${fmt(last[5])} mm  F ${fmt(last[6], 2)} N`
-          : `no contact <span id="x" hidden></span><span id="y" hidden></span>`;
-      }
       $("status").textContent = frameInfo ? `frame ${frameInfo.index}` : "waiting for frames";
       showStats(j.stats);
       $("link").textContent = j.link ? JSON.stringify(j.link) : "no link";
@@ -90,15 +88,40 @@ async function poll() {
   setTimeout(poll, 100);
 }
 
-// The camera image: one request at a time, at most 10 per second.
-function nextFrame() {
-  const img = $("frame");
-  const t0 = performance.now();
-  const done = () => setTimeout(nextFrame, Math.max(0, 100 - (performance.now() - t0)));
-  // Hidden until a frame has loaded: no broken image before the station has one.
-  img.onload = () => { img.hidden = false; done(); };
-  img.onerror = () => setTimeout(nextFrame, 500);
-  img.src = `api/frame.jpg?n=${Date.now()}`;
+// The camera image and the readout under it: one frame's. /api/frame.jpg carries that
+// frame's numbers in its X-Fydpad-Frame header; the readout is written from them when
+// the image has loaded, never from the (newer) polled samples.
+function showReadout(m) {
+  const r = $("readout");
+  r.dataset.frame = m.index;
+  r.innerHTML = (m.contact
+    ? `frame <span id="rframe">${m.index}</span>: contact x <span id="x">${fmt(m.x_mm)}</span> mm  y <span id="y">${fmt(m.y_mm)}</span> mm`
+    : `frame <span id="rframe">${m.index}</span>: no contact <span id="x" hidden></span><span id="y" hidden></span>`) +
+    `  z ${fmt(m.indentation_mm)} mm  F ${fmt(m.force_n, 2)} N`;
+}
+// One request at a time, at most 10 per second; hidden until a frame has loaded (no
+// broken image before the station has one).
+async function nextFrame() {
+  const img = $("frame"), t0 = performance.now();
+  const again = (ms) => setTimeout(nextFrame, Math.max(0, ms - (performance.now() - t0)));
+  let r;
+  try { r = await fetch(`api/frame.jpg?n=${Date.now()}`, { cache: "no-store" }); }
+  catch (e) { again(500); return; }
+  if (r.status !== 200) { again(500); return; }
+  const meta = JSON.parse(r.headers.get("X-Fydpad-Frame"));
+  const url = URL.createObjectURL(await r.blob());
+  // Decoded off screen first, the image and its readout then swap in one turn of script
+  // (an image already in the document's list of available images shows at once).
+  const pre = new Image();
+  pre.src = url;
+  try { await pre.decode(); } catch (e) { URL.revokeObjectURL(url); again(500); return; }
+  const old = img.dataset.url;
+  img.src = url;
+  img.dataset.url = url; img.dataset.frame = meta.index;
+  showReadout(meta);
+  img.hidden = false;
+  if (old) URL.revokeObjectURL(old);
+  again(100);
 }
 
 // ROI by dragging on the image (image pixels = the flipped frame's pixels).
