@@ -15,8 +15,10 @@ import numpy as np
 import pytest
 
 from fydpad.synth.fabrics import TEST_PADS, causal_indentation, indentation_samples
+from fydpad.synth.pad import SynthConfig, SyntheticPad
 from vision.config import IRConfig
-from vision.indentation import IndentationEstimator, PlaneCorrection, rmse
+from vision.indentation import IndentationEstimator, PlaneCorrection, indentation_at_frames, rmse
+from vision.stream import CausalIndentation
 
 CAL_SEEDS = (101, 102, 103)
 
@@ -100,3 +102,28 @@ def test_per_sensor_identity_is_the_plane():
     r = est.estimate_from_distances(100.0 - e, x, y)
     ident = PlaneCorrection.identity(3, 2, sensors)
     np.testing.assert_allclose(ident.apply(e, x, y), r.plane_mm, atol=1e-9)
+
+
+@pytest.mark.parametrize("pad", ["default", "softer"])
+def test_the_fit_path_reads_what_fydpad_track_reads(pad):
+    """The correction is fitted on the readings it is applied to: with the same rest
+    distances, ``indentation_at_frames`` (the calibration's path) and
+    ``CausalIndentation`` (``fydpad track``'s, frame by frame) give the same indentation
+    at every contact frame."""
+    synth = SyntheticPad(SynthConfig(trajectory="tapping", seconds=10.0, seed=201,
+                                     **TEST_PADS[pad]))
+    t_ir, volts = synth.ir()
+    m = synth.meta()
+    truth = [synth.truth(k) for k in range(synth.frame_count)]
+    t = np.array([q.t_s for q in truth])
+    c = np.array([q.contact for q in truth])
+    x, y = np.array([q.x_mm for q in truth]), np.array([q.y_mm for q in truth])
+    est = IndentationEstimator(sensors_mm=m.ir_sensors_mm,
+                               base_to_fabric_mm=m.base_to_fabric_mm,
+                               correction=calibrated(pad))
+    offline, used = indentation_at_frames(est, t_ir, volts, t, c, x, y)
+    causal = CausalIndentation(used, t_ir, volts)  # the same rest distances
+    live = np.array([causal.at(q.t_s, q.x_mm, q.y_mm, q.contact) for q in truth])
+    ok = c & offline.valid
+    assert ok.sum() > 50
+    np.testing.assert_allclose(live[ok], offline.indentation_mm[ok], atol=1e-9)
