@@ -8,7 +8,7 @@ rates (``fydpad.texture.compare``).
 The thesis network (fit_mlp) and the LPC family on the test thirds of the same strokes,
 both modelling the z acceleration: R^2 (sample by sample), the power-spectrum
 correlation and the log-spectral distance (``evaluate.compare``). The LPC family here
-is the pooled per-speed fit (``fit_texture(..., free_form=None)``, Bianchi 2015's model).
+is Bianchi 2015's method read plainly (``fit_paper``: an LPC per speed, no interpolation).
 
 Force: the generator's own ``force_n`` (``friction=True``); for comparison also
 ``synthetic_force``, whose load follows the surface profile (the network's best case).
@@ -28,7 +28,7 @@ from fydpad.errors import UserError
 from fydpad.texture.evaluate import compare, evaluation_mask
 from fydpad.texture.families.mlp.render import MlpTexture
 from fydpad.texture.families.mlp.train import TrainConfig, fit_mlp, scan_features, thirds
-from fydpad.texture.fit import fit_texture
+from fydpad.texture.lpc.fit import fit_paper
 from fydpad.texture.scan_generator import DX_MM, TEXTURES, generate_scan, surface_profile
 from fydpad.texture.scan_io import Scan
 
@@ -109,8 +109,7 @@ def thesis_vs_lpc(texture: str, cfg: TrainConfig | None = None, seconds: float =
         return {"texture": texture, "stop": "diverged"}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        lpc, _ = fit_texture([_third(s, 0, z_only=True) for s in scans], speeds_mm_s=speeds,
-                             free_form=None)
+        lpc = fit_paper([_third(s, 0, z_only=True) for s in scans])
     rec_all, net_all, lpc_all, mask_all = [], [], [], []
     m_net, m_lpc = [], []
     for i, scan in enumerate(scans):
@@ -147,11 +146,11 @@ def thesis_vs_lpc(texture: str, cfg: TrainConfig | None = None, seconds: float =
 
 
 def _synth(model, speed: Array, seed: int) -> Array:
-    from fydpad.texture.synthesis import synthesize
+    from fydpad.texture.lpc.synthesis import synthesize
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return synthesize(model, speed, seed=seed, method="lsf")
+        return synthesize(model, speed, seed=seed)
 
 
 def plot_figures(out_dir: str) -> list[str]:
@@ -168,8 +167,7 @@ def plot_figures(out_dir: str) -> list[str]:
     model, _, _ = fit_mlp(scans, TrainConfig())
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        lpc, _ = fit_texture([_third(s, 0, z_only=True) for s in scans], speeds_mm_s=SPEEDS,
-                             free_form=None)
+        lpc = fit_paper([_third(s, 0, z_only=True) for s in scans])
     scan = scans[1]
     s = thirds(scan.t_s.size)[2]
     rec = scan_features(scan).y[s]

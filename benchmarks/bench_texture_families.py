@@ -20,9 +20,9 @@ import numpy as np
 
 from fydpad.texture.families.friction import fit_friction, parse_friction
 from fydpad.texture.families.grating import GratingFamily
-from fydpad.texture.families.lpc import LpcFamily
 from fydpad.texture.family import constant_stroke
-from fydpad.texture.fit import fit_texture
+from fydpad.texture.lpc.family import LpcFamily
+from fydpad.texture.lpc.fit import fit_paper
 from fydpad.texture.scan_generator import generate_scan
 
 
@@ -61,8 +61,7 @@ def main() -> None:
 
     warnings.simplefilter("ignore")
     scans = [generate_scan("canvas", v, 6.0, seed=1, friction=True) for v in (10.0, 30.0)]
-    model, _ = fit_texture(scans, order=200, speeds_mm_s=[10.0, 30.0], free_form=None,
-                           lines="off")
+    model = fit_paper(scans, order=200)
     lpc = LpcFamily(model)
     lpc.prepare(1000.0)
     fric = parse_friction(fit_friction(scans[:1]), "bench")

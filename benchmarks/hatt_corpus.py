@@ -13,7 +13,7 @@ resonance, contact impacts, the hand's wander and gravity on three axes):
   and a second rendering of each as the ceiling.
 
 Fitted two ways on the training stroke: ``fydpad texture fit``'s default (validated
-selection, fydpad/texture/select.py) and the paper's method read plainly (fit_paper).
+selection, fydpad/texture/lpc/select.py) and the paper's method read plainly (fit_paper).
 Each is synthesized 10 s at the test speed and scored against the held-out stroke (log-
 spectral distance and PSD correlation, 4 Hz bins over 20-500 Hz); identification assigns
 each 20 mm/s held-out stroke to the nearest model of all surfaces run. Prints one table
@@ -33,16 +33,16 @@ from pathlib import Path
 import numpy as np
 
 from fydpad.progress import progress
-from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import compare
-from fydpad.texture.fit import fit_paper
 from fydpad.texture.identify import identify
-from fydpad.texture.model_file import load_model, save_model
+from fydpad.texture.lpc.dft321 import preprocess
+from fydpad.texture.lpc.fit import fit_paper
+from fydpad.texture.lpc.model_file import load_model, save_model
+from fydpad.texture.lpc.select import select_model
+from fydpad.texture.lpc.synthesis import TextureRenderer
 from fydpad.texture.penn import read_penn
 from fydpad.texture.scan_generator import hand_speed, penn_scan, plateau_speed
 from fydpad.texture.scan_io import read_scan, write_scan
-from fydpad.texture.select import select_model
-from fydpad.texture.synthesis import TextureRenderer
 
 #: Free to look at and tune on (measured leaving one surface out: nothing is fitted
 #: across surfaces, each surface's choice is made on its own training stroke).

@@ -12,9 +12,9 @@ import pytest
 
 from vision.errors import DeviceFault, FydpadError, UserError
 
-# Raised and caught inside the texture fit (fydpad/texture/two_part.py, the texture
+# Raised and caught inside the texture fit (fydpad/texture/lpc/spectrum.py, the texture
 # helpers' module): not yet in the tree.
-KNOWN_OUTSIDE = {"fydpad.texture.two_part.TooLittleData"}
+KNOWN_OUTSIDE = {"fydpad.texture.lpc.spectrum.TooLittleData"}
 
 
 def _exception_classes() -> dict[str, type[BaseException]]:

@@ -59,7 +59,7 @@ def scan_target(texture: str, speed_mm_s: float, seconds: float, rate_hz: float,
                 seed: int = 0) -> Array:
     """A texture's vibration as the pad's scans record it (``fydpad texture
     generate-scans``: DFT321 of the 3 axes, 10 Hz high-pass), at ``rate_hz``."""
-    from fydpad.texture.dft321 import preprocess
+    from fydpad.texture.lpc.dft321 import preprocess
     from fydpad.texture.scan_generator import TEXTURES, generate_scan
 
     if texture not in TEXTURES:

@@ -19,9 +19,9 @@ if TYPE_CHECKING:  # annotations only: the station loads inside the command
     from fydpad.station.station import Station
     from fydpad.texture.family import TextureFamily
 
-#: fydpad.texture.interpolation.METHODS, written out so that --help loads no texture code
+#: fydpad.texture.lpc.interpolation.METHODS, written out so that --help loads no texture code
 #: (tests/cli/test_fast_help.py keeps the two equal).
-TEXTURE_METHODS = ("nearest", "stretch", "lsf", "reflection", "linear")
+TEXTURE_METHODS = ("nearest", "stretch")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -96,9 +96,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--vibration-gain", type=float, default=1.0,
                    help="texture vibration gain (the paper: 1)")
     p.add_argument("--texture-method", choices=TEXTURE_METHODS, default=None,
-                   help="an LPC model's interpolation between its fitted speeds: stretch "
-                   "(default; the one `fydpad texture evaluate` scores), lsf, reflection, or "
-                   "linear (the paper's coefficient interpolation) (docs/texture.md)")
+                   help="an LPC model's interpolation between its fitted speeds (default: the "
+                   "model file's, which fit chose): nearest (the paper's per-speed fits) or "
+                   "stretch (the calibrated spectrum) (docs/texture.md)")
     p.add_argument("--drive-filter", action="store_true",
                    help="band-pass an LPC model's vibration through its file's drive band "
                    "(the paper's 165-220 Hz, where the fabric's actuators respond)")
@@ -375,7 +375,7 @@ def _stiffness(args: argparse.Namespace) -> float:
 def _say_texture_gaps(family: TextureFamily, spec: str) -> None:
     """One line at start when a texture's scans left speeds unscanned (its model
     interpolates there: docs/texture.md, 'Speed coverage')."""
-    from fydpad.texture.coverage import describe
+    from fydpad.texture.lpc.coverage import describe
 
     gaps = family.unscanned_speeds()
     if gaps:

@@ -12,22 +12,20 @@ from pathlib import Path
 from fydpad.errors import UserError
 from fydpad.progress import progress
 from fydpad.texture import operations as ops
-from fydpad.texture.coverage import describe
 from fydpad.texture.families import FIT_KIND_NAMES, KIND_NAMES
 from fydpad.texture.families.friction import set_electrostatic_b
-from fydpad.texture.free_form import AUTO
 from fydpad.texture.identify import plot_confusion
-from fydpad.texture.interpolation import DEFAULT_METHOD, METHODS
+from fydpad.texture.lpc.coverage import describe
+from fydpad.texture.lpc.interpolation import DEFAULT_METHOD, METHODS
 from fydpad.texture.scan_generator import TEXTURES
 from fydpad.web.experiment import ExperimentError
 from fydpad.web.staircase import StaircaseSession
 from vision.strict_json import finite
 
-#: The interpolation between modelled speeds (fydpad.texture.interpolation, docs/texture.md).
+#: The interpolation between modelled speeds (fydpad.texture.lpc.interpolation, docs/texture.md).
 INTERPOLATION_HELP = ("interpolation between modelled speeds (default: the model file's "
                       "own, which fit chose): nearest (Bianchi 2015's per-speed fits), "
-                      "stretch (the spectra moved along frequency with speed), lsf, "
-                      "reflection, or linear")
+                      "stretch (the calibrated speed-resolved spectrum)")
 
 def _floats(text: str) -> list[float]:
     try:
@@ -117,45 +115,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="shortest run used (default 0.25 s)")
     f.add_argument("--highpass-hz", type=float, default=10.0,
                    help="high-pass removing the tool's motion (default 10 Hz)")
-    f.add_argument("--method", choices=("autocorrelation", "burg"), default="autocorrelation",
-                   help="LPC estimator of the per-speed fit (default autocorrelation); "
-                   "burg selects the pooled fit (a spectral model's models are all-pole "
-                   "fits of its S)")
-    f.add_argument("--prewhiten-order", type=int, default=8, metavar="Q",
-                   help="order of the first, spectrum-flattening LPC stage (default 8; 0 for "
-                   "a one-stage fit; another than 8 selects the pooled fit); the model's "
-                   "total order stays --order")
-    f.add_argument("--speed-normalise", action="store_true",
-                   help="fit each speed on its runs resampled to that exact speed (not pooled "
-                   "over the +-tolerance a hand wanders); best with --speeds every 5 mm/s. "
-                   "Against the pooled fit: better between speeds, 0.1-0.2 dB worse at "
-                   "them (docs/texture.md)")
-    f.add_argument("--two-part", action="store_true",
-                   help="fit S(f,v) = T(f) U(f/v) g(v) + N(f) n(v) on every chunk of the "
-                   "scans: a fixed tool/floor part and a surface part that moves with speed; "
-                   "rendered at every speed by the 'stretch' method. Against the pooled fit: "
-                   "better between speeds, R2 0.2 dB worse at 20 mm/s (docs/texture.md)")
     f.add_argument("--form", choices=("auto", "paper", "calibrated"), default="auto",
                    help="auto (default): validate every form on held-out blocks of the "
                    "scans' speed plateaus and whole inner plateaus, keep the best (ties to "
                    "the simpler), refit it on all the scans and print the table; 'paper': "
                    "Bianchi 2015's method read plainly (a 5 mm/s window LPC per speed, no "
-                   "interpolation); 'calibrated': the speed-resolved spectrum. The options "
-                   "below select the older forms")
-    form = f.add_mutually_exclusive_group()
-    form.add_argument("--free-form", nargs="?", const="calibrated", default=AUTO,
-                      choices=("calibrated", "free", "surface"),
-                      help="the speed-resolved spectrum (free_form.py): 'calibrated' (the two-"
-                      "part S times a correction measured at each fitted speed; the default "
-                      "when no form is named and two or more speeds are fitted, which on "
-                      "scans too short for it falls back to the pooled fit with a warning; "
-                      "named, such scans are an error), "
-                      "'free' (S free in f, piecewise linear in v) or 'surface'; rendered by "
-                      "the 'stretch' method (docs/texture.md)")
-    form.add_argument("--pooled", dest="free_form", action="store_const", const=None,
-                   help="the per-speed LPC fit alone, pooled over each speed's runs (the "
-                   "Bianchi 2015 model: 10x faster "
-                   "to fit, worse between the fitted speeds)")
+                   "interpolation); 'calibrated': the speed-resolved spectrum, the two-"
+                   "part S(f,v) times a correction measured at each target speed (needs two "
+                   "or more)")
     f.add_argument("--lines", default="auto", metavar="auto|off|PERIOD_MM",
                    help="a periodic surface's harmonics (a grating, mesh, weave, knurl) as "
                    "lines at n v / period that follow the finger, beside the LPC model of "

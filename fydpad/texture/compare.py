@@ -27,12 +27,12 @@ from fydpad.motors.base import MotorConfig
 from fydpad.motors.drive import build_drive
 from fydpad.motors.sim import indenter_press
 from fydpad.softness import SPECIMENS, fit_through_origin
-from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import BAND_HZ, welch_psd
 from fydpad.texture.families import get_kind
 from fydpad.texture.families.friction import friction_coefficient
 from fydpad.texture.family import RateMismatch, finger_from_scan
 from fydpad.texture.identify import DISTANCES, Identification
+from fydpad.texture.lpc.dft321 import preprocess
 
 #: Per family: (the channel rendered, the band compared in Hz, the scan's observable).
 OBSERVABLES = {"friction": ("tension", (2.0, 100.0), "friction")}

@@ -20,12 +20,12 @@ import numpy as np
 import scipy.signal as ss
 from numpy.typing import ArrayLike, NDArray
 
-from fydpad.texture.dft321 import preprocess
-from fydpad.texture.interpolation import DEFAULT_METHOD
-from fydpad.texture.model_file import TextureModel
+from fydpad.texture.lpc.analysis import runs
+from fydpad.texture.lpc.dft321 import preprocess
+from fydpad.texture.lpc.interpolation import DEFAULT_METHOD
+from fydpad.texture.lpc.model_file import TextureModel
+from fydpad.texture.lpc.synthesis import synthesize
 from fydpad.texture.scan_io import Scan
-from fydpad.texture.segment import runs
-from fydpad.texture.synthesis import synthesize
 
 Array = NDArray[np.float64]
 BAND_HZ = (20.0, 500.0)

@@ -37,12 +37,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import BAND_HZ, evaluation_mask, lsd_db, welch_psd
-from fydpad.texture.interpolation import DEFAULT_METHOD
-from fydpad.texture.model_file import TextureModel
+from fydpad.texture.lpc.dft321 import preprocess
+from fydpad.texture.lpc.interpolation import DEFAULT_METHOD
+from fydpad.texture.lpc.model_file import TextureModel
+from fydpad.texture.lpc.synthesis import TextureRenderer
 from fydpad.texture.scan_io import Scan
-from fydpad.texture.synthesis import TextureRenderer
 
 
 @dataclass

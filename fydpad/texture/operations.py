@@ -24,8 +24,6 @@ from fydpad.texture.compare import (
     identify_families,
     specimen_experiment,
 )
-from fydpad.texture.coverage import describe, inside
-from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import (
     BIN_HZ,
     TARGET_LSD_OVER_CEILING_DB,
@@ -48,6 +46,8 @@ from fydpad.texture.family import (
     save_model_json,
 )
 from fydpad.texture.identify import Identification, plot_confusion
+from fydpad.texture.lpc.coverage import describe, inside
+from fydpad.texture.lpc.dft321 import preprocess
 from fydpad.texture.plots import plot_against_ceiling, plot_spectra
 from fydpad.texture.scan_generator import TEXTURES, generate_scan, save_generated
 from vision.recording import CsvRowWriter

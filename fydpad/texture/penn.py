@@ -37,7 +37,7 @@ import scipy.signal as ss
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.lsf import lsf_to_poly
+from fydpad.texture.lpc.lsf import lsf_to_poly
 
 Array = NDArray[np.float64]
 DEFAULT_FS_HZ = 10_000.0

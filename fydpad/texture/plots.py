@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fydpad.texture.coverage import MIN_SECONDS_PER_BIN
+from fydpad.texture.lpc.coverage import MIN_SECONDS_PER_BIN
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes

@@ -59,7 +59,7 @@ def test_the_one_help_lines_are_the_commands_own():
 
 def test_run_lists_the_texture_methods_there_are():
     from fydpad.commands.run import TEXTURE_METHODS
-    from fydpad.texture.interpolation import METHODS
+    from fydpad.texture.lpc.interpolation import METHODS
 
     assert TEXTURE_METHODS == METHODS
 

@@ -13,11 +13,11 @@ import pytest
 
 from fydpad.errors import UserError
 from fydpad.station.texture_source import open_texture
-from fydpad.texture.families.lpc import LpcFamily
-from fydpad.texture.model_file import TextureModel, load_model, model_to_json
+from fydpad.texture.lpc.family import LpcFamily
+from fydpad.texture.lpc.model_file import TextureModel, load_model, model_to_json
+from fydpad.texture.lpc.synthesis import TextureRenderer
 from fydpad.texture.scan_generator import generate_scan, save_generated
 from fydpad.texture.scan_io import read_scan
-from fydpad.texture.synthesis import TextureRenderer
 from tests.texture_families.helpers import run_cli
 from vision.recording import RecordingError
 
@@ -157,9 +157,9 @@ def test_fit_options_checked_against_the_scans(files, tmp_path, option, value, m
 def test_output_in_a_missing_directory_fails_before_the_work(files, tmp_path, monkeypatch,
                                                              argv, option):
     import fydpad.texture.evaluate as ev
-    import fydpad.texture.fit as fit
     import fydpad.texture.identify as ident
-    import fydpad.texture.synthesis as syn
+    import fydpad.texture.lpc.fit as fit
+    import fydpad.texture.lpc.synthesis as syn
 
     def started(*a, **k):
         raise AssertionError("the work started before the output was checked")
@@ -214,19 +214,19 @@ def test_scan_time_error_names_the_real_line(tmp_path, comment, blank_after, lin
 # ---------------------------------------------------------------- 9: fit warnings
 def test_fit_warnings_are_one_line_naming_the_scans(files, tmp_path, capsys):
     scan = str(files / "R1_10.csv")
-    assert run("fit", scan, "--out", str(tmp_path / "m.json"), "--speeds", "10,50",
-               "--order", "10", "--form", "calibrated") == 0
+    assert run("fit", scan, str(files / "R1_30.csv"), "--out", str(tmp_path / "m.json"),
+               "--speeds", "10,30,50", "--order", "10", "--form", "calibrated") == 0
     err = capsys.readouterr().err
     lines = [ln for ln in err.splitlines() if "warning" in ln.lower()]
-    assert lines == [f"fydpad texture fit: warning: {scan}: no scan has 0.25 s within 5 mm/s "
-                     "of 50 mm/s: no model at that speed"]
+    assert lines == [f"fydpad texture fit: warning: {scan}, {files / 'R1_30.csv'}: no scan "
+                     "has 0.25 s within 5 mm/s of 50 mm/s: no model at that speed"]
     assert "UserWarning" not in err
 
 
 # ---------------------------------------------------------------- tick(nan/inf)
 def test_tick_treats_a_non_finite_speed_as_no_speed():
-    for method in ("stretch", "linear"):
-        r = TextureRenderer(_model(), method=method, ramp_s=1e-3, seed=1)
+    for structure in ("fir", "direct"):
+        r = TextureRenderer(_model(), structure=structure, ramp_s=1e-3, seed=1)
         moving = np.array([r.tick(20.0) for _ in range(300)])
         assert np.std(moving) > 0
         for bad in (math.nan, math.inf, -math.inf):

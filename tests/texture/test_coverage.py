@@ -1,18 +1,18 @@
 """Speed coverage: the speeds the scans went at, and the gaps where a model interpolates
-(fydpad/texture/coverage.py), through the fit, the model file and the commands; and
+(fydpad/texture/lpc/coverage.py), through the fit, the model file and the commands; and
 ``evaluate --second``, the ceiling a second recording sets."""
 
 from __future__ import annotations
 
 import json
-import warnings
 
 import matplotlib.image as mpimg
 import numpy as np
 import pytest
 
 from fydpad.errors import UserError
-from fydpad.texture.coverage import (
+from fydpad.texture.evaluate import verdict_on_means
+from fydpad.texture.lpc.coverage import (
     checked_spans,
     describe,
     gaps_within,
@@ -21,9 +21,7 @@ from fydpad.texture.coverage import (
     speed_histogram,
     steady,
 )
-from fydpad.texture.evaluate import verdict_on_means
-from fydpad.texture.fit import fit_texture
-from fydpad.texture.model_file import load_model
+from fydpad.texture.lpc.model_file import load_model
 from fydpad.texture.plots import SpeedCoverage, plot_spectra
 from fydpad.texture.scan_generator import generate_scan, save_generated
 from tests.texture_families.helpers import run_cli as run
@@ -135,18 +133,6 @@ def test_fit_records_and_says_where_it_interpolates(felt, tmp_path, capsys):
     assert "no scan between" in said and describe(gaps) in said
     middles = ", ".join(f"{round(a + b) / 2:g}" for a, b in gaps)  # each gap's middle
     assert f"scan strokes at {middles} mm/s" in said, said
-
-
-def test_a_per_speed_fit_reports_the_speeds_it_did_not_use():
-    """Strokes at 10, 20 and 30 mm/s fitted at 10 and 30 only, pooled: the 20 mm/s
-    stroke is in no model (outside both tolerances), so 20 mm/s is interpolated."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        scans = [generate_scan("felt", v, 4.0, seed=1) for v in (10.0, 20.0, 30.0)]
-        pooled, _ = fit_texture(scans, speeds_mm_s=(10.0, 30.0), tolerance_mm_s=4.0,
-                                order=40, free_form=None)
-    (gap,) = pooled.provenance["interpolated_mm_s"]
-    assert gap[0] <= 15.0 and gap[1] >= 25.0, pooled.provenance
 
 
 def test_synth_and_evaluate_say_when_they_are_in_a_gap(felt, tmp_path, capsys):

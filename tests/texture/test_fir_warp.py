@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fydpad.texture.fir_warp import (
+from fydpad.texture.lpc.fir_warp import (
     WARP_LAGS,
     WARP_SLACK_MM_S,
     lag_fade,

@@ -11,8 +11,8 @@ import warnings
 import numpy as np
 import pytest
 
-from fydpad.texture.fit import fit_texture
 from fydpad.texture.identify import band_level_distance_db, band_levels_db, identify
+from fydpad.texture.lpc.fit import fit_texture
 from fydpad.texture.scan_generator import generate_scan
 
 F_HZ = np.arange(0.0, 501.0, 4.0)  # the Welch grid of evaluate (4 Hz bins, fs 1 kHz)

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from fydpad.errors import UserError
-from fydpad.texture.fit import fit_texture
-from fydpad.texture.lpc import is_stable
-from fydpad.texture.model_file import load_model, save_model
+from fydpad.texture.lpc.analysis import is_stable
+from fydpad.texture.lpc.fit import fit_texture
+from fydpad.texture.lpc.model_file import load_model, save_model
 from fydpad.texture.scan_generator import generate_scan, save_generated
 from fydpad.texture.scan_io import read_scan
 from vision.recording import RecordingError
@@ -66,12 +66,13 @@ def test_too_short_for_order(tmp_path):
 
 
 def test_a_speed_too_short_for_the_order_is_skipped_and_said():
-    """0.6 s at 10 mm/s (under 4 x order samples) beside 4 s at 20 mm/s: the model has
-    20 mm/s, the warning names 10 mm/s and the order (it used to stop the whole fit)."""
-    scans = [generate_scan("felt", 20.0, 4.0, seed=1), generate_scan("felt", 10.0, 0.6, seed=2)]
+    """0.6 s at 10 mm/s (under 4 x order samples) beside 4 s at 20 and 30 mm/s: the model
+    has 20 and 30 mm/s, the warning names 10 mm/s and the order."""
+    scans = [generate_scan("felt", 20.0, 4.0, seed=1), generate_scan("felt", 30.0, 4.0, seed=1),
+             generate_scan("felt", 10.0, 0.6, seed=2)]
     with pytest.warns(UserWarning, match=r"near 10 mm/s for an order-200 model.*no model"):
-        model, _ = fit_texture(scans, order=200, speeds_mm_s=(10.0, 20.0))
-    assert list(model.speeds_mm_s) == [20.0]
+        model, _ = fit_texture(scans, order=200, speeds_mm_s=(10.0, 20.0, 30.0))
+    assert list(model.speeds_mm_s) == [20.0, 30.0]
 
 
 def test_uneven_time_missing_speed_and_nan(tmp_path):

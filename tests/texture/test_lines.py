@@ -1,4 +1,4 @@
-"""The line spectrum of periodic surfaces (fydpad/texture/lines.py, line_voice.py).
+"""The line spectrum of periodic surfaces (fydpad/texture/lpc/lines.py, line_voice.py).
 
 Ground truth first: strokes synthesized here from a known comb (a period, amplitudes that
 follow a tool resonance and the speed, a vanishing harmonic) in noise that is not an AR
@@ -16,13 +16,13 @@ import pytest
 import scipy.signal as ss
 
 from fydpad.errors import UserError
-from fydpad.texture.dft321 import preprocess
-from fydpad.texture.fit import fit_texture
-from fydpad.texture.line_voice import LineVoice
-from fydpad.texture.lines import LineSpectrum, arc_length_mm, fit_lines
-from fydpad.texture.model_file import load_model, save_model
+from fydpad.texture.lpc.dft321 import preprocess
+from fydpad.texture.lpc.fit import fit_texture, lines_option
+from fydpad.texture.lpc.line_voice import LineVoice
+from fydpad.texture.lpc.lines import LineSpectrum, arc_length_mm, fit_lines
+from fydpad.texture.lpc.model_file import load_model, save_model
+from fydpad.texture.lpc.synthesis import TextureRenderer
 from fydpad.texture.scan_generator import generate_scan, hand_speed
-from fydpad.texture.synthesis import TextureRenderer
 
 FS = 1000.0
 PERIOD = 1.7  # mm: none of the generator's
@@ -130,9 +130,10 @@ def test_between_the_strokes_speeds_the_generators_grating_keeps_its_level():
         warnings.simplefilter("ignore")
         model, _ = fit_texture([generate_scan("R1", v, 10.0, seed=1 + j)
                                 for v in SPEEDS for j in (0, 1)])
-        truth_model, _ = fit_texture([generate_scan("R1", 15.0, 12.0, seed=100 + j)
-                                      for j in range(4)], speeds_mm_s=(15.0,))
-    got, truth = (LineSpectrum.from_json(m.lines, m.surface) for m in (model, truth_model))
+        truth_scans = [generate_scan("R1", 15.0, 12.0, seed=100 + j) for j in range(4)]
+        truth = fit_lines([preprocess(sc.acc, FS) for sc in truth_scans],
+                          [sc.speed_mm_s for sc in truth_scans], FS, (10.0, 20.0)).spectrum
+    got = LineSpectrum.from_json(model.lines, model.surface)
     bands = ((20.0, 45.0), (45.0, 80.0), (80.0, 130.0))
     err = np.zeros((3, len(bands)))
     for i, v in enumerate((14.0, 15.0, 16.0)):
@@ -214,10 +215,8 @@ def _lines_of(scans) -> object:
 def test_a_ribs_residual_is_a_surface_and_gets_the_spectral_form():
     """Corduroy's line holds about half its power; the rest is its roughness through
     the tool, which stretches with speed. So what the line leaves is fitted by the
-    default spectral form. Ground truth on strokes at 10, 15, 20, 30 and 40 mm/s: at 15 mm/s
-    the held-out stroke meets the target with it (measured +0.03 dB over the ceiling;
-    +0.06 with the base at 150 iterations) and misses with the residual pooled (+0.68
-    dB)."""
+    calibrated spectrum. Ground truth on strokes at 10, 15, 20, 30 and 40 mm/s: at 15 mm/s
+    the held-out stroke meets the target with it (measured +0.03 dB over the ceiling)."""
     from fydpad.texture.evaluate import evaluate_scan
     from tests.texture.heldout import held_out
 
@@ -226,20 +225,18 @@ def test_a_ribs_residual_is_a_surface_and_gets_the_spectral_form():
         train = [generate_scan("corduroy", v, 8.0, seed=3 + j)
                  for v in (10.0, 15.0, 20.0, 30.0, 40.0) for j in (0, 1)]
         default, _ = fit_texture(train)
-        pooled, _ = fit_texture(train, free_form=None)
     assert default.lines is not None and default.free_form["form"] == "calibrated"
     assert default.provenance["lines"]["share"] < 0.9
     held, mask, ceil = held_out("corduroy", 15.0, default, 12.0, 50, 51)
-    over = {k: evaluate_scan(m, held, mask=mask)[0].lsd_db - ceil.lsd_db
-            for k, m in (("default", default), ("pooled", pooled))}
-    assert over["default"] <= 0.25 and over["default"] < over["pooled"], over
+    over = evaluate_scan(default, held, mask=mask)[0].lsd_db - ceil.lsd_db
+    assert over <= 0.25, over
 
 
 def test_a_combs_residual_gets_the_spectral_form_too():
     """aluminum_knurl: 97 % of the power in its lines; what they leave is fitted by the
-    default spectral form as a rib's is. Ground truth at 15 mm/s, between strokes at 10
-    and 20 mm/s: the held-out stroke meets the target with it, closer than with the
-    residual pooled (measured -0.67 and -0.33 dB over the ceiling)."""
+    calibrated spectrum as a rib's is. Ground truth at 15 mm/s, between strokes at 10
+    and 20 mm/s: the held-out stroke meets the target with it (measured -0.67 dB over
+    the ceiling)."""
     from fydpad.texture.evaluate import evaluate_scan
     from tests.texture.heldout import held_out
 
@@ -248,13 +245,11 @@ def test_a_combs_residual_gets_the_spectral_form_too():
         train = [generate_scan("aluminum_knurl", v, 10.0, seed=1 + j)
                  for v in SPEEDS for j in (0, 1)]
         default, _ = fit_texture(train)
-        pooled, _ = fit_texture(train, free_form=None)
     assert default.lines is not None and default.free_form["form"] == "calibrated"
     assert default.provenance["lines"]["share"] > 0.9
     held, mask, ceil = held_out("aluminum_knurl", 15.0, default, 12.0, 50, 51)
-    over = {k: evaluate_scan(m, held, mask=mask)[0].lsd_db - ceil.lsd_db
-            for k, m in (("default", default), ("pooled", pooled))}
-    assert over["default"] <= 0.25 and over["default"] < over["pooled"], over
+    over = evaluate_scan(default, held, mask=mask)[0].lsd_db - ceil.lsd_db
+    assert over <= 0.25, over
 
 
 @pytest.mark.parametrize("seed", [3, 4])
@@ -330,12 +325,10 @@ def test_surfaces_without_a_period_get_no_lines(name):
 
 
 def test_fit_texture_without_lines_is_the_model_it_was(tmp_path):
-    """A surface without a period: the same models with lines auto or off, no 'lines' block,
-    a version-1 file (every reader since the first reads it)."""
+    """A surface without a period: no 'lines' block, a version-1 file (every reader since
+    the first reads it)."""
     scans = [generate_scan("felt", s, 6.0, seed=1) for s in SPEEDS]
-    auto, _ = fit_texture(scans, free_form=None)
-    off, _ = fit_texture(scans, free_form=None, lines="off")
-    np.testing.assert_array_equal(auto.h, off.h)
+    auto, _ = fit_texture(scans, order=60)
     assert auto.lines is None and "no spatial period" in auto.provenance["lines"]["note"]
     data = json.loads(save_model(auto, tmp_path / "felt.json").read_text())
     assert data["format_version"] == 1 and "lines" not in data
@@ -388,10 +381,10 @@ def test_a_given_period_is_used_and_refined():
     """lines=2.16 (0.5 % off): refined to the true 2.15 mm and kept; 'off' fits none; a
     period that is not a positive number is an error."""
     scans = [generate_scan("R2", s, 6.0, seed=1) for s in SPEEDS]
-    model, _ = fit_texture(scans, lines=2.16, free_form=None)
-    assert model.provenance["lines"]["period_mm"] == pytest.approx(2.15, rel=1e-4)
-    off, _ = fit_texture(scans, lines="off", free_form=None)
-    assert off.lines is None
+    fit = fit_lines([preprocess(sc.acc, FS) for sc in scans], [sc.speed_mm_s for sc in scans],
+                    FS, (5.0, 45.0), period_mm=2.16)
+    assert fit.period_mm == pytest.approx(2.15, rel=1e-4) and fit.spectrum is not None
+    assert lines_option("off") == "off" and lines_option("2.16") == 2.16
     for bad in ("wide", -2.0, float("nan")):
         with pytest.raises(UserError, match="lines"):
             fit_texture(scans, lines=bad)
@@ -487,12 +480,12 @@ def test_a_constant_speed_rig_keeps_its_lines():
 def test_a_rig_at_one_speed_with_no_tolerance_gets_its_lines():
     """One speed, tolerance 0: the lines' speed grid has a single row (the factor
     model's smoothing has nothing to bend; it raised 'Offset 2 out of bounds' there)."""
+    scan = generate_scan("R1", 20.0, 6.0, seed=1, hand_variation=0.0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        model, _ = fit_texture([generate_scan("R1", 20.0, 6.0, seed=1, hand_variation=0.0)],
-                               speeds_mm_s=(20.0,), tolerance_mm_s=0.0)
-    assert model.lines is not None
-    assert LineSpectrum.from_json(model.lines, "").period_mm == pytest.approx(3.9, rel=1e-4)
+        fit = fit_lines([preprocess(scan.acc, FS)], [scan.speed_mm_s], FS, (20.0, 20.0))
+    assert fit.spectrum is not None
+    assert fit.spectrum.period_mm == pytest.approx(3.9, rel=1e-4)
 
 
 def test_above_the_tables_fastest_speed_the_lines_hold_their_pitch():
@@ -525,9 +518,10 @@ def test_a_given_period_is_kept_even_outside_the_search_range():
     """--lines PERIOD is used as given (refined), whatever the automatic search would
     consider: a 0.04 mm period (below its 0.05 mm) is fitted and said to hold little."""
     scans = [generate_scan("R2", s, 4.0, seed=1) for s in (20.0, 30.0)]
-    model, _ = fit_texture(scans, speeds_mm_s=(20.0, 30.0), lines=0.04, free_form=None)
-    note = model.provenance["lines"]["note"]
-    assert model.provenance["lines"]["period_mm"] == pytest.approx(0.04, rel=0.03), note
+    fit = fit_lines([preprocess(sc.acc, FS) for sc in scans], [sc.speed_mm_s for sc in scans],
+                    FS, (15.0, 35.0), period_mm=0.04)
+    note = fit.note
+    assert fit.period_mm == pytest.approx(0.04, rel=0.03), note
     assert "no spatial period" not in note
 
 
@@ -545,7 +539,7 @@ def test_a_line_seen_at_one_edge_row_is_not_carried_across_a_gap():
     keeps its measured row and nothing in the gap (carried, it grew 15 dB over its one
     measurement on canvas); seen at two rows, or at an isolated row (a constant-speed
     rig), it is carried by the model."""
-    from fydpad.texture.lines import _fill
+    from fydpad.texture.lpc.lines import _fill
 
     rows = 30
     data = np.zeros(rows, bool)

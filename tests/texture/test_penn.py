@@ -7,8 +7,8 @@ import pytest
 import scipy.signal as ss
 
 from fydpad.errors import UserError
-from fydpad.texture.lpc import reflection_to_poly
-from fydpad.texture.lsf import lsf_to_poly, poly_to_lsf
+from fydpad.texture.lpc.analysis import reflection_to_poly
+from fydpad.texture.lpc.lsf import lsf_to_poly, poly_to_lsf
 from fydpad.texture.penn import PennModelSet, PennRenderer, interpolate, read_penn, write_penn
 
 

@@ -13,8 +13,8 @@ import scipy.signal as ss
 from fydpad.errors import UserError
 from fydpad.texture.families import constant_stroke, load_family, spec_kind
 from fydpad.texture.families.penn import PennTexture
-from fydpad.texture.lpc import reflection_to_poly
-from fydpad.texture.lsf import poly_to_lsf
+from fydpad.texture.lpc.analysis import reflection_to_poly
+from fydpad.texture.lpc.lsf import poly_to_lsf
 from fydpad.texture.penn import PennModelSet, write_penn
 
 FS = 10_000.0

@@ -9,16 +9,16 @@ import numpy as np
 import pytest
 
 from fydpad.errors import UserError
-from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import lsd_db, welch_psd
-from fydpad.texture.fit import fit_paper
-from fydpad.texture.lpc import ar_psd, autocorrelation, reflection_to_poly
-from fydpad.texture.lsf import poly_to_lsf
-from fydpad.texture.model_file import load_model, model_to_json, save_model
+from fydpad.texture.lpc.analysis import ar_psd, autocorrelation, reflection_to_poly
+from fydpad.texture.lpc.dft321 import preprocess
+from fydpad.texture.lpc.fit import fit_paper
+from fydpad.texture.lpc.lsf import poly_to_lsf
+from fydpad.texture.lpc.model_file import load_model, model_to_json, save_model
+from fydpad.texture.lpc.select import CANDIDATES, select_model
 from fydpad.texture.penn import PennModelSet
 from fydpad.texture.scan_generator import hand_speed, penn_scan, plateau_speed
 from fydpad.texture.scan_io import write_scan
-from fydpad.texture.select import CANDIDATES, select_model
 from tests.texture_families.helpers import run_cli
 
 FS = 1000.0

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 import scipy.signal as ss
 
-from fydpad.texture.fir_warp import WARP_SLACK_MM_S, responses_along, table_position
-from fydpad.texture.fit import fit_texture
-from fydpad.texture.lpc import ar_psd, h_from_poly, lpc_autocorrelation
-from fydpad.texture.model_file import TextureModel
+from fydpad.texture.lpc.analysis import ar_psd, h_from_poly, lpc_autocorrelation
+from fydpad.texture.lpc.fir_warp import WARP_SLACK_MM_S, responses_along, table_position
+from fydpad.texture.lpc.fit import fit_paper, fit_texture
+from fydpad.texture.lpc.model_file import TextureModel
+from fydpad.texture.lpc.synthesis import CentroidSpeed, TextureRenderer, synthesize
 from fydpad.texture.scan_generator import generate_scan
-from fydpad.texture.synthesis import CentroidSpeed, TextureRenderer, synthesize
 
 
 @pytest.fixture(scope="module")
@@ -30,8 +30,8 @@ def model() -> TextureModel:
                         np.array(s2))
 
 
-@pytest.mark.parametrize("method", ["stretch", "lsf"])  # FIR and eq. 5 direct form
-def test_tick_and_block_give_the_same_samples(model, method):
+@pytest.mark.parametrize("structure", ["fir", "direct"])  # FIR and eq. 5 direct form
+def test_tick_and_block_give_the_same_samples(model, structure):
     # A ramp, a hold, a hand's back-and-forth (each table entry visited in several
     # separate runs) and jumps every 5 ms (the block path groups samples by entry).
     t = np.arange(1500) / 1000.0
@@ -43,9 +43,8 @@ def test_tick_and_block_give_the_same_samples(model, method):
     c[1700:1800] = False
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        r1 = TextureRenderer(model, seed=5, drive_filter=True, method=method)
-        r2 = TextureRenderer(model, seed=5, drive_filter=True, method=method)
-        assert r1.structure == ("fir" if method == "stretch" else "direct")
+        r1 = TextureRenderer(model, seed=5, drive_filter=True, structure=structure)
+        r2 = TextureRenderer(model, seed=5, drive_filter=True, structure=structure)
         yb = np.concatenate([r1.block(v[:700], c[:700]), r1.block(v[700:], c[700:])])
         yt = np.array([r2.tick(float(s), bool(k)) for s, k in zip(v, c, strict=True)])
     np.testing.assert_allclose(yb, yt, atol=1e-12)
@@ -141,20 +140,21 @@ def test_sample_rests_a_still_finger_and_starts_without_overshoot(fps):
 @pytest.fixture(scope="module")
 def sandpaper() -> TextureModel:
     """A fitted texture whose power spans ~45 dB over 10-40 mm/s (a band edge crossing the
-    tool mode): the pooled fit, whose table the FIR tests below were measured on (with
-    the calibrated spectrum, whose table changes faster with speed, the hand's-stroke
-    leak into the weak 320-420 Hz band is +3.7 dB against +0.4-0.8: LSD 2.49-2.57 dB;
-    +3.4 and 2.30-2.35 with its base at 150 iterations, docs/texture.md)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        model, _ = fit_texture([generate_scan("sandpaper_p80", s, 3.0, seed=1)
-                                for s in (10.0, 20.0, 30.0, 40.0)], order=200,
-                               free_form=None)
-    return model
+    tool mode): the paper's per-speed fits on a 1 mm/s grid, rendered below by either
+    structure (the calibrated spectrum's table changes faster with speed: its hand's-
+    stroke leak into the weak 320-420 Hz band is +3.7 dB, docs/texture.md)."""
+    return fit_paper([generate_scan("sandpaper_p80", s, 3.0, seed=1)
+                      for s in (10.0, 20.0, 30.0, 40.0)], order=200)
 
 
-@pytest.mark.parametrize("method", ["stretch", "lsf"])
-def test_switching_at_the_speed_rate_stays_bounded(sandpaper, method):
+def _synth(model: TextureModel, v: np.ndarray, seed: int, structure: str) -> np.ndarray:
+    r = TextureRenderer(model, seed=seed, ramp_s=1e-6, structure=structure)
+    r.warmup(float(v[0]))
+    return r.block(v, True)
+
+
+@pytest.mark.parametrize("structure", ["fir", "direct"])
+def test_switching_at_the_speed_rate_stays_bounded(sandpaper, structure):
     """The speed jumping anywhere every 5 ms: the switched filter must not run away (a
     stable filter each is not enough; direct form without the history cap reaches
     1e60). Direct form: transients of ~10x the steady peak remain."""
@@ -162,10 +162,10 @@ def test_switching_at_the_speed_rate_stays_bounded(sandpaper, method):
     v = np.repeat(rng.uniform(5.0, 45.0, 2000), 5)  # a new speed every 5 ms for 10 s
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        y = synthesize(sandpaper, v, seed=1, method=method)
-        steady = synthesize(sandpaper, np.full(10_000, 40.0), seed=2, method=method)
+        y = _synth(sandpaper, v, 1, structure)
+        steady = _synth(sandpaper, np.full(10_000, 40.0), 2, structure)
         hand = generate_scan("sandpaper_p80", 25.0, 10.0, seed=5).speed_mm_s
-        y_hand = synthesize(sandpaper, hand, seed=1, method=method)
+        y_hand = _synth(sandpaper, hand, 1, structure)
     assert np.isfinite(y).all()
     assert np.max(np.abs(y)) < 30 * np.max(np.abs(steady))
     assert np.max(np.abs(y_hand)) < 2 * np.max(np.abs(steady))
@@ -191,7 +191,7 @@ def test_fir_output_power_is_the_filters_at_every_sample(sandpaper, seed):
     v = np.repeat(rng.uniform(5.0, 45.0, 2000), 5)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        r = TextureRenderer(sandpaper, seed=seed, ramp_s=1e-6)
+        r = TextureRenderer(sandpaper, seed=seed, ramp_s=1e-6, structure="fir")
         r.warmup(float(v[0]))
         y = r.block(v, True)
     ratio = np.mean(y**2 / np.sum(_fir_at(r, v, warped=True) ** 2, axis=1))
@@ -230,7 +230,7 @@ def test_fir_spectrum_along_a_hands_stroke_has_no_switching_leak(sandpaper):
     estimate alone scatters ~0.55 dB); a stepwise table FIR gives 11 dB (+27 dB at
     440-480 Hz), which is why g is interpolated between table entries."""
     hand = generate_scan("sandpaper_p80", 25.0, 10.0, seed=6).speed_mm_s
-    r = TextureRenderer(sandpaper, seed=1, ramp_s=1e-6)
+    r = TextureRenderer(sandpaper, seed=1, ramp_s=1e-6, structure="fir")
     r.warmup(float(hand[0]))
     y = r.block(hand, True)[500:-500]  # the steady part, no ramps
     f, p = ss.welch(y, 1000.0, nperseg=250)
@@ -242,18 +242,18 @@ def test_fir_spectrum_along_a_hands_stroke_has_no_switching_leak(sandpaper):
 
 def _line_model(r: float = 0.99, period_mm: float = 2.5) -> TextureModel:
     """A purely spatial line, f = v / period, over a faint white floor: the narrow,
-    gliding resonance of a ribbed surface (corduroy) without its lines model."""
-    rng = np.random.default_rng(1)
+    gliding resonance of a ribbed surface (corduroy) without its lines model, fitted at
+    every table speed (0.25 mm/s) on the same noise, so the nearest model glides."""
+    e = np.random.default_rng(1).standard_normal((2, 20000))
+    speeds = np.arange(10.0, 40.01, 0.25)
     hs, s2 = [], []
-    for v in (10.0, 20.0, 30.0, 40.0):
+    for v in speeds:
         w = 2 * np.pi * v / period_mm / 1000.0
-        x = ss.lfilter([1.0], [1.0, -2 * r * np.cos(w), r * r], rng.standard_normal(20000))
-        x = x / x.std() + 0.001 * rng.standard_normal(20000)
-        a, s = lpc_autocorrelation([x], 16)
+        x = ss.lfilter([1.0], [1.0, -2 * r * np.cos(w), r * r], e[0])
+        a, s = lpc_autocorrelation([x / x.std() + 0.001 * e[1]], 16)
         hs.append(h_from_poly(a))
         s2.append(s)
-    return TextureModel("line", 1000.0, np.array([10.0, 20, 30, 40]), np.vstack(hs),
-                        np.array(s2))
+    return TextureModel("line", 1000.0, speeds, np.vstack(hs), np.array(s2))
 
 
 def test_fir_lags_follow_the_speed_they_were_made_at():
@@ -261,16 +261,16 @@ def test_fir_lags_follow_the_speed_they_were_made_at():
     narrow line at v / 2.5 mm (12 Hz at most): no instant's filter puts power at
     20-100 Hz beyond its floor, so the output there must be the filters' average. The
     plain FIR (the filter of now applied to noise up to 0.5 s old) sprays the line there:
-    measured +5.1-5.2 dB (noise seeds 1-3); each lag at the mean speed over it
-    (fir_warp, 512 lags): +0.9-1.1 dB (256 lags: +2.7-3.0); every lag warped, without
-    slack (not affordable per tick): +0.1-0.5 dB."""
+    measured +5.0-5.4 dB (noise seeds 1-3); each lag at the mean speed over it
+    (fir_warp, 512 lags): +1.2-1.5 dB."""
     model = _line_model()
     cycle = np.concatenate([np.linspace(5, 30, 50), np.full(250, 30.0),
                             np.linspace(30, 5, 50), np.full(250, 5.0)])
     v = np.tile(cycle, 30)
     excess = {}
     for slack in (float("inf"), WARP_SLACK_MM_S):
-        r = TextureRenderer(model, seed=1, ramp_s=1e-6, warp_slack_mm_s=slack)
+        r = TextureRenderer(model, seed=1, ramp_s=1e-6, warp_slack_mm_s=slack,
+                            structure="fir")
         r.warmup(5.0)
         f, p = ss.welch(r.block(v, True), 1000.0, nperseg=250)
         expected = _expected_welch(_fir_at(r, v[::5]))
@@ -281,7 +281,7 @@ def test_fir_lags_follow_the_speed_they_were_made_at():
 
 
 def test_tick_and_block_agree_with_a_response_longer_than_the_warped_lags(sandpaper):
-    """The same as the test above on sandpaper_p80's pooled table (responses of ~4000 taps:
+    """The same as the test above on sandpaper_p80's per-speed table (responses of ~4000 taps:
     512 warped lags and a plain tail), with starts and stops, a lost track (NaN) mid-
     stroke, 0.6 s at 1e306 mm/s (a mean of 512 such speeds overflowed: IndexError), and
     block calls of 1 and 0 samples between."""
@@ -291,8 +291,8 @@ def test_tick_and_block_agree_with_a_response_longer_than_the_warped_lags(sandpa
                         np.full(200, 30.0)])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        r1 = TextureRenderer(sandpaper, seed=3)
-        r2 = TextureRenderer(sandpaper, seed=3)
+        r1 = TextureRenderer(sandpaper, seed=3, structure="fir")
+        r2 = TextureRenderer(sandpaper, seed=3, structure="fir")
         assert r1.fir.shape[1] > 512
         cut = 1700
         yb = np.concatenate([r1.block(v[:cut]), r1.block(v[cut:cut + 1]),

@@ -1,4 +1,4 @@
-"""The two-part spectral model (fydpad/texture/two_part.py) against ground truth.
+"""The two-part spectral model (fydpad/texture/lpc/spectrum.py) against ground truth.
 
 Data: Gaussian noise shaped to a known S(f, v) = T(f) U(f/v) g(v) + N(f), so the right
 answer at a speed the fit never saw is known exactly.
@@ -16,12 +16,12 @@ import pytest
 from fydpad.commands import texture
 from fydpad.errors import UserError
 from fydpad.texture.evaluate import evaluate_scan
-from fydpad.texture.fit import fit_texture
-from fydpad.texture.interpolation import build_table
-from fydpad.texture.lpc import is_stable
-from fydpad.texture.model_file import load_model, model_to_json, parse_model, save_model
+from fydpad.texture.lpc.analysis import is_stable
+from fydpad.texture.lpc.fit import fit_texture
+from fydpad.texture.lpc.interpolation import build_table
+from fydpad.texture.lpc.model_file import load_model, model_to_json, parse_model, save_model
+from fydpad.texture.lpc.spectrum import TwoPartSpectrum, fit_two_part
 from fydpad.texture.scan_generator import generate_scan
-from fydpad.texture.two_part import TwoPartSpectrum, fit_two_part
 
 FS = 1000.0
 
@@ -105,7 +105,7 @@ def test_blas_limit_holds_in_the_main_thread_and_no_thread_leaves_it_changed():
 
     from threadpoolctl import threadpool_info
 
-    from fydpad.texture.two_part import one_blas_thread
+    from fydpad.texture.lpc.spectrum import one_blas_thread
 
     def blas_threads():
         return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
@@ -140,7 +140,7 @@ def test_blas_limit_holds_in_the_main_thread_and_no_thread_leaves_it_changed():
 def test_levels_of_several_functions_are_each_ones_own():
     """_node_levels on a (knots, 2) array (the fit updates log g and log n together)
     gives each column what it gives alone, beyond the end knots too (bounded slopes)."""
-    from fydpad.texture.two_part import _hats, _node_levels
+    from fydpad.texture.lpc.spectrum import _hats, _node_levels
 
     log_v = np.log(np.arange(4.0, 46.0))
     log_knots = np.log(np.array([10.0, 20.0, 30.0]))
@@ -165,12 +165,11 @@ def test_all_pole_fit_of_the_spectrum_is_stable_and_close(fitted):
 
 @pytest.fixture(scope="module")
 def scan_fit():
-    """(model, reports) of fit_texture(two_part=True) on R1 scans."""
+    """(model, reports) of fit_texture (the calibrated form on its two-part base) on R1."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         scans = [generate_scan("R1", v, 4.0, seed=1) for v in (10.0, 20.0, 30.0)]
-        return fit_texture(scans, speeds_mm_s=(10.0, 20.0, 30.0), order=60, two_part=True,
-                           lines="off")
+        return fit_texture(scans, speeds_mm_s=(10.0, 20.0, 30.0), order=60, lines="off")
 
 
 @pytest.fixture(scope="module")
@@ -180,15 +179,15 @@ def scan_model(scan_fit):
 
 def test_fit_reports_what_the_file_holds(scan_fit):
     """The fit's per-speed report (printed by `fydpad texture fit`) gives the sigma^2 of
-    the two-part model stored in the file, not of the pooled fit it replaced."""
+    spectrum stored in the file."""
     model, reports = scan_fit
     np.testing.assert_array_equal([r.sigma2 for r in reports], model.sigma2)
 
 
 def test_fit_texture_stores_the_spectrum_and_every_table_filter_is_stable(scan_model):
     assert scan_model.two_part is not None
-    assert scan_model.provenance["spectral_model"] == "two-part"
-    table = build_table(scan_model, "stretch", step_mm_s=1.0)
+    assert scan_model.provenance["spectral_model"] == "free-form"
+    table = build_table(scan_model, step_mm_s=1.0)
     assert table.stable.all()
     # At a fitted speed the stored h is the table's filter (one model, two views).
     k = table.index(20.0)
@@ -212,58 +211,25 @@ def test_bad_two_part_block_names_the_key(scan_model):
         parse_model(data, "m.json")
 
 
-def test_cli_fit_two_part_and_speed_normalise_flags(tmp_path, capsys):
+def test_cli_fit_form_calibrated_says_its_base(tmp_path, capsys):
     parser = argparse.ArgumentParser(prog="fydpad")
     texture.register(parser.add_subparsers(dest="command"))
-    with pytest.raises(SystemExit):
-        parser.parse_args(["texture", "fit", "--help"])
-    helptext = capsys.readouterr().out
-    assert "--two-part" in helptext and "--speed-normalise" in helptext
     args = parser.parse_args(["texture", "generate-scans", "--out-dir", str(tmp_path),
                               "--textures", "felt", "--speeds", "10,30", "--strokes", "1",
                               "--seconds", "4"])
     assert args.func(args) == 0
     scans = [str(tmp_path / f"felt_{v}mms_s1.csv") for v in (10, 30)]
-    # No flag: the calibrated spectrum (on its two-part base); --pooled: neither.
-    for flag, key in (("--two-part", "two_part"), ("--speed-normalise", "speed_normalised"),
-                      ("", "calibrated"), ("--pooled", "pooled")):
-        out = tmp_path / f"{key}.json"
-        args = parser.parse_args(["texture", "fit", *scans, "--out", str(out), "--speeds",
-                                  "10,30", "--order", "60",
-                                  *([flag] if flag else ["--form", "calibrated"])])
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            assert args.func(args) == 0
-        said = {"two_part": "two-part spectrum", "speed_normalised": "speed-normalised",
-                "calibrated": "calibrated spectrum on its two-part base (600 iterations)",
-                "pooled": "per-speed LPC pooled over each speed's runs"}[key]
-        file_line = [ln for ln in capsys.readouterr().out.splitlines()
-                     if ln.startswith(str(out))]
-        assert said in file_line[0], key
-        m = json.loads(out.read_text())
-        assert ("two_part" in m) == (key in ("two_part", "calibrated")), key
-        assert ("free_form" in m) == (key == "calibrated"), key
-        assert key != "calibrated" or m["free_form"]["form"] == "calibrated"
-        assert ("speed_normalised" in m["provenance"]) == (key == "speed_normalised")
-
-
-def test_calibrated_base_iterations_with_one_and_with_two_speeds():
-    """The calibrated form's base takes the two-part model's 600 iterations when there are
-    speeds between which it decides S, and 150 with a single fitted speed (the fit of one
-    speed stays well inside its 100 ms target); the file says which."""
-    from fydpad.texture.free_form import ONE_SPEED_BASE_ITERATIONS
-    from fydpad.texture.two_part import ITERATIONS
-
-    scans = {v: generate_scan("felt", v, 6.0, seed=2) for v in (10.0, 30.0)}
+    out = tmp_path / "calibrated.json"
+    args = parser.parse_args(["texture", "fit", *scans, "--out", str(out), "--speeds",
+                              "10,30", "--order", "60", "--form", "calibrated"])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        one, _ = fit_texture([scans[30.0]], speeds_mm_s=(30.0,), free_form="calibrated",
-                             order=60, lines="off")
-        two, _ = fit_texture(list(scans.values()), speeds_mm_s=(10.0, 30.0), order=60,
-                             lines="off")
-    assert one.provenance["two_part_iterations"] == ONE_SPEED_BASE_ITERATIONS == 150
-    assert two.free_form["form"] == "calibrated"
-    assert two.provenance["two_part_iterations"] == ITERATIONS == 600
+        assert args.func(args) == 0
+    file_line = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith(str(out))]
+    assert "calibrated spectrum on its two-part base (600 iterations)" in file_line[0]
+    m = json.loads(out.read_text())
+    assert m["free_form"]["form"] == "calibrated" and "two_part" in m
+    assert m["provenance"]["two_part_iterations"] == 600
 
 
 def gap_psd(f_hz, v_mm_s):
@@ -301,16 +267,16 @@ def test_spectrum_in_a_gap_between_strokes_matches_the_truth(gap_fit):
 
 
 def test_model_file_keeps_the_fixed_floor(gap_fit, scan_model):
-    """N0 goes into the file and back; a file without it (written before) still reads."""
+    """N0 goes into the file and back; a file without it is a form no longer rendered."""
     d = gap_fit.to_json()
     assert np.allclose(TwoPartSpectrum.from_json(d).psd(15.0), gap_fit.psd(15.0))
-    del d["fixed_floor"]
-    assert TwoPartSpectrum.from_json(d).fixed is None
     data = json.loads(json.dumps(model_to_json(scan_model)))
-    data["two_part"].pop("fixed_floor")
-    parse_model(data, "m.json")
     data["two_part"]["fixed_floor"] = [1.0]
     with pytest.raises(UserError, match=r"m.json: two_part.fixed_floor"):
+        parse_model(data, "m.json")
+    data["two_part"].pop("fixed_floor")
+    with pytest.raises(UserError, match=r"m.json: a two-part base without 'fixed_floor' is "
+                       "a form this fydpad no longer renders; refit"):
         parse_model(data, "m.json")
 
 
@@ -329,7 +295,7 @@ def test_sensor_floor_keeps_its_level_at_every_speed(gap_fit):
 
 
 def test_levels_beyond_the_end_knots_stay_bounded_on_a_periodic_surface():
-    """canvas with its lines and --two-part: the lines take the residual's floor, so N n(v)
+    """canvas with its lines: the lines take the residual's floor, so N n(v)
     is unused (N0 holds the floor) and n drifts to ~1e-13 with a slope of ~3 decades per
     mm/s; continued unbounded below the first knot it stood 1e13 at 5 mm/s and a held-out
     stroke's ramps rendered +90 dB. Rendered along a held-out stroke, ramps included, the
@@ -337,8 +303,7 @@ def test_levels_beyond_the_end_knots_stay_bounded_on_a_periodic_surface():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         model, _ = fit_texture([generate_scan("canvas", s, 10.0, seed=1 + j)
-                                for s in (10.0, 20.0, 30.0, 40.0) for j in range(2)],
-                               two_part=True)
+                                for s in (10.0, 20.0, 30.0, 40.0) for j in range(2)])
         held = generate_scan("canvas", 15.0, 12.0, seed=50)
         _, info = evaluate_scan(model, held)
     assert model.lines is not None

@@ -15,13 +15,13 @@ import scipy.signal as ss
 from fydpad.errors import UserError
 from fydpad.station.texture_source import open_texture, tick_speed
 from fydpad.texture.families import KINDS, fit_family, load_family
-from fydpad.texture.families.lpc import LpcFamily
 from fydpad.texture.family import TickPosition, constant_stroke, save_model_json
-from fydpad.texture.fit import fit_texture
-from fydpad.texture.interpolation import DEFAULT_METHOD, build_table
-from fydpad.texture.model_file import save_model
+from fydpad.texture.lpc.family import LpcFamily
+from fydpad.texture.lpc.fit import fit_paper, fit_texture
+from fydpad.texture.lpc.interpolation import DEFAULT_METHOD, build_table
+from fydpad.texture.lpc.model_file import save_model
+from fydpad.texture.lpc.synthesis import TextureRenderer
 from fydpad.texture.scan_generator import generate_scan
-from fydpad.texture.synthesis import TextureRenderer
 from tests.conftest import REPO
 
 
@@ -119,15 +119,15 @@ def test_station_renders_the_evaluated_method_and_the_drive_band(files):
     plain = open_texture(model_path, 1000.0)
     table = build_table(plain.model, DEFAULT_METHOD)
     np.testing.assert_array_equal(plain.tick_renderer.table.polys, table.polys)
-    linear = open_texture(model_path, 1000.0, method="linear")
-    assert linear.tick_renderer.method == "linear"
+    linear = open_texture(model_path, 1000.0, method="nearest")
+    assert linear.tick_renderer.method == "nearest"
     lin = linear.tick_renderer.table  # between the fitted speeds: not the same filter
     assert not np.allclose(lin.polys[lin.index(20.0)], table.polys[table.index(20.0)])
     band = open_texture(model_path, 1000.0, drive_filter=True)
     lo, hi = plain.model.drive_band_hz
     # Power through the drive filter against without it, per band (dB). The share of power
-    # in band depends on the model's spectrum on the filter's skirts (0.82-0.87 with the
-    # pooled fit, 0.70-0.82 with the calibrated spectrum, noise draw to noise draw); the
+    # in band depends on the model's spectrum on the filter's skirts (0.70-0.82 with the
+    # calibrated spectrum, noise draw to noise draw); the
     # filter's own work does not: measured -31 to -35 dB out of band, -1.8 to +0.7 in it.
     f, p_plain = ss.welch(_ticks(plain), fs=1000.0, nperseg=256)
     _, p_band = ss.welch(_ticks(band), fs=1000.0, nperseg=256)
@@ -158,7 +158,7 @@ def test_lpc_options_on_another_family_are_one_line_errors(files, capsys):
     with pytest.raises(UserError, match="--drive-filter applies to LPC"):
         open_texture(str(files / "friction.json"), 1000.0, drive_filter=True)
     assert main(["run", "--synthetic", "circle", "--motors", "sim", "--texture",
-                 str(files / "grating.json"), "--texture-method", "linear"]) == 2
+                 str(files / "grating.json"), "--texture-method", "nearest"]) == 2
     err = capsys.readouterr().err
     assert "grating.json: --texture-method applies to LPC" in err
     assert err.count("\n") == 1
@@ -212,12 +212,12 @@ def test_lpc_options_reach_lpc_stimuli_and_pass_over_the_others(files):
     spec = RenderSpec(texture=str(files / "lpc.json"),
                       textures=(f"grating:{files / 'grating.json'}", str(files / "lpc.json")),
                       motors="sim", config=StationConfig(), drive_filter=True,
-                      texture_method="linear")
+                      texture_method="nearest")
     chain = build_render_chain(spec)
     try:
         lpc0, grating, lpc2 = (m.family for m in chain.models)
         for fam in (lpc0, lpc2):
-            assert fam.tick_renderer.method == "linear" and fam.tick_renderer._sos is not None
+            assert fam.tick_renderer.method == "nearest" and fam.tick_renderer._sos is not None
         assert grating.kind == "grating"
     finally:
         chain.safe_stop()
@@ -281,8 +281,8 @@ def test_the_render_process_warns_on_one_line(tmp_path):
     """A warning from the render process (a speed above the fastest model's range) is one
     line naming the command, not Python's file:line and code line."""
     scans = [generate_scan("canvas", 10.0, 3.0, seed=1, friction=True)]
-    model, _ = fit_texture(scans, order=40, speeds_mm_s=[10.0])
-    save_model(model, tmp_path / "slow.json")  # clamped above 15 mm/s; the circle is faster
+    model = fit_paper(scans, order=40)
+    save_model(model, tmp_path / "slow.json")  # clamped above ~13 mm/s; the circle is faster
     r = subprocess.run([sys.executable, "-m", "fydpad.cli", "run", "--synthetic", "circle",
                         "--motors", "sim", "--texture", str(tmp_path / "slow.json"),
                         # 10 s: beside a CPU hog the synthetic pad renders fewer frames a

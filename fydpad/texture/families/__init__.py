@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from fydpad.errors import UserError
-from fydpad.texture.families import friction, grating, lpc, penn
+from fydpad.texture.families import friction, grating, penn
 from fydpad.texture.families.mlp import render as mlp
 from fydpad.texture.family import (
     FingerBlock,
@@ -27,6 +27,7 @@ from fydpad.texture.family import (
     resample_finger,
     save_model_json,
 )
+from fydpad.texture.lpc import family as lpc
 from fydpad.texture.scan_io import read_scan
 from vision.recording import RecordingError, read_csv_columns
 

@@ -30,7 +30,6 @@ from typing import Any
 import numpy as np
 
 from fydpad.errors import UserError
-from fydpad.texture.dft321 import preprocess
 from fydpad.texture.family import (
     Array,
     FamilyBase,
@@ -40,6 +39,7 @@ from fydpad.texture.family import (
     require,
     require_version,
 )
+from fydpad.texture.lpc.dft321 import preprocess
 
 NAME = "grating"
 FORMAT_VERSION = 1

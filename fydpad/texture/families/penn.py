@@ -57,7 +57,7 @@ _TABLE_BYTES = 32 << 20
 
 
 def lsf_to_poly_rows(lsf: Array) -> Array:
-    """``fydpad.texture.lsf.lsf_to_poly`` for every row of ``lsf`` at once (k, p) ->
+    """``fydpad.texture.lpc.lsf.lsf_to_poly`` for every row of ``lsf`` at once (k, p) ->
     (k, p + 1): the product of the quadratic factors on an FFT grid."""
     lsf = np.sort(np.atleast_2d(np.asarray(lsf, float)), axis=1)
     k, order = lsf.shape

@@ -1,6 +1,6 @@
 """The FYD-pad's LPC texture (Bianchi 2015 III-B, eq. 5) behind the family contract: an
-adapter around :mod:`fydpad.texture.model_file` (the model) and
-:class:`fydpad.texture.synthesis.TextureRenderer` (the render).
+adapter around :mod:`fydpad.texture.lpc.model_file` (the model) and
+:class:`fydpad.texture.lpc.synthesis.TextureRenderer` (the render).
 
 ``render`` synthesizes along the block's speed after a 0.5 s warm-up at its first
 speed; ``tick`` renders one sample per station tick from the station's speed. An output
@@ -20,22 +20,20 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.coverage import describe, model_gaps, speed_histogram
-from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import welch_psd
 from fydpad.texture.family import Array, FamilyBase, FingerBlock, Kind, RateMismatch
-from fydpad.texture.fit import fit_texture, lines_option, modelled_speed_range
-from fydpad.texture.free_form import AUTO
-from fydpad.texture.interpolation import METHODS, SpeedInterpolator
-from fydpad.texture.line_voice import LineVoice
-from fydpad.texture.lines import LineSpectrum
-from fydpad.texture.lpc import ar_psd
-from fydpad.texture.model_file import TextureModel, model_to_json, parse_model
+from fydpad.texture.lpc.analysis import ar_psd, segment_by_speed
+from fydpad.texture.lpc.coverage import describe, model_gaps, speed_histogram
+from fydpad.texture.lpc.dft321 import preprocess
+from fydpad.texture.lpc.fit import fit_texture, lines_option, modelled_speed_range
+from fydpad.texture.lpc.interpolation import METHODS, SpeedInterpolator
+from fydpad.texture.lpc.line_voice import LineVoice
+from fydpad.texture.lpc.lines import LineSpectrum
+from fydpad.texture.lpc.model_file import TextureModel, model_to_json, parse_model
+from fydpad.texture.lpc.select import fit_candidate, select_model, selection_table
+from fydpad.texture.lpc.synthesis import TextureRenderer
 from fydpad.texture.plots import SpeedCoverage, plot_spectra
 from fydpad.texture.scan_io import Scan, read_scan
-from fydpad.texture.segment import segment_by_speed
-from fydpad.texture.select import fit_candidate, select_model, selection_table
-from fydpad.texture.synthesis import TextureRenderer
 from vision.recording import RecordingError
 
 #: A tick beyond this many times the model's largest RMS clears the filter.
@@ -69,6 +67,9 @@ class LpcFamily(FamilyBase):
         if name == "method" and value not in METHODS:
             raise UserError(f"{self.path}: interpolation {value!r} is not one of "
                             f"{', '.join(METHODS)}")
+        if name == "method" and value == "stretch" and self.model.free_form is None:
+            raise UserError(f"{self.path}: interpolation 'stretch' needs the calibrated "
+                            "spectrum (key 'free_form'); this model renders 'nearest'")
         super().set_parameter(name, value)
         self._renderer = self.tick_renderer = None  # rebuilt with the new value
 
@@ -144,7 +145,8 @@ def _from_json(data: dict[str, Any], where: str) -> LpcFamily:
 
 
 def _fit(scans: list, **options: Any) -> dict[str, Any]:
-    model, _ = fit_texture(scans, **options)
+    """As ``fydpad texture fit``: the form validated on the scans (select.py)."""
+    model, _ = select_model(scans, **options)
     return model_to_json(model)
 
 
@@ -152,23 +154,8 @@ def _fit(scans: list, **options: Any) -> dict[str, Any]:
 
 # ------------------------------------------------------------------ fydpad texture fit
 #: The ``fydpad texture fit`` options the LPC fit takes.
-FIT_OPTIONS = ("order", "speeds", "tolerance", "min_seconds", "highpass_hz", "method",
-               "surface", "drive_band", "prewhiten_order", "speed_normalise", "two_part",
-               "free_form", "lines", "form", "wrap", "wrap_iterations")
-
-
-def fitted_form(model: TextureModel) -> str:
-    """What the models are, in the words of ``fit --help``."""
-    prov = model.provenance
-    if model.free_form is not None:
-        its = prov.get("two_part_iterations")
-        base = f" on its two-part base ({its} iterations)" if its else ""
-        return f"{model.free_form['form']} spectrum{base}"
-    if model.two_part is not None:
-        return "two-part spectrum"
-    if "speed_normalised" in prov:
-        return "speed-normalised per-speed LPC"
-    return "per-speed LPC pooled over each speed's runs"
+FIT_OPTIONS = ("order", "speeds", "tolerance", "min_seconds", "highpass_hz", "surface",
+               "drive_band", "lines", "form", "wrap", "wrap_iterations")
 
 
 def check_fit_options(opts: dict[str, Any], fs_hz: float) -> None:
@@ -219,14 +206,13 @@ def fit_command(scan_paths: list[str], opts: dict[str, Any], out: str,
     model, reports = fit_texture(
         scans, order=opts["order"], speeds_mm_s=opts["speeds"],
         tolerance_mm_s=opts["tolerance"], highpass_hz=opts["highpass_hz"],
-        min_seconds=opts["min_seconds"], method=opts["method"], surface=opts["surface"],
-        drive_band_hz=tuple(opts["drive_band"]), prewhiten_order=opts["prewhiten_order"],
-        speed_normalise=opts["speed_normalise"], two_part=opts["two_part"],
-        free_form=opts["free_form"], lines=lines_option(opts["lines"], "--lines"),
+        min_seconds=opts["min_seconds"], surface=opts["surface"],
+        drive_band_hz=tuple(opts["drive_band"]), lines=lines_option(opts["lines"], "--lines"),
         wrap=wrap, wrap_iterations=opts.get("wrap_iterations", _no_wrap))
     g2 = 9.80665**2
     out_lines = [f"surface {model.surface}, order {model.order}, {model.fs_hz:g} Hz, "
-                 f"{fitted_form(model)}"]
+                 "calibrated spectrum on its two-part base "
+                 f"({model.provenance['two_part_iterations']} iterations)"]
     lines = model.provenance.get("lines")
     if lines is not None:
         out_lines.append(f"  lines: {lines['note']}" + (
@@ -284,12 +270,9 @@ def plot_fit(path: str, model: TextureModel, scans: list[Scan], opts: dict[str, 
 
 
 def selects(opts: dict[str, Any]) -> bool:
-    """The validated choice or form paper; form calibrated and the older forms' options
-    take the per-speed fit path with its full report."""
-    return (opts["form"] in ("auto", "paper") and opts["free_form"] == AUTO
-            and not opts["two_part"]
-            and not opts["speed_normalise"] and opts["method"] == "autocorrelation"
-            and opts["prewhiten_order"] == 8)
+    """The validated choice or form paper; form calibrated takes the per-speed fit path
+    with its full report."""
+    return opts["form"] in ("auto", "paper")
 
 
 def fit_selected(scans: list[Scan], opts: dict[str, Any], plot: str | None

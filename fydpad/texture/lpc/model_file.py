@@ -12,9 +12,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError, read_json
-from fydpad.texture.coverage import check_provenance
-from fydpad.texture.lines import LineSpectrum
-from fydpad.texture.lpc import is_stable, poly_from_h
+from fydpad.texture.lpc.analysis import is_stable, poly_from_h
+from fydpad.texture.lpc.coverage import check_provenance
+from fydpad.texture.lpc.lines import LineSpectrum
 
 FORMAT = "fydpad-texture-model"
 #: Written when the model has a ``lines`` block (its residual models[] alone would render a
@@ -41,14 +41,16 @@ class TextureModel:
     gain: float = 1.0
     tolerance_mm_s: float = 5.0
     provenance: dict[str, Any] = field(default_factory=dict)
-    two_part: dict[str, Any] | None = None  # two_part.TwoPartSpectrum.to_json(), if fitted
-    free_form: dict[str, Any] | None = None  # free_form.FreeFormSpectrum.to_json(), if fitted
+    #: The calibrated form's spectrum: its two-part base (spectrum.TwoPartSpectrum.to_json())
+    #: and its calibration (spectrum.CalibratedSpectrum.to_json()).
+    two_part: dict[str, Any] | None = None
+    free_form: dict[str, Any] | None = None
     #: lines.LineSpectrum.to_json(): a periodic surface's harmonics, rendered beside the
     #: process of models[] (which is then fitted on what the lines leave).
     lines: dict[str, Any] | None = None
     #: How the renderer goes between ``models[]`` (interpolation.METHODS): "nearest" for
-    #: the paper's per-speed fits on a speed grid, "stretch" for the spectral forms.
-    interpolation: str = "stretch"
+    #: the paper's per-speed fits on a speed grid, "stretch" for the calibrated spectrum.
+    interpolation: str = "nearest"
     #: What ``fydpad texture fit`` validated: the winner and every candidate's figures.
     selection: dict[str, Any] | None = None
 
@@ -157,16 +159,37 @@ def _header(data: dict[str, Any], where: str) -> tuple[float, dict[str, Any]]:
     }
 
 
-#: Interpolations a file may name; one no longer rendered fails with a request to refit.
-INTERPOLATIONS = ("nearest", "stretch", "lsf", "reflection", "linear")
+#: Interpolations a file may name.
+INTERPOLATIONS = ("nearest", "stretch")
+REFIT = "refit the model with 'fydpad texture fit SCAN.csv ... --out MODEL.json'"
 
 
 def _interpolation(data: dict[str, Any], where: str) -> str:
     v = data.get("interpolation", "stretch")  # files without the key: the spectral default
     if v not in INTERPOLATIONS:
         raise UserError(f"{where}: key 'interpolation' {_short(v)} is not rendered by this "
-                        "fydpad; refit the model with 'fydpad texture fit'")
+                        f"fydpad; {REFIT}")
     return str(v)
+
+
+def _removed_form(data: dict[str, Any], where: str) -> None:
+    """One line naming a form this fydpad no longer fits or renders, and asking to refit."""
+    ff, prov = data.get("free_form"), data.get("provenance", {})
+    form = None
+    if isinstance(ff, dict) and ff.get("form") != "calibrated":
+        form = f"free_form.form {_short(ff.get('form'))}"
+    elif isinstance(ff, dict) and ff.get("taper_mm_s") is None:
+        form = "free_form.taper_mm_s null (log-linear calibration)"
+    elif isinstance(prov, dict) and "speed_normalised" in prov:
+        form = "the speed-normalised form (provenance 'speed_normalised')"
+    elif ff is None and data.get("two_part") is not None:
+        form = "the two-part form (key 'two_part' without 'free_form')"
+    elif ff is None and data.get("interpolation", "stretch") == "stretch":
+        form = "the pooled form (interpolation 'stretch' without key 'free_form')"
+    elif isinstance(data.get("two_part"), dict) and "fixed_floor" not in data["two_part"]:
+        form = "a two-part base without 'fixed_floor'"
+    if form is not None:
+        raise UserError(f"{where}: {form} is a form this fydpad no longer renders; {REFIT}")
 
 
 def _check_entry(speed_mm_s: float, sigma2: float, h: Array, where: str) -> None:
@@ -206,6 +229,7 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
             f"{', '.join(map(str, READ_VERSIONS))} (refit the model with 'fydpad texture fit')"
         )
     fs, head = _header(data, where)
+    _removed_form(data, where)
     models = _get(data, "models", where)
     if not isinstance(models, list) or not models:
         raise UserError(f"{where}: key 'models' must be a non-empty list")
@@ -259,17 +283,17 @@ def _lines(d: Any, version: Any, where: str) -> dict[str, Any] | None:
     return dict(d)
 
 
-_TWO_PART_KEYS = ("f_hz", "k_per_mm", "tool", "surface", "floor", "v_mm_s", "g", "n")
-_TWO_PART_OPTIONAL = ("fixed_floor",)  # files written before it was fitted lack it
+_TWO_PART_KEYS = ("f_hz", "k_per_mm", "tool", "surface", "floor", "v_mm_s", "g", "n",
+                  "fixed_floor")
 
 
 def _two_part(d: Any, where: str) -> dict[str, Any] | None:
-    """Check the optional two-part spectrum: every factor a finite, nonnegative list."""
+    """Check the calibrated form's two-part base: every factor a finite, nonnegative list."""
     if d is None:
         return None
     if not isinstance(d, dict):
         raise UserError(f"{where}: key 'two_part' must be an object")
-    for k in _TWO_PART_KEYS + tuple(k for k in _TWO_PART_OPTIONAL if k in d):
+    for k in _TWO_PART_KEYS:
         try:
             a = np.asarray(_get(d, k, f"{where}: two_part"), float)
         except (TypeError, ValueError) as exc:
@@ -279,58 +303,44 @@ def _two_part(d: Any, where: str) -> dict[str, Any] | None:
                             "nonnegative numbers")
     for grid, vals in (("f_hz", ("tool", "floor", "fixed_floor")), ("k_per_mm", ("surface",)),
                        ("v_mm_s", ("g", "n"))):
-        for k in (k for k in vals if k in d):
+        for k in vals:
             if len(d[k]) != len(d[grid]):
                 raise UserError(f"{where}: two_part.{k} has {len(d[k])} values, "
                                 f"two_part.{grid} {len(d[grid])}")
     return dict(d)
 
 
-_FREE_FORM_KEYS = {"calibrated": ("f_hz", "v_mm_s", "log_c"), "free": ("f_hz", "v_mm_s", "psd"),
-                   "surface": ("v_mm_s", "q")}
-
-
 def _free_form(d: Any, two_part: Any, where: str) -> dict[str, Any] | None:
-    """Check the optional speed-resolved spectrum (free_form.py): its ``form``, ascending
-    grids, a finite table of one row per speed (nonnegative unless it is ``log_c``), and
-    the ``two_part`` block the calibrated and surface forms build on."""
+    """Check the calibrated spectrum (spectrum.py): ascending ``f_hz`` and ``v_mm_s``, a
+    finite ``log_c`` of one row per speed and one column per ``two_part.f_hz``, a taper
+    > 0, and the ``two_part`` block it builds on."""
     if d is None:
         return None
     w = f"{where}: free_form"
     if not isinstance(d, dict):
         raise UserError(f"{where}: key 'free_form' must be an object")
-    form = d.get("form")
-    if form not in _FREE_FORM_KEYS:
-        raise UserError(f"{w}.form must be one of {tuple(_FREE_FORM_KEYS)}, not {form!r}")
     try:
-        arrays = {k: np.asarray(_get(d, k, w), float) for k in _FREE_FORM_KEYS[form]}
+        arrays = {k: np.asarray(_get(d, k, w), float) for k in ("f_hz", "v_mm_s", "log_c")}
     except (TypeError, ValueError) as exc:
         raise UserError(f"{w}: {exc}") from None
     for k in ("f_hz", "v_mm_s"):
-        a = arrays.get(k)
-        if a is not None and (a.ndim != 1 or a.size < 1 or not np.isfinite(a).all()
-                              or (np.diff(a) <= 0).any()):
+        a = arrays[k]
+        if a.ndim != 1 or a.size < 1 or not np.isfinite(a).all() or (np.diff(a) <= 0).any():
             raise UserError(f"{w}.{k} must be an ascending list of finite numbers")
-    table = _FREE_FORM_KEYS[form][-1]
-    t = arrays[table]
-    n_col = arrays["f_hz"].size if "f_hz" in arrays else None
+    t = arrays["log_c"]
     if (t.ndim != 2 or t.shape[0] != arrays["v_mm_s"].size
-            or (n_col is not None and t.shape[1] != n_col) or not np.isfinite(t).all()
-            or (table != "log_c" and (t < 0).any())):
-        raise UserError(f"{w}.{table} must be one row per free_form.v_mm_s of finite"
-                        f"{'' if table == 'log_c' else ', nonnegative'} values"
-                        f"{' per free_form.f_hz' if n_col is not None else ''}")
+            or t.shape[1] != arrays["f_hz"].size or not np.isfinite(t).all()):
+        raise UserError(f"{w}.log_c must be one row per free_form.v_mm_s of finite values "
+                        "per free_form.f_hz")
     taper = d.get("taper_mm_s")
-    if taper is not None and (isinstance(taper, bool) or not isinstance(taper, int | float)
-                              or not math.isfinite(taper) or taper <= 0):
-        raise UserError(f"{w}.taper_mm_s must be a number > 0 or null, not {taper!r}")
-    if form != "free":
-        if two_part is None:
-            raise UserError(f"{w}: form {form!r} needs the key 'two_part', which is missing")
-        grid = "f_hz" if form == "calibrated" else "k_per_mm"
-        if t.shape[1] != len(two_part[grid]):
-            raise UserError(f"{w}.{table} has {t.shape[1]} columns, two_part.{grid} "
-                            f"{len(two_part[grid])}")
+    if isinstance(taper, bool) or not isinstance(taper, int | float) or not (
+            math.isfinite(taper) and taper > 0):
+        raise UserError(f"{w}.taper_mm_s must be a number > 0, not {taper!r}")
+    if two_part is None:
+        raise UserError(f"{w}: form 'calibrated' needs the key 'two_part', which is missing")
+    if t.shape[1] != len(two_part["f_hz"]):
+        raise UserError(f"{w}.log_c has {t.shape[1]} columns, two_part.f_hz "
+                        f"{len(two_part['f_hz'])}")
     return dict(d)
 
 

@@ -1,4 +1,4 @@
-"""Speed-resolved spectra (fydpad/texture/free_form.py) against ground truth.
+"""The calibrated spectrum (fydpad/texture/lpc/spectrum.py) against ground truth.
 
 Data: strokes whose speed wanders (0.8-1.2 x the target, a new speed every 0.5 s) with
 Gaussian noise shaped to a known S(f, v) that the two-part model cannot represent: two
@@ -19,20 +19,19 @@ import pytest
 
 from fydpad.commands import texture
 from fydpad.errors import UserError
-from fydpad.texture.fit import fit_texture
-from fydpad.texture.free_form import (
+from fydpad.texture.lpc.analysis import is_stable, segment_by_speed
+from fydpad.texture.lpc.fit import fit_texture
+from fydpad.texture.lpc.model_file import load_model, model_to_json, parse_model, save_model
+from fydpad.texture.lpc.spectrum import (
     RENDER_SMEAR_MM_S,
     CalibratedSpectrum,
+    chunk_periodograms,
     fit_calibrated,
-    fit_free_form,
+    fit_two_part,
     spectrum_of,
 )
-from fydpad.texture.lpc import is_stable
-from fydpad.texture.model_file import load_model, model_to_json, parse_model, save_model
+from fydpad.texture.lpc.synthesis import TextureRenderer
 from fydpad.texture.scan_generator import generate_scan
-from fydpad.texture.segment import segment_by_speed
-from fydpad.texture.synthesis import TextureRenderer
-from fydpad.texture.two_part import chunk_periodograms, fit_two_part
 
 FS = 1000.0
 SPEEDS = (10.0, 20.0, 30.0, 40.0)
@@ -72,7 +71,7 @@ def fitted():
         for s, rs in segment_by_speed(vi, FS, SPEEDS, 5.0, 0.25).items():
             by.setdefault(s, []).extend((xi[a:b], vi[a:b]) for a, b in rs)
     return {"two": two, "calibrated": fit_calibrated(by, FS, two),
-            "free": fit_free_form(x, v, FS, (5.0, 45.0)), "by": by,
+            "by": by,
             "held": {t: t * np.random.default_rng(7).uniform(0.8, 1.2, 24)
                      for t in (20.0, 25.0, 30.0)}}
 
@@ -95,7 +94,7 @@ def _error_db(spec, speeds, f):
 
 
 def test_calibrated_spectrum_reproduces_the_pooled_runs_at_each_fitted_speed(fitted):
-    """By construction (free_form.py): S_two C_i, averaged over the runs' own sample
+    """By construction (spectrum.py): S_two C_i, averaged over the runs' own sample
     speeds with the render's +-1 mm/s average, is the runs' mean periodogram. Checked
     here by a different average (every 8th sample, not the 0.25 mm/s histogram)."""
     cal = fitted["calibrated"]
@@ -124,7 +123,7 @@ def test_calibrated_spectrum_is_closer_to_the_truth_than_two_part_at_fitted_spee
 
 def test_spectrum_between_fitted_speeds_matches_the_truth(fitted):
     """At 25 mm/s (no stroke's target; 20-30 mm/s wander) within 1 dB of the truth
-    (measured: calibrated 0.67, free 0.56, two-part 0.84 dB), where the neighbours'
+    (measured: calibrated 0.67, two-part 0.84 dB), where the neighbours'
     log mix (a cross-fade of the truth at 20 and 30 mm/s) is 4.5 dB off."""
     f = fitted["two"].f_hz
     held = fitted["held"][25.0]
@@ -133,9 +132,8 @@ def test_spectrum_between_fitted_speeds_matches_the_truth(fitted):
     sel = (f >= 20) & (f <= 480)
     truth = np.mean([true_psd(f, u) for u in held], axis=0)
     mix_db = float(np.sqrt(np.mean((_db(_smooth(mix)) - _db(_smooth(truth)))[sel] ** 2)))
-    for form in ("calibrated", "free"):
-        err = _error_db(fitted[form], held, f)
-        assert err < 1.0 and err < mix_db / 3, (form, err, mix_db)
+    err = _error_db(fitted["calibrated"], held, f)
+    assert err < 1.0 and err < mix_db / 3, (err, mix_db)
 
 
 @pytest.fixture(scope="module")
@@ -143,8 +141,7 @@ def scan_model():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         scans = [generate_scan("felt", v, 5.0, seed=1) for v in (10.0, 20.0, 30.0)]
-        model, _ = fit_texture(scans, speeds_mm_s=(10.0, 20.0, 30.0), order=60,
-                               free_form="calibrated")
+        model, _ = fit_texture(scans, speeds_mm_s=(10.0, 20.0, 30.0), order=60)
     return model
 
 
@@ -154,7 +151,7 @@ def test_fit_texture_stores_the_spectrum_and_the_renderer_uses_it(scan_model, tm
     back = load_model(save_model(scan_model, tmp_path / "m.json"))
     a, b = spectrum_of(back), spectrum_of(scan_model)
     assert np.allclose(a.psd(23.0), b.psd(23.0))
-    r = TextureRenderer(back, method="stretch", step_mm_s=1.0, seed=0)
+    r = TextureRenderer(back, step_mm_s=1.0, seed=0)
     assert r.table.stable.all() and all(is_stable(p) for p in r.table.polys)
     # At a fitted speed the stored h is the table's filter (one model, two views).
     assert np.allclose(r.table.h[r.table.index(20.0)], back.h[1])
@@ -164,10 +161,6 @@ def test_fit_texture_stores_the_spectrum_and_the_renderer_uses_it(scan_model, tm
 
 def test_bad_free_form_block_names_the_key(scan_model):
     data = json.loads(json.dumps(model_to_json(scan_model)))
-    bad = json.loads(json.dumps(data))
-    bad["free_form"]["form"] = "magic"
-    with pytest.raises(UserError, match=r"m.json: free_form.form must be one of"):
-        parse_model(bad, "m.json")
     bad = json.loads(json.dumps(data))
     bad["free_form"]["log_c"] = bad["free_form"]["log_c"][:-1]
     with pytest.raises(UserError, match=r"free_form.log_c must be one row per"):
@@ -181,12 +174,36 @@ def test_bad_free_form_block_names_the_key(scan_model):
         bad["free_form"]["taper_mm_s"] = taper
         with pytest.raises(UserError, match=r"m.json: free_form.taper_mm_s must be a number"):
             parse_model(bad, "m.json")
-    with pytest.raises(UserError, match=r"form must be one of"):
-        fit_texture([generate_scan("felt", 10.0, 2.0, seed=1)], speeds_mm_s=(10.0,),
-                    order=20, free_form="magic")
 
 
-def test_cli_fit_free_form_flag(tmp_path):
+@pytest.mark.parametrize("change, form", [
+    (lambda d: d["free_form"].update(form="free"), "free_form.form 'free'"),
+    (lambda d: d["free_form"].update(form="surface"), "free_form.form 'surface'"),
+    (lambda d: d["free_form"].update(taper_mm_s=None), "free_form.taper_mm_s null"),
+    (lambda d: d.pop("free_form"), "the two-part form"),
+    (lambda d: [d.pop("free_form"), d.pop("two_part")], "the pooled form"),
+    (lambda d: d["provenance"].update(speed_normalised={"beta": 1.0, "gamma": 0.0}),
+     "the speed-normalised form"),
+])
+def test_a_model_of_a_removed_form_fails_in_one_line_naming_it(scan_model, change, form):
+    data = json.loads(json.dumps(model_to_json(scan_model)))
+    change(data)
+    with pytest.raises(UserError) as err:
+        parse_model(data, "old.json")
+    msg = str(err.value)
+    assert "\n" not in msg and msg.startswith(f"old.json: {form}"), msg
+    assert msg.endswith("no longer renders; refit the model with 'fydpad texture fit "
+                        "SCAN.csv ... --out MODEL.json'"), msg
+    for method in ("lsf", "reflection", "linear"):
+        data = json.loads(json.dumps(model_to_json(scan_model)))
+        data["interpolation"] = method
+        with pytest.raises(UserError, match=rf"old.json: key 'interpolation' '{method}' is "
+                           "not rendered by this fydpad; refit the model with 'fydpad "
+                           "texture fit"):
+            parse_model(data, "old.json")
+
+
+def test_cli_fit_form_calibrated(tmp_path):
     parser = argparse.ArgumentParser(prog="fydpad")
     texture.register(parser.add_subparsers(dest="command"))
     args = parser.parse_args(["texture", "generate-scans", "--out-dir", str(tmp_path),
@@ -194,14 +211,17 @@ def test_cli_fit_free_form_flag(tmp_path):
                               "--seconds", "4"])
     assert args.func(args) == 0
     scans = [str(tmp_path / f"felt_{v}mms_s1.csv") for v in (10, 30)]
-    for flag, form in ((["--free-form"], "calibrated"), (["--free-form", "free"], "free")):
-        out = tmp_path / f"{form}.json"
-        args = parser.parse_args(["texture", "fit", *scans, "--out", str(out), "--speeds",
-                                  "10,30", "--order", "60", *flag])
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            assert args.func(args) == 0
-        assert json.loads(out.read_text())["free_form"]["form"] == form
+    out = tmp_path / "calibrated.json"
+    args = parser.parse_args(["texture", "fit", *scans, "--out", str(out), "--speeds",
+                              "10,30", "--order", "60", "--form", "calibrated"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert args.func(args) == 0
+    assert json.loads(out.read_text())["free_form"]["form"] == "calibrated"
+    for gone in ("--free-form", "--pooled", "--two-part", "--speed-normalise",
+                 "--prewhiten-order"):
+        with pytest.raises(SystemExit):
+            parser.parse_args(["texture", "fit", *scans, "--out", str(out), gone])
 
 
 @pytest.fixture(scope="module")
@@ -219,10 +239,10 @@ def target_figures():
             # The calibrated form on the whole signal (lines off: R1 and R2 would get
             # their lines and the form would model only what they leave).
             model, _ = fit_texture([generate_scan(name, s, 8.0, seed=1) for s in SPEEDS],
-                                   free_form="calibrated", lines="off")
+                                   lines="off")
             for v in (20.0, 25.0):
                 held, mask, ceil = held_out(name, v, model)
-                c, _ = evaluate_scan(model, held, method="stretch", mask=mask)
+                c, _ = evaluate_scan(model, held, mask=mask)
                 out[(name, v)] = (c.psd_correlation, c.lsd_db, ceil.lsd_db)
     return out
 
@@ -235,7 +255,7 @@ def _check_targets(figures, speed: float) -> None:
 
 
 def test_targets_between_modelled_speeds_calibrated(target_figures):
-    """fit_texture(free_form='calibrated') on the whole signal at 25 mm/s: LSD above the
+    """fit_texture on the whole signal at 25 mm/s: LSD above the
     ceiling R1 -0.46, R2 +0.08, felt -0.35, glass +0.08 dB, corr 0.975-0.986 (measured)."""
     _check_targets(target_figures, 25.0)
 
@@ -246,77 +266,37 @@ def test_targets_at_a_modelled_speed_calibrated(target_figures):
     _check_targets(target_figures, 20.0)
 
 
-def test_the_default_fit_is_the_calibrated_spectrum_and_pooled_is_one_option_away():
-    scans = [generate_scan("felt", s, 3.0, seed=1) for s in (10.0, 30.0)]
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")  # enough data: no fallback, nothing to say
-        default, _ = fit_texture(scans, speeds_mm_s=(10.0, 30.0), order=60)
-    assert default.free_form["form"] == "calibrated" and default.two_part is not None
-    pooled, _ = fit_texture(scans, speeds_mm_s=(10.0, 30.0), order=60, free_form=None)
-    assert pooled.free_form is None and pooled.two_part is None
-    assert default.provenance["method"] == "two-stage all-pole fit of S(f, v)"
-    # A failure of the spectral model other than too little data is an error, not a quiet
-    # fallback to the pooled fit.
-    with pytest.raises(UserError, match="unexpected keyword argument 'bogus'"):
-        fit_texture(scans, speeds_mm_s=(10.0, 30.0), order=60, free_form_options={"bogus": 1})
-    # The options that are spectral models of their own keep their meaning; the per-speed
-    # estimator's options ask for the per-speed fit.
-    two, _ = fit_texture(scans, speeds_mm_s=(10.0, 30.0), order=60, two_part=True)
-    assert two.free_form is None and two.two_part is not None
-    burg, _ = fit_texture(scans, speeds_mm_s=(10.0, 30.0), order=60, method="burg")
-    assert burg.free_form is None and burg.provenance["method"] == "burg"
-
-
-def test_scans_too_short_for_the_spectrum_fall_back_to_the_pooled_fit_and_say_so():
-    """Runs near each speed long enough for an order-40 LPC (0.45 s) but not one 0.5 s
-    chunk within the modelled speeds: the default fit keeps the pooled per-speed models
-    and warns once (the command line names the scans); asked for by name, the calibrated
-    form is an error."""
+def test_the_calibrated_fit_needs_two_speeds_and_chunks_and_says_so():
+    """One target speed with data, or runs near each speed long enough for an order-40
+    LPC (0.45 s) but not one 0.5 s chunk within the modelled speeds: a one-line error."""
+    scans = [generate_scan("felt", 20.0, 6.0, seed=1)]
+    with pytest.raises(UserError, match=r"calibrated form needs two or more target speeds "
+                       r"with data, these have 1 .*--form paper"):
+        fit_texture(scans, speeds_mm_s=(20.0,), order=60)
     short = []
     for s in (20.0, 30.0):
         scan = generate_scan("felt", s, 3.0, seed=1)
         v = np.full_like(scan.speed_mm_s, 60.0)  # far outside the modelled speeds ...
         v[1000:1450] = scan.speed_mm_s[1000:1450]  # ... but for 0.45 s
         short.append(replace(scan, path=f"short{s:g}.csv", speed_mm_s=v))
-    speeds = (20.0, 30.0)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        model, _ = fit_texture(short, speeds_mm_s=speeds, order=40)
-    assert model.free_form is None and model.two_part is None and model.h.shape == (2, 40)
-    said = [str(w.message) for w in caught]
-    assert len(said) == 1 and said[0].startswith("no calibrated spectrum (two-part model: "
-                                                 "no 0.5 s chunk"), said
-    assert "the pooled per-speed fit only" in said[0]
-    with pytest.raises(UserError, match=r"two-part model: no 0\.5 s chunk"):
-        fit_texture(short, speeds_mm_s=speeds, order=40, free_form="calibrated")
-
-
-def test_one_fitted_speed_gets_the_pooled_fit_by_default():
-    """Nothing lies between fitted speeds to resolve: the default is the pooled fit,
-    without a warning; the calibrated form named explicitly is still fitted."""
-    scans = [generate_scan("felt", 20.0, 6.0, seed=1)]
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        model, _ = fit_texture(scans, speeds_mm_s=(20.0,), order=60)
-    assert model.free_form is None and model.two_part is None
-    named, _ = fit_texture(scans, speeds_mm_s=(20.0,), order=60, free_form="calibrated")
-    assert named.free_form["form"] == "calibrated"
+    with pytest.raises(UserError, match=r"calibrated spectrum: no 0\.5 s chunk"):
+        fit_texture(short, speeds_mm_s=(20.0, 30.0), order=40)
 
 
 def test_a_spectral_forms_table_spans_the_speeds_its_fit_saw(scan_model):
     """The calibrated spectrum renders its own S from where the renderer starts fading
     (the slowest speed less the tolerance, at least half of it) to the fastest plus the
     tolerance, not its slowest and fastest entries held beyond (felt at 40 mm/s, seed set
-    A: +2.42 -> +0.33 dB over the ceiling, docs/texture.md); the pooled fit's table still
-    holds its end models, which were fitted on that wander."""
-    from fydpad.texture.interpolation import build_table, table_range
+    A: +2.42 -> +0.33 dB over the ceiling, docs/texture.md); the paper's nearest-model
+    grid holds its end models."""
+    from fydpad.texture.lpc.interpolation import build_table, table_range
 
     assert table_range(scan_model) == (5.0, 35.0)
     table = build_table(scan_model)
     assert table.speeds_mm_s[0] == 5.0 and table.speeds_mm_s[-1] == 35.0
     assert not np.allclose(table.polys[table.index(34.0)], table.polys[table.index(30.0)])
-    pooled = replace(scan_model, free_form=None, two_part=None)
-    assert table_range(pooled) == (10.0, 30.0)
+    nearest = replace(scan_model, interpolation="nearest")
+    assert table_range(nearest) == (10.0, 30.0)
 
 
 def test_tents_scale_with_the_spacing_of_the_fitted_speeds():
@@ -340,7 +320,7 @@ def test_speeds_fitted_every_5_mm_s_meet_the_target_between(monkeypatch):
     """Ground truth: cork scanned and fitted at 10, 15, 20, 25 and 30 mm/s, a held-out
     stroke at 15 mm/s: +0.15 dB over the ceiling with tents scaled to the spacing, +0.55
     with the 7.5 mm/s tents, which summed three corrections there."""
-    import fydpad.texture.free_form as free_form
+    import fydpad.texture.lpc.spectrum as free_form
     from fydpad.texture.evaluate import evaluate_scan
     from tests.texture.heldout import held_out
 

@@ -126,12 +126,3 @@ def lsf_to_poly(lsf: ArrayLike) -> Array:
     a = 0.5 * (p_poly + q_poly)[: order + 1]
     a[0] = 1.0
     return a
-
-
-def lsf_is_valid(lsf: ArrayLike) -> bool:
-    """Strictly increasing within (0, pi): the condition for a stable 1/A."""
-    lsf = np.asarray(lsf, float)
-    return bool(
-        lsf.size == 0
-        or (lsf[0] > 0 and lsf[-1] < np.pi and np.all(np.diff(lsf) > 0))
-    )

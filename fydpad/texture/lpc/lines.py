@@ -55,7 +55,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.segment import runs
+from fydpad.texture.lpc.analysis import runs
 
 Array = NDArray[np.float64]
 Mask = NDArray[np.bool_]
@@ -812,16 +812,16 @@ def _noise_of_fit(rest: Array, fit: _Harmonics, lam: float, fs_hz: float):
 
 
 def fit_lines(signals: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
-              speed_range: tuple[float, float], *, period_mm: float | None = None,
-              snr: float = DEFAULT_SNR, min_share: float = MIN_SHARE,
-              knot_hz: float = KNOT_HZ) -> LineFit:
+              speed_range: tuple[float, float], *, period_mm: float | None = None
+              ) -> LineFit:
     """The line spectrum of preprocessed strokes (see the module docstring).
 
     ``speed_range``: the modelled speeds (mm/s); ``period_mm``: a known period (refined
     within 2 %; the lines are then kept whatever their share). Without a periodic part
-    (or one below ``min_share`` of the power) the residuals are the signals and every
+    (or one below ``MIN_SHARE`` of the power) the residuals are the signals and every
     sample may be used.
     """
+    snr, min_share, knot_hz = DEFAULT_SNR, MIN_SHARE, KNOT_HZ
     signals = [np.asarray(y, float) for y in signals]
     speeds = [np.asarray(v, float) for v in speeds]
     whole = LineFit.none(signals, "")

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.lines import MAX_SPEED_RATE
+from fydpad.texture.lpc.lines import MAX_SPEED_RATE
 
 #: Speed bins of the coverage histogram (mm/s): the render smears +-1 mm/s anyway.
 BIN_MM_S = 0.5

@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fydpad.texture.lines import LineSpectrum
+from fydpad.texture.lpc.lines import LineSpectrum
 
 Array = NDArray[np.float64]
 

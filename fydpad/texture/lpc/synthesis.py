@@ -5,13 +5,13 @@
 with (h, sigma^2) interpolated at the current finger speed. Two filter structures:
 
 - ``"direct"``: eq. 5 itself; the state is the last p outputs. The paper's structure;
-  the default for the ``"lsf"``, ``"reflection"`` and ``"linear"`` interpolations.
+  the default for the ``"nearest"`` interpolation (the paper's per-speed fits).
 - ``"fir"``: the same process written as its moving average,
   a(k) = sum_j g_v(j) e(k-j), with g_v the impulse response of sigma / A(z) at the
   current speed, truncated where less than 1e-4 of its energy remains (at most
-  ``fir_max`` samples); the state is the last noise samples. The default for
-  ``"stretch"``, whose lines glide with speed as a surface's do: a direct-form
-  recursion whose resonances glide pumps energy (measured: the output 2-7x its
+  ``FIR_MAX`` samples); the state is the last noise samples. The default for
+  ``"stretch"`` (the calibrated spectrum), whose lines glide with speed as a surface's
+  do: a direct-form recursion whose resonances glide pumps energy (measured: the output 2-7x its
   stationary RMS on the generator's strokes, LSD up to 26 dB), while here the output
   variance at every sample is exactly that of the current filter, whatever the
   switching. Cost: two dot products of the response's length (<= 2048 here) per sample.
@@ -31,7 +31,7 @@ give the same samples:
   filter change, so a model change continues eq. 5 exactly (no click); or the FIR
   convolution over the run with the noise history in front.
 
-Silence: no contact, or speed below ``still_mm_s``. Below the slowest model's range
+Silence: no contact, or speed below ``STILL_MM_S``. Below the slowest model's range
 (its speed minus the fit tolerance) the slowest model fades out linearly with speed;
 above the fastest model's fit range (its speed plus the tolerance) it is clamped
 (warned once). The output gain follows its target
@@ -50,7 +50,8 @@ import scipy.signal as ss
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import maximum_filter1d, minimum_filter1d
 
-from fydpad.texture.fir_warp import (
+from fydpad.texture.lpc.analysis import energy_length, impulse_responses
+from fydpad.texture.lpc.fir_warp import (
     WARP_LAGS,
     WARP_SLACK_MM_S,
     lag_fade,
@@ -58,17 +59,18 @@ from fydpad.texture.fir_warp import (
     table_position,
     warped_responses,
 )
-from fydpad.texture.interpolation import SpeedTable, build_table
-from fydpad.texture.line_voice import LineVoice
-from fydpad.texture.lines import LineSpectrum
-from fydpad.texture.lpc import energy_length, impulse_responses
-from fydpad.texture.model_file import TextureModel
+from fydpad.texture.lpc.interpolation import SpeedTable, build_table
+from fydpad.texture.lpc.line_voice import LineVoice
+from fydpad.texture.lpc.lines import LineSpectrum
+from fydpad.texture.lpc.model_file import TextureModel
 from vision.speed import SpeedState, speed_update
 
 Array = NDArray[np.float64]
 _NOISE_CHUNK = 4096
 _DIRECT_MAX = 48  # an entry used on fewer samples of a block chunk: dot products, not FFT
 _HISTORY_MAX_MM_S = 1e4  # the warp's speed history is clamped to [0, this]
+STILL_MM_S = 1.0  # slower is a finger at rest: silence
+FIR_MAX = 4096  # longest FIR response (taps)
 
 
 class TextureRenderer:
@@ -87,12 +89,13 @@ class TextureRenderer:
 
     def __init__(
         self, model: TextureModel, *, method: str | None = None, step_mm_s: float = 0.25,
-        seed: int | None = None, still_mm_s: float = 1.0, ramp_s: float = 0.005,
-        gain: float | None = None, drive_filter: bool = False,
-        drive_band_hz: tuple[float, float] | None = None, drive_order: int = 2,
-        fade_below_mm_s: float | None = None, structure: str | None = None,
-        fir_max: int = 4096, warp_slack_mm_s: float = WARP_SLACK_MM_S,
+        seed: int | None = None, ramp_s: float = 0.005, drive_filter: bool = False,
+        structure: str | None = None, warp_slack_mm_s: float = WARP_SLACK_MM_S,
     ):
+        """``method``: the interpolation (default the model's); ``structure``: "fir" or
+        "direct" (default: "fir" for "stretch"); ``warp_slack_mm_s``: inf for the plain
+        FIR (fir_warp.py); ``drive_filter``: band-pass the output through the model's
+        drive band (order-2 Butterworth)."""
         if model.fs_hz <= 0:
             raise ValueError("model sample rate must be positive")
         self.model = model
@@ -115,11 +118,10 @@ class TextureRenderer:
         self.v_max = float(model.speeds_mm_s[-1])
         # The slowest model was fitted on speeds down to v_min - tolerance: it holds
         # there; below that it fades out linearly to silence at 0 mm/s.
-        self.fade_below_mm_s = (max(self.v_min - model.tolerance_mm_s, 0.5 * self.v_min)
-                                if fade_below_mm_s is None else float(fade_below_mm_s))
+        self.fade_below_mm_s = max(self.v_min - model.tolerance_mm_s, 0.5 * self.v_min)
         self.clamp_above_mm_s = self.v_max + float(model.tolerance_mm_s)
-        self.still_mm_s = float(still_mm_s)
-        self.gain = float(model.gain if gain is None else gain)
+        self.still_mm_s = STILL_MM_S
+        self.gain = float(model.gain)
         self._alpha = 1.0 - math.exp(-1.0 / (max(ramp_s, 1e-9) * self.fs_hz))
         self._rng = np.random.default_rng(seed)
         self._noise = np.empty(_NOISE_CHUNK)
@@ -141,8 +143,8 @@ class TextureRenderer:
             raise ValueError(f"warp_slack_mm_s must be >= 0 (inf: no warp), not {slack!r}")
         self.warp_slack_mm_s = slack  # inf: the plain FIR
         if self.structure == "fir":
-            g = impulse_responses(self.table.polys, self.table.sigma, fir_max)
-            n_fir = min(max(energy_length(g, 1e-4), 16), fir_max)
+            g = impulse_responses(self.table.polys, self.table.sigma, FIR_MAX)
+            n_fir = min(max(energy_length(g, 1e-4), 16), FIR_MAX)
             if g.shape[0] == 1:  # one model: two equal rows keep the interpolation uniform
                 g = np.vstack([g, g])
             self._use_fir(g[:, :n_fir])  # and the per-sample views
@@ -152,12 +154,12 @@ class TextureRenderer:
         self.lines: LineVoice | None = (
             None if model.lines is None
             else LineVoice(LineSpectrum.from_json(model.lines, model.surface), self.fs_hz))
-        band = drive_band_hz or model.drive_band_hz
+        band = model.drive_band_hz
         self._sos: Array | None = None
         if drive_filter:
             if band is None:
-                raise ValueError("drive filter requested but no band given")
-            self._sos = ss.butter(drive_order, band, "bandpass", fs=self.fs_hz, output="sos")
+                raise ValueError("drive filter requested but the model has no drive band")
+            self._sos = ss.butter(2, band, "bandpass", fs=self.fs_hz, output="sos")
             # The per-tick path in plain floats (NumPy scalars cost ~5 us a tick here);
             # the block path hands the same state to sosfilt.
             self._sos_rows = [tuple(float(c) for c in row) for row in self._sos]

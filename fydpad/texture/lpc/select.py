@@ -27,13 +27,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from fydpad.texture.dft321 import preprocess
 from fydpad.texture.evaluate import compare
-from fydpad.texture.fit import fit_paper, fit_texture
-from fydpad.texture.model_file import TextureModel
+from fydpad.texture.lpc.analysis import DEFAULT_SPEEDS_MM_S, DEFAULT_TOLERANCE_MM_S, runs
+from fydpad.texture.lpc.dft321 import preprocess
+from fydpad.texture.lpc.fit import fit_paper, fit_texture
+from fydpad.texture.lpc.model_file import TextureModel
+from fydpad.texture.lpc.synthesis import TextureRenderer
 from fydpad.texture.scan_io import Scan
-from fydpad.texture.segment import DEFAULT_SPEEDS_MM_S, DEFAULT_TOLERANCE_MM_S, runs
-from fydpad.texture.synthesis import TextureRenderer
 
 Array = NDArray[np.float64]
 #: Simplest first: a tie within the noise goes to the earlier one.

@@ -1,4 +1,6 @@
-"""Linear prediction (paper eq. 4): autocorrelation + Levinson-Durbin, Burg, stability.
+"""Analysis for the LPC family: linear prediction (paper eq. 4: autocorrelation +
+Levinson-Durbin, stability), all-pole fits to a log spectrum, and speed segmentation
+(paper III-B: runs whose speed stays near a target speed).
 
 Conventions. The paper writes the predictor as ``a_hat(k) = h^T a(k-1)`` (eq. 4) and
 synthesis as ``a(k) = e(k) + h^T a(k-1)`` (eq. 5). In scipy.signal terms that is the
@@ -11,9 +13,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+import scipy.linalg as sl
 from numpy.typing import ArrayLike, NDArray
 
 Array = NDArray[np.float64]
+NFFT = 8192  # FFT size of the all-pole fits to a spectrum
+DEFAULT_SPEEDS_MM_S = (10.0, 20.0, 30.0, 40.0)
+DEFAULT_TOLERANCE_MM_S = 5.0
 
 
 def autocorrelation(x: ArrayLike, maxlag: int) -> Array:
@@ -80,25 +86,6 @@ def lpc_autocorrelation(segments: Sequence[ArrayLike], order: int, floor: float 
     return a, err
 
 
-def lpc_burg(x: ArrayLike, order: int) -> tuple[Array, float]:
-    """Burg's method on one segment: (A, sigma^2). Stable by construction (|k| <= 1)."""
-    x = np.asarray(x, float)
-    if x.size <= order:
-        raise ValueError(f"{x.size} samples cannot fit an order-{order} model")
-    f = x[1:].copy()
-    b = x[:-1].copy()
-    a = np.zeros(order + 1)
-    a[0] = 1.0
-    err = float(np.dot(x, x) / x.size)
-    for m in range(1, order + 1):
-        den = np.dot(f, f) + np.dot(b, b)
-        km = -2.0 * np.dot(f, b) / den if den > 0 else 0.0
-        a[1:m + 1] = a[1:m + 1] + km * a[m - 1::-1][:m]
-        err *= 1.0 - km * km
-        f, b = f[1:] + km * b[1:], b[:-1] + km * f[:-1]
-    return a, err
-
-
 def poly_to_reflection(a: ArrayLike) -> Array:
     """Step-down recursion: reflection coefficients of A (nan-free; |k|>=1 means unstable)."""
     a = np.asarray(a, float)
@@ -129,14 +116,6 @@ def is_stable(a: ArrayLike) -> bool:
     """True when every pole of 1/A lies strictly inside the unit circle (|k_i| < 1)."""
     k = poly_to_reflection(a)
     return bool(np.all(np.isfinite(k)) and np.all(np.abs(k) < 1.0))
-
-
-def max_pole_radius(a: ArrayLike) -> float:
-    """Largest pole modulus of 1/A (eigenvalues of the companion matrix)."""
-    a = np.asarray(a, float)
-    if a.size < 2:
-        return 0.0
-    return float(np.max(np.abs(np.roots(a))))
 
 
 def h_from_poly(a: ArrayLike) -> Array:
@@ -177,3 +156,39 @@ def energy_length(responses: ArrayLike, share: float = 1e-4) -> int:
     g2 = np.atleast_2d(np.asarray(responses, float)) ** 2
     tail = np.cumsum(g2[:, ::-1], axis=1)[:, ::-1] / np.maximum(g2.sum(1, keepdims=True), 1e-300)
     return int((tail > share).sum(1).max())
+
+
+def ar_from_log_psd(log_p: Array, order: int) -> tuple[Array, float]:
+    """All-pole fit (A, sigma^2) of order ``order`` to a log power spectrum on
+    ``log_p.size`` frequencies 0..fs/2 (autocorrelation by inverse FFT)."""
+    n = 2 * (log_p.size - 1)
+    r = np.fft.irfft(np.exp(log_p), n)[: order + 1]
+    r[0] *= 1.0 + 1e-9  # the white floor of lpc_autocorrelation: well conditioned at order 200
+    a = np.concatenate([[1.0], sl.solve_toeplitz(r[:order], -r[1:order + 1])])
+    if not is_stable(a):  # rounding at extreme dynamic range: the recursion keeps |k| < 1
+        a, err, _ = levinson(r, order)
+        return a, err
+    return a, float(r[0] + np.dot(a[1:], r[1:order + 1]))
+
+
+def runs(mask: ArrayLike, min_len: int = 1) -> list[tuple[int, int]]:
+    """[start, stop) index pairs of the True runs of ``mask`` at least ``min_len`` long."""
+    m = np.asarray(mask, bool).astype(np.int8)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], m, [0]])))
+    return [(int(a), int(b)) for a, b in zip(edges[0::2], edges[1::2], strict=True)
+            if b - a >= min_len]
+
+
+def segment_by_speed(
+    speed_mm_s: ArrayLike, fs_hz: float, targets_mm_s: ArrayLike = DEFAULT_SPEEDS_MM_S,
+    tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S, min_seconds: float = 0.25,
+) -> dict[float, list[tuple[int, int]]]:
+    """For each target speed, the runs where |speed - target| <= tolerance (paper: 5 mm/s).
+
+    Runs shorter than ``min_seconds`` are dropped: they carry too little of the surface
+    to estimate a spectrum.
+    """
+    v = np.asarray(speed_mm_s, float)
+    min_len = max(1, round(min_seconds * fs_hz))
+    return {float(s): runs(np.abs(v - s) <= tolerance_mm_s, min_len)
+            for s in np.asarray(targets_mm_s, float)}

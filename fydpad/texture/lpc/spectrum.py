@@ -1,4 +1,5 @@
-"""A two-part spectral model of a scanned texture: a fixed part and a surface part.
+"""The calibrated form's speed-resolved spectrum: a two-part base S_two(f, v) (a fixed
+part and a surface part) times a correction measured at each fitted speed.
 
 A tool scanning a surface at speed v records (docs/texture.md, "Two-part model")
 
@@ -29,8 +30,18 @@ Itakura-Saito divergence (the maximum-likelihood fit of periodograms; Fevotte et
 2009, IS-NMF). Each periodogram chunk (0.5 s) is predicted as the mean of S over the
 speeds of its samples, so a hand's wander within a chunk is modelled, not smeared into
 the model. Rendering at speed v computes S(f, v) and fits an all-pole model of the
-texture's order to it (``speed_warp.ar_from_log_psd``), at start-up for every entry of
+texture's order to it (``analysis.ar_from_log_psd``), at start-up for every entry of
 the renderer's speed table: the 1 kHz path is unchanged.
+
+The calibrated spectrum (docs/texture.md, "Speed-resolved spectra") is
+S = S_two(f, v) * C(f, v). At each fitted speed v_i, C_i = (the mean periodogram of the
+runs segmented near v_i) / (S_two averaged over those runs' own sample speeds, with the
+render's +-1 mm/s average). A held-out stroke whose speeds wander as the training
+strokes' did then gets the recorded spectrum on average (combs, whose lines the
+factorisation misplaces), while S_two still follows the finger's speed within the
+stroke. log C is weighted by a tent of half-width ``TAPER_MM_S`` around each v_i (at
+most ``TAPER_PER_SPACING`` x the distance to the next v_i), so between the speeds S
+leans back towards S_two.
 """
 
 from __future__ import annotations
@@ -46,13 +57,15 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 from threadpoolctl import ThreadpoolController
 
-from fydpad.texture.speed_warp import NFFT, ar_from_log_psd
+from fydpad.texture.lpc.analysis import NFFT, ar_from_log_psd
+from fydpad.texture.lpc.model_file import TextureModel
 
 Array = NDArray[np.float64]
 CHUNK = 512  # samples per periodogram (2 Hz bins at 1 kHz)
 SPEED_STEP_MM_S = 1.0  # grid of the level functions g, n and of the chunks' speed mixes
 ITERATIONS = 600
 RENDER_SMEAR_MM_S = 1.0  # see TwoPartSpectrum.ar
+PREWHITEN_ORDER = 8  # of the two-stage all-pole fit (ar_two_stage)
 FACTORS = ("f_hz", "k_per_mm", "tool", "surface", "floor", "v_mm_s", "g", "n")
 STEP = 0.5  # MU exponent: 1/2 is the IS divergence's majorisation (monotone)
 #: A level knot needs this many chunks' worth of data within half a knot step (8: about
@@ -80,7 +93,7 @@ class TwoPartSpectrum:
     v_mm_s: Array  # speed grid of the levels
     g: Array  # g(v)
     n: Array  # n(v)
-    fixed: Array | None = None  # N0(f); None in files written before it was fitted
+    fixed: Array  # N0(f)
 
     def psd(self, speed_mm_s: float) -> Array:
         """S(f, v) on ``f_hz`` (power per bin, the chunk periodograms' scale: mean = power);
@@ -90,7 +103,7 @@ class TwoPartSpectrum:
         n = np.exp(np.interp(v, self.v_mm_s, np.log(self.n)))
         s = self.tool * _resampled(self.surface, self.k_per_mm, self.f_hz, v) * g \
             + self.floor * n
-        return s if self.fixed is None else s + self.fixed
+        return s + self.fixed
 
     def mean_psd(self, speeds_mm_s: ArrayLike, weights: ArrayLike | None = None) -> Array:
         """The ``weights``-weighted mean of :meth:`psd` over ``speeds_mm_s``, in one pass."""
@@ -107,7 +120,7 @@ class TwoPartSpectrum:
         n = np.exp(np.interp(v, self.v_mm_s, np.log(self.n)))
         u = _resampled(self.surface, self.k_per_mm, self.f_hz, v)
         s = self.tool * ((w * g) @ u) + self.floor * float(w @ n)
-        return s if self.fixed is None else s + self.fixed
+        return s + self.fixed
 
     def ar(self, speed_mm_s: float, order: int, fs_hz: float) -> tuple[Array, float]:
         """All-pole (A, sigma^2) of ``order`` with the spectrum S(f, v) averaged over
@@ -126,23 +139,21 @@ class TwoPartSpectrum:
 
     def to_json(self) -> dict:
         d = {k: [float(x) for x in getattr(self, k)] for k in FACTORS}
-        if self.fixed is not None:
-            d["fixed_floor"] = [float(x) for x in self.fixed]
+        d["fixed_floor"] = [float(x) for x in self.fixed]
         return d
 
     @classmethod
     def from_json(cls, d: dict) -> TwoPartSpectrum:
-        fixed = d.get("fixed_floor")
         return cls(**{k: np.asarray(d[k], float) for k in FACTORS},
-                   fixed=None if fixed is None else np.asarray(fixed, float))
+                   fixed=np.asarray(d["fixed_floor"], float))
 
 
-def ar_two_stage(log_p: Array, order: int, prewhiten_order: int = 8) -> tuple[Array, float]:
-    """All-pole fit to a log spectrum in two stages, as ``fit.fit_speed`` on signals: an
-    order-``prewhiten_order`` P flattens the tilt, the rest of the order is fitted to the
-    flattened spectrum, A = A2 * P. One stage over-fills the valleys of a 50-60 dB
-    spectrum (measured on felt's two-part spectrum: +3 dB at 350-500 Hz)."""
-    q = min(max(prewhiten_order, 0), order - 1)
+def ar_two_stage(log_p: Array, order: int) -> tuple[Array, float]:
+    """All-pole fit to a log spectrum in two stages: an order-``PREWHITEN_ORDER`` P
+    flattens the tilt, the rest of the order is fitted to the flattened spectrum,
+    A = A2 * P. One stage over-fills the valleys of a 50-60 dB spectrum (measured on
+    felt's two-part spectrum: +3 dB at 350-500 Hz)."""
+    q = min(PREWHITEN_ORDER, order - 1)
     if q == 0:
         return ar_from_log_psd(log_p, order)
     pre, _ = ar_from_log_psd(log_p, q)
@@ -359,3 +370,90 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     return TwoPartSpectrum(f, k, tool, surface, floor, vgrid,
                            np.exp(_node_levels(lg, log_v, log_knots, phi)),
                            np.exp(_node_levels(ln, log_v, log_knots, phi)), fixed)
+
+
+# ------------------------------------------------ the calibrated spectrum
+TAPER_MM_S = 7.5  # chosen on the scan generator's seed set C (docs/texture.md)
+#: ... and at most this times the distance to the next fitted speed (7.5 mm/s tents at
+#: 5 mm/s steps summed three corrections at every speed).
+TAPER_PER_SPACING = 0.75
+
+
+@dataclass
+class CalibratedSpectrum:
+    """S(f, v) = S_two(f, v) exp(sum_i w_i(v) log C_i(f)) (module docstring)."""
+
+    two: TwoPartSpectrum
+    v_mm_s: Array  # the fitted speeds v_i
+    log_c: Array  # (speeds, f)
+    taper_mm_s: float = TAPER_MM_S
+
+    @property
+    def f_hz(self) -> Array:
+        return self.two.f_hz
+
+    def weights(self, speed_mm_s: float) -> Array:
+        """w_i(v): a tent of half-width :attr:`half_widths_mm_s` around each v_i (speeds
+        clamped to the fitted range)."""
+        v = float(np.clip(speed_mm_s, self.v_mm_s[0], self.v_mm_s[-1]))
+        return np.maximum(0.0, 1.0 - np.abs(v - self.v_mm_s) / self.half_widths_mm_s)
+
+    @property
+    def half_widths_mm_s(self) -> Array:
+        """Each correction's tent: ``taper_mm_s``, at most TAPER_PER_SPACING x the
+        distance to the next fitted speed (7.5 mm/s at the paper's 10 mm/s steps)."""
+        if self.v_mm_s.size < 2:
+            return np.full(self.v_mm_s.size, float(self.taper_mm_s))
+        gap = np.diff(self.v_mm_s)
+        near = np.minimum(np.r_[np.inf, gap], np.r_[gap, np.inf])
+        return np.minimum(float(self.taper_mm_s), TAPER_PER_SPACING * near)
+
+    def psd(self, speed_mm_s: float) -> Array:
+        return self.two.psd(speed_mm_s) * np.exp(self.weights(speed_mm_s) @ self.log_c)
+
+    def ar(self, speed_mm_s: float, order: int, fs_hz: float) -> tuple[Array, float]:
+        """All-pole (A, sigma^2) of S averaged over v +- RENDER_SMEAR_MM_S, as
+        :meth:`TwoPartSpectrum.ar`."""
+        vs = speed_mm_s + RENDER_SMEAR_MM_S * np.linspace(-1.0, 1.0, 5)
+        p = np.mean([self.psd(float(v)) for v in vs], axis=0)
+        f = np.arange(NFFT // 2 + 1) * fs_hz / NFFT
+        return ar_two_stage(np.interp(f, self.f_hz, np.log(np.maximum(p, 1e-300))), order)
+
+    def to_json(self) -> dict:
+        return {"form": "calibrated", "f_hz": [float(x) for x in self.f_hz],
+                "v_mm_s": [float(x) for x in self.v_mm_s],
+                "log_c": [[float(x) for x in row] for row in self.log_c],
+                "taper_mm_s": self.taper_mm_s}
+
+
+def fit_calibrated(runs_by_speed: dict[float, list[tuple[Array, Array]]], fs_hz: float,
+                   two: TwoPartSpectrum, *, chunk: int = CHUNK, grid_mm_s: float = 0.25
+                   ) -> CalibratedSpectrum:
+    """C_i for each fitted speed v_i from its segmented runs ``runs_by_speed[v_i] =
+    [(x, speed trace), ...]`` (module docstring); runs shorter than a chunk are skipped."""
+    speeds, rows = [], []
+    smear = RENDER_SMEAR_MM_S * np.linspace(-1.0, 1.0, 5)
+    for s, rv in sorted(runs_by_speed.items()):
+        rv = [(x, v) for x, v in rv if x.size >= chunk]
+        if not rv:
+            continue
+        p, _ = chunk_periodograms([x for x, _ in rv], [v for _, v in rv], fs_hz, chunk)
+        # S_two averaged over the runs' sample speeds: a histogram on a fine grid.
+        allv = np.concatenate([v for _, v in rv])
+        edges = np.arange(allv.min(), allv.max() + 2 * grid_mm_s, grid_mm_s)
+        hist, _ = np.histogram(allv, edges)
+        mid = 0.5 * (edges[:-1] + edges[1:])[hist > 0]
+        e = two.mean_psd((mid[:, None] + smear).ravel(), np.repeat(hist[hist > 0], smear.size))
+        rows.append(np.log(np.maximum(p[:, 1:].mean(axis=0), 1e-300) / np.maximum(e, 1e-300)))
+        speeds.append(s)
+    if not speeds:
+        raise TooLittleData("no speed has a run as long as one 0.5 s chunk")
+    return CalibratedSpectrum(two, np.asarray(speeds), np.vstack(rows))
+
+
+def spectrum_of(model: TextureModel) -> CalibratedSpectrum:
+    """The model's ``free_form`` block (checked by model_file) as a spectrum."""
+    d = model.free_form
+    return CalibratedSpectrum(TwoPartSpectrum.from_json(model.two_part),
+                              np.asarray(d["v_mm_s"], float), np.asarray(d["log_c"], float),
+                              float(d["taper_mm_s"]))
