@@ -94,7 +94,7 @@ def render_plane_view(texture: np.ndarray, px_per_mm: float, pose_r: np.ndarray,
     """What the lens (k, dist) sees of a flat printed ``texture`` (top-left corner at
     ``pose_t``, its x, y axes the columns of ``pose_r``, camera frame, mm): each pixel's
     ray (undistorted by the lens model) meets the plane, whose print is sampled there."""
-    import cv2
+    import cv2  # lazy: OpenCV costs start-up time to every other example and --help
 
     w, h = size
     uu, vv = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
@@ -115,9 +115,10 @@ def render_plane_view(texture: np.ndarray, px_per_mm: float, pose_r: np.ndarray,
 def write_camera_example(out_dir: Path, seed: int = 0) -> Path:
     """``charuco/view_NN.png`` in ``out_dir``: the default board seen by the example lens
     at random poses (tilts up to 35 degrees) spread over the view; returns the folder."""
+    # lazy: OpenCV (and vision.calibration, which loads it) cost start-up time to --help
     import cv2
 
-    from vision.calibration import CharucoBoardSpec
+    from vision.calibration import CharucoBoardSpec  # loads OpenCV too
 
     spec = CharucoBoardSpec()
     w_mm, h_mm = spec.squares_x * spec.square_mm, spec.squares_y * spec.square_mm

@@ -707,9 +707,37 @@ def indentation_at_frames(
     """
     est = estimator.with_baseline_from(volts, no_contact_mask(t_ir_s, t_frames_s, contact))
     d, flags = est.distances_mm(volts)
-    d_f, fl_f = resample_distances_mm(t_ir_s, d, flags, t_frames_s, max_gap_s,
-                                      est.sensor_period_s)
+    d_f, fl_f = filter_distances_at_frames(t_ir_s, d, flags, t_frames_s, max_gap_s,
+                                           est.sensor_period_s)
     return est.estimate_from_distances(d_f, x_mm, y_mm, contact, fl_f), est
+
+
+def filter_distances_at_frames(
+    t_ir_s: ArrayLike, distances_mm: ArrayLike, flags: ArrayLike, t_frames_s: ArrayLike,
+    max_gap_s: float = 0.1, sensor_period_s: Sequence[float] = (0.0, 0.0, 0.0),
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """The causal filter's distances and flags at each frame, as the product computes
+    them (``vision.stream.LiveIndentation``): at each frame, the board samples up to it
+    not yet given go to ``filter_distances_mm``, predicted to the frame's time (never
+    before the newest sample). A correction fitted on these is fitted on the readings
+    it is applied to."""
+    t = np.asarray(t_ir_s, np.float64).reshape(-1)
+    d = np.asarray(distances_mm, np.float64).reshape(-1, 3)
+    fl = np.asarray(flags, np.int64).reshape(-1)
+    tf = np.asarray(t_frames_s, np.float64).reshape(-1)
+    out = np.empty((tf.size, 3))
+    out_fl = np.zeros(tf.size, np.int64)
+    state = DistanceFilterState.initial()
+    start = 0
+    for j, t_s in enumerate(tf.tolist()):
+        end = max(int(np.searchsorted(t, t_s, side="right")), start)
+        t_q = max(t_s, float(t[end - 1])) if end > start else t_s
+        dist, out_fl[j], state = filter_distances_mm(
+            state, t[start:end], d[start:end], fl[start:end], t_q, max_gap_s,
+            sensor_period_s=sensor_period_s)
+        out[j] = dist
+        start = end
+    return out, out_fl
 
 
 # --------------------------------------------------------------------------- eq. (1) refit

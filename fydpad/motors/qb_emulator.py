@@ -167,6 +167,13 @@ class QbEmulator:
             self._apply_watchdog()
             return not self.activation and not self.plant.powered
 
+    def send_delayed_replies(self) -> None:
+        """Send every delayed reply now, due or not (a test holds replies with a long
+        ``reply_delay_s`` and lets them through at a point of its choosing)."""
+        with self._lock:
+            while self._delayed:
+                os.write(self._master, heapq.heappop(self._delayed)[2])
+
     def _send_due_replies(self) -> None:
         now = time.monotonic()
         while self._delayed and self._delayed[0][0] <= now:

@@ -5,7 +5,9 @@ depth) and IR sensors mounted off the places the recording states.
 
 ``indentation_samples`` gives what ``fydpad calibrate indentation`` fits on, from a
 synthetic session's IR and truth (no video needed): the plane estimate, the sensors'
-deflections, the true centroid and depth over the contact frames with valid readings.
+deflections (the causal filter's readings, as ``fydpad track`` applies the correction
+to), the true centroid and depth over the contact frames with valid readings.
+``causal_indentation`` is what ``fydpad track`` gives with a correction, frame by frame.
 """
 
 from __future__ import annotations
@@ -17,7 +19,8 @@ import numpy as np
 from fydpad.fabric import Fabric
 from fydpad.synth.pad import SynthConfig, SyntheticPad
 from fydpad.synth.sensors import IRParams
-from vision.indentation import IndentationEstimator, indentation_at_frames
+from vision.indentation import IndentationEstimator, PlaneCorrection, indentation_at_frames
+from vision.stream import CausalIndentation
 
 #: name -> SynthConfig fields of the pad.
 TEST_PADS: dict[str, dict[str, Any]] = {
@@ -55,3 +58,27 @@ def indentation_samples(pad_name: str, trajectory: str, seed: int, seconds: floa
     return {"plane": r.plane_mm[ok], "e": r.deflection_mm[ok], "x": x[ok], "y": y[ok],
             "depth": depth[ok], "press": press[ok],
             "sensors": np.asarray(m.ir_sensors_mm, np.float64)}
+
+
+def causal_indentation(pad_name: str, trajectory: str, seed: int, correction: PlaneCorrection,
+                       seconds: float = 20.0, fps: float = 30.0
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """(estimate, true depth) in mm at the contact frames of a session with a usable
+    estimate, through ``fydpad track``'s path: ``CausalIndentation`` fed frame by frame,
+    the correction in the estimator, the rest distances from the samples before the
+    first contact."""
+    pad = SyntheticPad(SynthConfig(trajectory=trajectory, seconds=seconds, seed=seed,
+                                   fps=fps, **TEST_PADS[pad_name]))
+    t_ir, volts = pad.ir()
+    m = pad.meta()
+    est = IndentationEstimator(sensors_mm=m.ir_sensors_mm, base_to_fabric_mm=m.base_to_fabric_mm,
+                               correction=correction)
+    causal = CausalIndentation(est, t_ir, volts)
+    got, want = [], []
+    for k in range(pad.frame_count):
+        q = pad.truth(k)
+        depth = causal.at(q.t_s, q.x_mm, q.y_mm, q.contact)
+        if q.contact and np.isfinite(depth):
+            got.append(depth)
+            want.append(q.indentation_mm)
+    return np.array(got), np.array(want)

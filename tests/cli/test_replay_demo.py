@@ -10,9 +10,6 @@ from __future__ import annotations
 
 import json
 import socket
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +17,7 @@ import pytest
 
 from fydpad.cli import main
 from tests.conftest import write_blob_recording
+from tests.teleop.helpers import start_slave
 
 REPORT_KEYS = {"mae_mm", "baseline_mae_mm", "lag_ms", "latency_ms", "samples", "dropped",
                "duration_s", "truth_mae_mm"}
@@ -43,12 +41,9 @@ def stroke_rec(tmp_path_factory) -> Path:
 def test_replay_against_a_slave_process(stroke_rec: Path, tmp_path: Path, capsys):
     port = free_port()
     endpoint = f"tcp://127.0.0.1:{port}"
-    slave = subprocess.Popen([sys.executable, "-m", "teleop.cli", "slave", "--robot", "sim",
-                              "--bind", endpoint], stdout=subprocess.PIPE,
-                             stderr=subprocess.STDOUT, text=True)
+    # Started once it says it listens (a loaded machine may take seconds to import it).
+    slave, _ = start_slave("--robot", "sim", bind=endpoint, timeout_s=120.0)
     try:
-        time.sleep(1.0)
-        assert slave.poll() is None, slave.stdout.read()
         report_path = tmp_path / "report.json"
         rc = main(["replay", str(stroke_rec), "--teleop", endpoint, "--report",
                    str(report_path), "--plot", str(tmp_path / "fig11.png")])

@@ -4,6 +4,7 @@ slave is the real `teleop slave` process on loopback."""
 
 from __future__ import annotations
 
+import re
 import signal
 import subprocess
 import sys
@@ -51,7 +52,9 @@ def test_a_slave_lost_during_the_run_is_reported_and_the_station_runs_on(tmp_pat
     proc.send_signal(signal.SIGINT)  # Ctrl-C: stops safely
     out, err = proc.communicate(timeout=120)
     assert proc.returncode == 3, err
-    assert "the slave went silent 1 time(s)" in err, err
+    # At least the kill; a slave starved by a loaded machine may also have gone quiet
+    # past the watchdog before it (each silence is counted, never fatal).
+    assert re.search(r"the slave went silent [1-9][0-9]* time\(s\)", err), err
     assert "station ran" in out
 
 

@@ -16,6 +16,7 @@ import multiprocessing as mp
 import os
 import threading
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -113,25 +114,30 @@ def test_a_failed_write_is_reported_naming_the_file_and_counts_the_rows(tmp_path
     assert st["lost_after_error"] > 0
 
 
-def _run_render(spec, seconds: float, reader: StalledReader, stall_s: float) -> dict:
+def _run_render(spec, seconds: float, reader: StalledReader, stall_s: float
+                ) -> tuple[dict, float]:
     """A real render process for ``seconds`` once its chain and log are open, its log's
-    reader stalled for the first ``stall_s`` of them; its final statistics."""
+    reader stalled for the first ``stall_s`` of them; its final statistics, and when the
+    reader was released on the log's own time base (t_s: the render clock less t0)."""
     from fydpad.station.render import CONTROL_FIELDS, render_main
 
     ctx = mp.get_context("spawn")
     state = SharedFingerState()
     state.publish(FingerState(t_s=0.0, contact=False), arrival_s=0.0, frame=0)
     control = SharedRecord(CONTROL_FIELDS)
-    control.write([1.0, math.nan, 1.0, time.perf_counter(), 0.0, math.nan, 0.0])
+    t0 = time.perf_counter()  # the render loop's clock (LoopTimer): rows' t_s count from it
+    control.write([1.0, math.nan, 1.0, t0, 0.0, math.nan, 0.0])
     stop, ready, results = ctx.Event(), ctx.Event(), ctx.Queue()
     p = ctx.Process(target=render_main, args=(spec, state, control, stop, results, ready),
                     daemon=True)
     p.start()
     try:
         # The log is open: the pipe has its writer. The station's own start deadline.
-        assert ready.wait(StationOptions().render_start_timeout_s), results.get(timeout=1)
+        # A hang guard, several times the station's own (a test run on a loaded machine).
+        assert ready.wait(5 * StationOptions().render_start_timeout_s), "no render start"
         time.sleep(stall_s)
         reader.release()
+        released_s = time.perf_counter() - t0  # at or after the release
         time.sleep(seconds - stall_s)
         stop.set()
         while True:
@@ -141,7 +147,7 @@ def _run_render(spec, seconds: float, reader: StalledReader, stall_s: float) -> 
                 break
         p.join(60)
         assert p.exitcode == 0
-        return payload["render"]
+        return payload["render"], released_s
     finally:
         if p.is_alive():
             p.kill()
@@ -159,16 +165,24 @@ def test_render_process_logs_through_a_stalled_pipe(tmp_path: Path, stall_s: flo
     path = tmp_path / "commands.csv"
     reader = StalledReader(path)
     spec = RenderSpec(realtime=False, commands_csv=str(path), commands_buffer_s=buffer_s)
-    stats = _run_render(spec, stall_s + 1.0, reader, stall_s)
+    stats, released_s = _run_render(spec, stall_s + 1.0, reader, stall_s)
     log = stats["commands_log"]
     lines = reader.lines()[1:]
     assert log["rows"] > 0 and len(lines) == log["written"]
     assert log["written"] + log["dropped"] == log["rows"]
+    frames = [line.split(",") for line in lines]
     if buffer_s > stall_s:
-        assert log["dropped"] == 0
+        # The stall the ring saw, on the log's own clock: from its first row (a full ring
+        # drops the newest, never the first) to the release. A loaded machine may sleep
+        # this test past stall_s; every row is kept as long as that is under the ring.
+        seen_s = released_s - float(frames[0][0])
+        if seen_s < buffer_s:
+            assert log["dropped"] == 0, (log, seen_s)
+        else:
+            warnings.warn(f"the test process slept {seen_s:.2f} s, past the ring's "
+                          f"{buffer_s} s: no-loss not checked this run", stacklevel=1)
     else:
         assert log["dropped"] > 0
-    frames = [line.split(",") for line in lines]
     assert all(len(f) == 4 for f in frames)  # t_s, frame, vibration, position: none torn
     t = [float(f[0]) for f in frames]
     assert all(b > a for a, b in itertools.pairwise(t))  # in tick order

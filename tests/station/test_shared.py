@@ -181,7 +181,9 @@ def test_render_process_stops_though_the_control_record_is_stuck_mid_write():
                                               stop, results, ready), daemon=True)
     p.start()
     try:
-        assert ready.wait(60)
+        from fydpad.station.station import StationOptions
+        # The station's own start deadline: a hang guard (a loaded machine starts slowly).
+        assert ready.wait(5 * StationOptions().render_start_timeout_s)
         control._view[0] += 1.0  # odd from now on: a writer that never finished
         # Two live reports after that: the loop ticked a whole second on a stuck record.
         lives = 0

@@ -70,7 +70,7 @@ def recv_states(sock: zmq.Socket, duration_s: float) -> list[P.State]:
     return out
 
 
-def wait_for(pred, timeout_s: float = 10.0, step_s: float = 0.01) -> bool:
+def wait_for(pred, timeout_s: float = 60.0, step_s: float = 0.01) -> bool:
     """Wait on behaviour, not time: True as soon as ``pred()`` holds, False at the timeout."""
     t_end = time.monotonic() + timeout_s
     while time.monotonic() < t_end:
@@ -78,6 +78,22 @@ def wait_for(pred, timeout_s: float = 10.0, step_s: float = 0.01) -> bool:
             return True
         time.sleep(step_s)
     return bool(pred())
+
+
+def wait_line(stream, text: str, timeout_s: float) -> bool:
+    """True once a line containing ``text`` is read from ``stream`` (a process's pipe),
+    False at the timeout (a hang guard: what is awaited is the process's own log)."""
+    import threading
+    found = threading.Event()
+
+    def read() -> None:
+        for line in stream:
+            if text in line:
+                found.set()
+                return
+
+    threading.Thread(target=read, daemon=True).start()
+    return found.wait(timeout_s)
 
 
 class Master:

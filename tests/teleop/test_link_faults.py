@@ -13,10 +13,10 @@ from teleop import protocol as P
 from teleop.config import TeleopConfig
 from teleop.slave import SlaveThread
 
-from .helpers import ENV, REPO, dealer, recv_states, sample, start_slave, stop
+from .helpers import ENV, REPO, dealer, sample, start_slave, stop, wait_line
 
 
-def wait_for(pred, timeout_s=5.0):
+def wait_for(pred, timeout_s=30.0):  # a hang guard: it returns once pred() holds
     t_end = time.monotonic() + timeout_s
     while time.monotonic() < t_end:
         if pred():
@@ -25,36 +25,49 @@ def wait_for(pred, timeout_s=5.0):
     return False
 
 
+def first_state(sock, pred, timeout_s: float = 30.0) -> P.State:
+    """The first state from the slave for which ``pred`` holds (a hang guard, not a speed)."""
+    t_end = time.monotonic() + timeout_s
+    while (left_ms := int((t_end - time.monotonic()) * 1e3)) > 0:
+        if sock.poll(left_ms) and pred(st := P.decode_state(sock.recv())):
+            return st
+    raise AssertionError(f"no such state from the slave in {timeout_s} s")
+
+
 def test_master_killed_mid_stream_slave_holds_within_250_ms():
     """A master process streaming a circle is SIGKILLed: the slave's watchdog trips at its
     first tick past 250 ms after the last valid sample (within 250 ms + one tick when the
     scheduler keeps time), and the command comes to rest."""
     with SlaveThread() as sl:
         master = subprocess.Popen([sys.executable, str(REPO / "tests/teleop/master_proc.py"),
-                                   sl.endpoint, "20"], env=ENV, cwd=REPO,
+                                   sl.endpoint, "120"], env=ENV, cwd=REPO,
                                   stdout=subprocess.PIPE, text=True)
         try:
-            assert wait_for(lambda: sl.loop.counts["accepted"] > 20, 15.0)
-            # A master starved by a loaded machine may trip the watchdog before the kill.
-            assert wait_for(lambda: sl.loop.status == P.STATUS_TRACKING, 5.0)
+            # Hang guards: on a loaded machine the master process may start slowly.
+            assert wait_for(lambda: sl.loop.counts["accepted"] > 20, 60.0)
+            # A master starved by a loaded machine may trip the watchdog before the kill
+            # (and the arm then holds, rightly): every trip is checked below.
+            assert wait_for(lambda: sl.loop.status == P.STATUS_TRACKING, 60.0)
             master.kill()
-            master.wait(5)
-            n0 = len(sl.loop.watchdog.trip_delays_s)
-            assert wait_for(lambda: sl.loop.status == P.STATUS_WATCHDOG_HOLD, 5.0)
-            assert wait_for(lambda: len(sl.loop.watchdog.trip_delays_s) > n0, 5.0)
-            delays = sl.loop.watchdog.trip_delays_s[n0:]
-            assert len(delays) == 1
-            assert delays[0] >= 0.25
-            assert sl.loop.watchdog.pre_trip_checks_s[n0] <= 0.25  # first tick past the deadline
-            if delays[0] > 0.25 + 2 * sl.cfg.slave.period_s + 0.02:
+            master.wait(30)
+            assert wait_for(lambda: sl.loop.status == P.STATUS_WATCHDOG_HOLD, 30.0)
+            delays = list(sl.loop.watchdog.trip_delays_s)
+            pre_trip = list(sl.loop.watchdog.pre_trip_checks_s)
+            # Every hold came at the slave's first check past the deadline (on its clock:
+            # however late a loaded scheduler ran that check), never before it.
+            assert delays and min(delays) >= 0.25
+            assert max(pre_trip) <= 0.25
+            if delays[-1] > 0.25 + 2 * sl.cfg.slave.period_s + 0.02:
                 import warnings
-                warnings.warn(f"slave thread starved: hold came {delays[0]:.3f} s after the "
+                warnings.warn(f"slave thread starved: hold came {delays[-1]:.3f} s after the "
                               "last sample (the tick ran late)", stacklevel=1)
-            time.sleep(0.2)
-            assert np.linalg.norm(sl.loop.limiter.vel_mm_s) == 0.0
+            # The command decelerates to rest (at the limiter's rate, in slave time)...
+            assert wait_for(lambda: np.linalg.norm(sl.loop.limiter.vel_mm_s) == 0.0, 30.0)
             c0 = sl.loop.limiter.cmd_mm.copy()
             time.sleep(0.1)
+            # ... and stays there: no sample came, no trip more, no motion.
             np.testing.assert_array_equal(sl.loop.limiter.cmd_mm, c0)
+            assert len(sl.loop.watchdog.trip_delays_s) == len(delays)
         finally:
             master.kill()
             master.wait(5)
@@ -93,8 +106,9 @@ def test_reordered_and_replayed_samples_are_dropped_and_counted():
         assert dict(sl.loop.admission.dropped) == {"duplicate": 2, "out_of_order": 1}
         assert sl.loop.counts["accepted"] == 5
         assert sl.loop._latest.seq == 6
-        states = recv_states(s, 0.2)
-        assert states and states[-1].dropped == 3 and states[-1].received == len(order)
+        # The states tell the master too: the first to count every sample says 3 dropped.
+        st = first_state(s, lambda st: st.received == len(order))
+        assert st.dropped == 3
         s.close()
 
 
@@ -113,21 +127,22 @@ def test_slave_restarted_while_master_runs(tmp_path):
     """The slave process dies and a new one binds the same port: the running master keeps
     streaming without restarting and the new slave receives and accepts its samples."""
     proc, ep = start_slave("--report", str(tmp_path / "a.json"))
+    # 120 s: far longer than the test, however slowly a loaded machine starts the slaves.
     master = subprocess.Popen([sys.executable, str(REPO / "tests/teleop/master_proc.py"),
-                               ep, "12"], env=ENV, cwd=REPO, stdout=subprocess.PIPE, text=True)
+                               ep, "120"], env=ENV, cwd=REPO, stdout=subprocess.PIPE, text=True)
     try:
         assert master.stdout.readline().startswith("streaming")
-        time.sleep(1.5)
+        assert wait_line(proc.stderr, "owns the arm", 60.0)  # the first slave took it
         proc.kill()
         proc.wait(5)
-        time.sleep(0.3)
-        proc, ep2 = start_slave("--report", str(tmp_path / "b.json"), bind=ep)
+        proc, ep2 = start_slave("--report", str(tmp_path / "b.json"), bind=ep, timeout_s=60.0)
         assert ep2 == ep
-        time.sleep(2.0)
+        # The new slave's own log: the running master's samples were accepted.
+        assert wait_line(proc.stderr, "owns the arm", 60.0)
         stop(proc)
         import json
         rep = json.loads((tmp_path / "b.json").read_text())
-        assert rep["accepted"] > 30, rep
+        assert rep["accepted"] >= 1 and rep["malformed"] == 0, rep
         assert master.poll() is None  # the master never noticed beyond failed sends
     finally:
         master.kill()
@@ -141,7 +156,7 @@ def test_slave_ctrl_c_writes_the_report(tmp_path):
     proc, ep = start_slave("--report", str(tmp_path / "r.json"))
     s = dealer(ep)
     s.send(sample(1, time.monotonic()))
-    assert recv_states(s, 0.5)
+    assert first_state(s, lambda st: st.received == 1)
     out = stop(proc)
     assert proc.returncode == 0
     import json
@@ -170,8 +185,9 @@ def test_curve_authorised_client_is_served(keys):
     from teleop.link import MasterSocket
     cfg = curve_cfg(keys)
     with SlaveThread(cfg) as sl, MasterSocket(sl.endpoint, cfg.link) as m:
-        assert wait_for(lambda: m.send(sample(1, time.monotonic())), 5.0)
-        assert m.sock.poll(3000)
+        # Hang guards: on a loaded machine the handshake (ZAP in a thread) may take seconds.
+        assert wait_for(lambda: m.send(sample(1, time.monotonic())), 60.0)
+        assert m.sock.poll(60_000)
         assert P.decode_state(m.sock.recv()).received == 1
 
 
@@ -198,7 +214,7 @@ def test_curve_unauthorised_client_is_refused_and_logged(keys, tmp_path, caplog)
             except zmq.Again:
                 pass
             time.sleep(0.05)
-        assert wait_for(lambda: LoggingAuthenticator.denied > before, 5.0)
+        assert wait_for(lambda: LoggingAuthenticator.denied > before, 60.0)
         assert sl.loop.counts["messages"] == 0
         assert not s.poll(300)
         s.close()

@@ -24,6 +24,9 @@ from vision.state import FingerState
 from .helpers import Master, max_cmd_speed_mm_s, start_slave, stop, wait_for
 
 SAFETY = SafetyConfig()
+#: For tests whose masters are threads of this process and whose subject is not the
+#: watchdog: a loaded machine may starve them for a second, and the slave would hold.
+NOT_THE_SUBJECT_WATCHDOG_S = 5.0
 
 
 def finger(x_mm: float) -> FingerState:
@@ -36,7 +39,9 @@ def test_operator_hold_from_the_station_link_holds_at_once_and_resumes_gliding(t
     at once and the slave stands still (status "operator hold") while the finger moves
     40 mm; on release it glides there no faster than safety.resume_speed_mm_s."""
     cfg_path = tmp_path / "slave.toml"
-    cfg_path.write_text("[safety]\nwatchdog_s = 1.0\n")  # a starved test thread is no fault
+    # The test thread is the master: starved past the watchdog by a loaded machine, the
+    # slave would hold and count the operator hold again when it resumes. Not the subject.
+    cfg_path.write_text(f"[safety]\nwatchdog_s = {NOT_THE_SUBJECT_WATCHDOG_S}\n")
     proc, ep = start_slave("--report", str(tmp_path / "r.json"), "--config", str(cfg_path))
     link = StationLink(ep, TeleopConfig())
     seen: list[P.State] = []
@@ -99,11 +104,11 @@ def test_the_operator_hold_may_be_set_from_another_thread_while_frames_are_sent(
     import threading
 
     cfg = TeleopConfig()
-    cfg.safety.watchdog_s = 1.0
+    cfg.safety.watchdog_s = NOT_THE_SUBJECT_WATCHDOG_S
     with SlaveThread(cfg) as sl:
         link = StationLink(sl.endpoint, cfg)
         try:
-            assert wait_for(lambda: (link.send(finger(0.0)), link.slave is not None)[1], 10.0)
+            assert wait_for(lambda: (link.send(finger(0.0)), link.slave is not None)[1], 60.0)
 
             def toggle() -> None:
                 for k in range(200):
@@ -117,7 +122,7 @@ def test_the_operator_hold_may_be_set_from_another_thread_while_frames_are_sent(
             th.join(10.0)
             # (A full send queue drops samples at the master, counted: that is by design.)
             total = link.sent
-            assert wait_for(lambda: sl.loop.counts["received"] == total, 10.0)
+            assert wait_for(lambda: sl.loop.counts["received"] == total, 60.0)
             assert sl.loop.counts["malformed"] == 0
             assert link.operator_hold
             assert wait_for(lambda: (link.send(finger(1.0)), sl.loop._latest.operator_hold)[1],
@@ -126,24 +131,32 @@ def test_the_operator_hold_may_be_set_from_another_thread_while_frames_are_sent(
             link.close()
 
 
-def test_master_stream_carries_the_operator_hold():
+def test_master_stream_carries_the_operator_hold(caplog):
     """teleop.master.stream(operator_hold=...) against a slave over a real socket: the
-    samples in the held span carry the flag, the slave reports "operator hold" there and
-    tracks again after it."""
+    samples in the held span carry the flag; the slave stands still there, says so once,
+    and releases and tracks again after it."""
     from teleop.link import MasterSocket
     from teleop.master import stream
     from teleop.trajectories import circle, finger_stream
 
     states, _ = finger_stream(circle(), 2.0)
     cfg = TeleopConfig()
-    cfg.safety.watchdog_s = 1.0  # a starved test thread is no fault here
-    with SlaveThread(cfg) as sl, MasterSocket(sl.endpoint, cfg.link) as sock:
-        log = stream(states, sock, preroll_s=0.3, operator_hold=lambda t: 0.5 <= t < 1.2)
-        statuses = [st.status for _, st in log.states if st.reason == P.REASON_TICK]
+    # Master and slave are threads of this process: starved together by a loaded machine,
+    # the slave would hold on its watchdog and drop late samples as stale (their own
+    # tests), and count the operator hold again when it resumes. Not the subject here.
+    cfg.safety.watchdog_s = cfg.safety.max_age_s = NOT_THE_SUBJECT_WATCHDOG_S
+    with (caplog.at_level("INFO", logger="teleop.slave"), SlaveThread(cfg) as sl,
+          MasterSocket(sl.endpoint, cfg.link) as sock):
+        stream(states, sock, preroll_s=0.3, operator_hold=lambda t: 0.5 <= t < 1.2)
+        # Tracking again after the hold, by the slave's own status (a starved slave may
+        # take the held and the following samples in one drain: the master's states need
+        # not show a held tick; test_operator_hold_from_the_station_link checks those).
+        assert wait_for(lambda: sl.loop.status == P.STATUS_TRACKING
+                        and not sl.loop._latest.operator_hold, 60.0)
         assert sl.loop.counts["operator_holds"] == 1
-    assert P.STATUS_OPERATOR_HOLD in statuses
-    after = statuses[max(i for i, s in enumerate(statuses) if s == P.STATUS_OPERATOR_HOLD):]
-    assert P.STATUS_TRACKING in after
+    said = [r.getMessage() for r in caplog.records if r.name == "teleop.slave"]
+    assert sum(m.startswith("operator hold: standing still") for m in said) == 1, said
+    assert sum(m.startswith("operator hold released after") for m in said) == 1, said
 
 
 def test_a_100_mb_message_is_cut_off_without_stalling_the_slave(tmp_path):
@@ -157,12 +170,14 @@ def test_a_100_mb_message_is_cut_off_without_stalling_the_slave(tmp_path):
     proc, ep = start_slave("--report", str(tmp_path / "r.json"), "--config", str(cfg_path))
     m = Master(ep, x_mm=3.0)
     try:
-        assert wait_for(lambda: len(m.ticks()) > 50, 20.0)
+        assert wait_for(lambda: len(m.ticks()) > 50, 60.0)
         big = subprocess.run([sys.executable, "-c", BIG_SENDER, ep], capture_output=True,
                              text=True, timeout=60)
         assert big.stdout.strip() == "cut off", big.stderr
         n = len(m.acks(P.REASON_ACK))
-        assert wait_for(lambda: len(m.acks(P.REASON_ACK)) > n + 50, 10.0)
+        assert wait_for(lambda: len(m.acks(P.REASON_ACK)) > n + 50, 60.0), (
+            "the master's samples were not acknowledged after the big message",
+            m._thread.is_alive(), len(m.sent), [(s.reason, s.status) for _, s in m.states[-5:]])
         stop(proc)  # while the master still streams: its end would trip the watchdog
     finally:
         m.stop()
@@ -175,7 +190,9 @@ def test_a_100_mb_message_is_cut_off_without_stalling_the_slave(tmp_path):
         [P.decode_sample(msg) for msg in m.sent]))
     assert rep["watchdog_trips"] == 0 or sent_gap_s > 1.0, (rep, sent_gap_s)
     assert rep["malformed"] == 0
-    assert rep["messages"] == rep["accepted"]  # the big one never reached the loop
+    # The big one never reached the loop: every message was a whole sample. (Not all were
+    # accepted: one a starved slave read past safety.max_age_s is dropped as stale.)
+    assert rep["messages"] == rep["received"]
     assert MAX_MSG_SIZE == 4096
 
 
@@ -219,7 +236,7 @@ def test_every_refused_handshake_is_counted_and_logged(curve, kind, caplog):
             s.send(b"x", zmq.NOBLOCK)
         except zmq.Again:
             pass
-        assert wait_for(lambda: sl.sock.handshakes_failed[kind] >= 1, 10.0)
+        assert wait_for(lambda: sl.sock.handshakes_failed[kind] >= 1, 60.0)
         assert set(sl.sock.handshakes_failed) == {kind}
         assert sl.loop.counts["messages"] == 0
         s.close()

@@ -17,9 +17,11 @@ SAFETY = SafetyConfig()
 SPEED_EPS = 1e-6
 
 
-# A master thread of this process starved past the watchdog by a loaded machine would let
-# the other master take the arm (as it should): these tests give the slave a 1 s watchdog.
-WATCHDOG_S = 1.0
+# A master thread of this process (or the slave process) starved past the watchdog by a
+# loaded machine would let the other master take the arm, as it should: these tests are
+# about admission, not the watchdog, and give the slave a 3 s one. (A takeover still
+# needs the owner silent past it: those tests wait the 3 s.)
+WATCHDOG_S = 3.0
 
 
 @pytest.fixture
@@ -57,18 +59,18 @@ def test_samples_replayed_from_a_second_socket_are_refused_and_the_slave_runs_on
     proc, ep, rep_path = slave
     a = Master(ep, x_mm=10.0)
     try:
-        assert wait_for(lambda: at(a, 10.0) and len(a.sent) >= 100, 20.0)
+        assert wait_for(lambda: at(a, 10.0) and len(a.sent) >= 100, 60.0)
         replay = dealer(ep)
         for msg in list(a.sent)[:50]:
             replay.send(msg)
         states = []
-        while len(states) < 50 and replay.poll(5000):
+        while len(states) < 50 and replay.poll(30_000):
             states.append(P.decode_state(replay.recv()))
         assert len(states) == 50
         assert {s.reason for s in states} == {P.REASON_REFUSED}
         assert {s.status for s in states} == {P.STATUS_NOT_OWNER}
         n = len(a.acks(P.REASON_ACK))
-        assert wait_for(lambda: len(a.acks(P.REASON_ACK)) > n + 20, 10.0)
+        assert wait_for(lambda: len(a.acks(P.REASON_ACK)) > n + 20, 60.0)
         assert tracking(a)
         replay.close()
     finally:
@@ -83,11 +85,11 @@ def test_a_master_restarted_within_the_watchdog_with_its_clock_at_0_takes_over_g
     it owns the arm and the command glides to its finger no faster than resume speed."""
     proc, ep, rep_path = slave
     a = Master(ep, x_mm=30.0)
-    assert wait_for(lambda: at(a, 30.0), 20.0)
+    assert wait_for(lambda: at(a, 30.0), 60.0)
     a.stop()
     b = Master(ep, x_mm=-30.0, clock_from_zero=True)
     try:
-        assert wait_for(lambda: at(b, -30.0), 20.0)
+        assert wait_for(lambda: at(b, -30.0), 60.0)
         ticks = b.ticks()
         assert ticks[0].cmd_mm[0] > 0.0  # b's ticks start where a left the arm
         assert max_cmd_speed_mm_s(ticks) <= SAFETY.resume_speed_mm_s * (1 + SPEED_EPS)
@@ -105,13 +107,13 @@ def test_a_second_master_10_s_behind_is_refused_then_takes_over_when_the_first_s
     a = Master(ep, x_mm=20.0)
     b = None
     try:
-        assert wait_for(lambda: at(a, 20.0), 20.0)
+        assert wait_for(lambda: at(a, 20.0), 60.0)
         b = Master(ep, x_mm=-20.0, clock_offset_s=-10.0)
-        assert wait_for(lambda: len(b.acks(P.REASON_REFUSED)) >= 20, 10.0)
+        assert wait_for(lambda: len(b.acks(P.REASON_REFUSED)) >= 20, 60.0)
         assert {s.status for s in b.acks(P.REASON_REFUSED)} == {P.STATUS_NOT_OWNER}
         assert not b.ticks() and at(a, 20.0)
         a.stop()
-        assert wait_for(lambda: at(b, -20.0), 20.0)
+        assert wait_for(lambda: at(b, -20.0), 60.0)
         assert max_cmd_speed_mm_s(b.ticks()) <= SAFETY.resume_speed_mm_s * (1 + SPEED_EPS)
     finally:
         a.stop() if not a._stop.is_set() else None
@@ -126,11 +128,11 @@ def test_a_reconnect_with_the_same_routing_id_stays_the_owner(slave):
     TCP reconnect of that master): still the owner, never refused as another master."""
     proc, ep, rep_path = slave
     a = Master(ep, x_mm=5.0)
-    assert wait_for(lambda: at(a, 5.0), 20.0)
+    assert wait_for(lambda: at(a, 5.0), 60.0)
     a.stop()
     a2 = Master(ep, x_mm=5.0, routing_id=a.routing_id, first_seq=a.seq)
     try:
-        assert wait_for(lambda: len(a2.acks(P.REASON_ACK)) > 20, 10.0)
+        assert wait_for(lambda: len(a2.acks(P.REASON_ACK)) > 20, 60.0)
         assert not a2.acks(P.REASON_REFUSED)
     finally:
         a2.stop()
@@ -145,19 +147,22 @@ def test_samples_from_the_future_on_the_owners_connection_do_not_freeze_the_link
     proc, ep, rep_path = slave
     a = Master(ep, x_mm=8.0)
     try:
-        assert wait_for(lambda: at(a, 8.0), 20.0)
+        assert wait_for(lambda: at(a, 8.0), 60.0)
         t = a.clock()
         a.injected += [
             P.encode_sample(P.Sample(2**64 - 1, t, t, 8.0, 0.0, 1.0, 1.0, True)),
             P.encode_sample(P.Sample(a.seq + 1, 1e12, 1e12, 8.0, 0.0, 1.0, 1.0, True)),
             P.encode_sample(P.Sample(a.seq + 2, t + 1000.0, t, 8.0, 0.0, 1.0, 1.0, True)),
         ]
-        assert wait_for(lambda: len(a.acks(P.REASON_REFUSED)) == 3, 10.0)
+        # (At least 3: a sample a starved slave took too late is refused as stale.)
+        assert wait_for(lambda: len(a.acks(P.REASON_REFUSED)) >= 3, 60.0)
         n = len(a.acks(P.REASON_ACK))
-        assert wait_for(lambda: len(a.acks(P.REASON_ACK)) > n + 50, 10.0)
+        assert wait_for(lambda: len(a.acks(P.REASON_ACK)) > n + 50, 60.0)
         assert tracking(a)
         stop(proc)  # while the master streams
     finally:
         a.stop()
     rep = json.loads(rep_path.read_text())
-    assert rep["dropped"] == {"future": 3}
+    # Exactly the three future samples; on a loaded machine valid ones may also have come
+    # too late (stale), never for another reason.
+    assert rep["dropped"]["future"] == 3 and set(rep["dropped"]) <= {"future", "stale"}, rep

@@ -185,13 +185,17 @@ def test_bundled_recording_meets_the_target_in_virtual_time(name):
 def test_live_session_over_loopback():
     """The same chain in real time over a real loopback socket (the demo's path): samples
     arrive and are scored, prediction beats the paper's condition. Accuracy bounds are
-    the virtual test's; this shared machine's load decides the live figure (a sample
-    delayed past 0.2 s by the scheduler is dropped as stale, by design)."""
+    the virtual test's (the live figure is benchmarks/bench_tracking.py's). Master and
+    slave are threads of this process: a loaded machine may starve both past the 0.2 s
+    stale age or the 250 ms watchdog, which would drop samples and hold by design (their
+    own tests), so here both are 5 s and every sample of the pass must be accepted."""
     states, truth = finger_stream(circle(), 3.0, seed=5)
-    with SlaveThread() as sl:
+    cfg = TeleopConfig()
+    cfg.safety.max_age_s = cfg.safety.watchdog_s = 5.0
+    with SlaveThread(cfg) as sl:
         s = run_session(states, sl.endpoint, truth=truth)
     rep = s.report
-    assert rep["samples"] == 90 and rep["dropped"] <= 9, rep
+    assert rep["samples"] == 90 and rep["dropped"] == 0, rep
     assert rep["mae_mm"]["x"] < rep["baseline_mae_mm"]["x"], rep
     assert rep["latency_ms"]["p50"] is not None
 

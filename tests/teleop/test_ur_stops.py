@@ -46,7 +46,7 @@ def assert_stopped(calls: list[str]) -> None:
 
 def streamed(ep: str, n_ticks: int = 50) -> Master:
     m = Master(ep, x_mm=5.0)
-    assert wait_for(lambda: len(m.ticks()) >= n_ticks, 20.0)
+    assert wait_for(lambda: len(m.ticks()) >= n_ticks, 60.0)
     return m
 
 
@@ -106,7 +106,7 @@ def test_an_operator_hold_past_its_timeout_stops_the_robot(tmp_path):
         m.operator_hold = True
         assert wait_for(lambda: any(s.status == P.STATUS_OPERATOR_HOLD for s in m.ticks()),
                         20.0)
-        assert wait_for(lambda: m.ticks()[-1].status == P.STATUS_STOPPED, 20.0)
+        assert wait_for(lambda: m.ticks()[-1].status == P.STATUS_STOPPED, 60.0)
         assert proc.poll() is None
         stop(proc)
         assert proc.returncode == 0
