@@ -5,9 +5,8 @@ not a finite number (NaN, inf: missing or undefined) is written as null, never a
 from __future__ import annotations
 
 import math
+import sys
 from typing import Any
-
-import numpy as np
 
 
 def finite(obj: Any) -> Any:
@@ -17,10 +16,13 @@ def finite(obj: Any) -> Any:
         return {k: finite(v) for k, v in obj.items()}
     if isinstance(obj, list | tuple):
         return [finite(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return finite(obj.tolist())
-    if isinstance(obj, np.generic):
-        obj = obj.item()
+    # No NumPy object exists unless NumPy is loaded: `--help` paths need not import it.
+    np = sys.modules.get("numpy")
+    if np is not None:
+        if isinstance(obj, np.ndarray):
+            return finite(obj.tolist())
+        if isinstance(obj, np.generic):
+            obj = obj.item()
     if isinstance(obj, float) and not math.isfinite(obj):
         return None
     return obj
