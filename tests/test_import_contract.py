@@ -132,24 +132,11 @@ def unexplained_local_imports(source: str) -> list[int]:
     return sorted(out)
 
 
-#: Library modules with local imports that do not yet say why (10 imports in these 5
-#: modules). The set only shrinks: the test fails when a module listed here says why for
-#: all of its local imports, so that it leaves the set.
-NOT_YET_EXPLAINED = {
-    "fydpad.chain.check",
-    "fydpad.synth.trajectory",
-    "fydpad.web.experiment",
-    "fydpad.web.server",
-    "fydpad.web.stimuli",
-}
-
-
 def test_every_local_import_in_library_code_says_why():
     found = {m: unexplained_local_imports(p.read_text(encoding="utf-8"))
              for m, p in MODULES.items()
              if not _is_command(m)}
-    assert {m: lines for m, lines in found.items() if lines and m not in NOT_YET_EXPLAINED} == {}
-    assert sorted(m for m in NOT_YET_EXPLAINED if m in found and not found[m]) == []
+    assert {m: lines for m, lines in found.items() if lines} == {}
 
 
 def test_the_local_import_check_sees_a_missing_reason():

@@ -59,6 +59,7 @@ def scan_target(texture: str, speed_mm_s: float, seconds: float, rate_hz: float,
                 seed: int = 0) -> Array:
     """A texture's vibration as the pad's scans record it (``fydpad texture
     generate-scans``: DFT321 of the 3 axes, 10 Hz high-pass), at ``rate_hz``."""
+    # lazy: the scan generator and the texture library load only for a texture target
     from fydpad.synth.texture_scans import TEXTURES, generate_scan
     from fydpad.texture.lpc.dft321 import preprocess
 

@@ -316,7 +316,7 @@ def presses(seconds: float, rng: np.random.Generator, p: TrajectoryParams) -> Fi
     (``vision.calibration.default_targets_mm``) pressed in reading order, 6-8 mm deep,
     each held 0.8 s, hopping 3 mm above the fabric between them (< 1 s clear); for
     ``fydpad calibrate workspace`` and the web view's calibration."""
-    from vision.calibration import default_targets_mm
+    from vision.calibration import default_targets_mm  # lazy: it loads OpenCV
 
     targets = default_targets_mm(PRESSES_WORKSPACE_MM)
     b = _start(p, float(targets[0][0]), float(targets[0][1]))

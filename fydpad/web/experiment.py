@@ -166,10 +166,11 @@ def confusion(pairs: Sequence[tuple[str, str]], names: Sequence[str]) -> Confusi
 
 def plot_confusion(conf: Confusion, path_or_buffer, title: str = "") -> None:
     """The confusion matrix as a PNG (matplotlib Agg): counts, accuracy per row, chance."""
+    # lazy: matplotlib costs the web view's start-up; only a finished experiment draws
     import matplotlib
 
     matplotlib.use("Agg", force=False)
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # after the backend is chosen
 
     fig = Figure(figsize=(6.4, 4.2), dpi=100)
     ax = fig.add_subplot(1, 1, 1)

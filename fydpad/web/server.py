@@ -84,6 +84,7 @@ def friction_slot(render) -> tuple[int | None, str]:
     """The render process's slot (``[texture, *textures]``) of the friction model the
     staircase applies b to: ``--texture`` when it is one (the model compared with the
     real sample), else the first among the stimuli's; (None, why not) when none is."""
+    # lazy: the texture library (SciPy) loads only when a staircase needs a friction model
     from fydpad.errors import UserError
     from fydpad.texture.families import model_kind, read_model_json, split_spec
 

@@ -27,6 +27,7 @@ from vision.strict_json import finite
 def grating_textures(stimuli: tuple[Stimulus, ...] | list[Stimulus], texture_dir: Path
                      ) -> list[Stimulus]:
     """``stimuli`` with ``texture`` set to a grating model of each ``grating_mm``."""
+    # lazy: the texture library (SciPy) loads only for stimuli that are gratings
     from fydpad.texture.families.grating import fit_grating
 
     texture_dir.mkdir(parents=True, exist_ok=True)
@@ -86,6 +87,7 @@ def load_stimuli(path: str | Path) -> list[Stimulus]:
         if texture is not None:
             if not isinstance(texture, str):
                 raise UserError(f"{where}: key 'texture' must be a model path")
+            # lazy: the texture library (SciPy) loads only for stimuli naming a model
             from fydpad.texture.families import load_family, split_spec
 
             kind, model = split_spec(texture)
