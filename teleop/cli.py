@@ -1,4 +1,7 @@
-"""`teleop` command: run a slave, generate CurveZMQ keys."""
+"""`teleop` command: run a slave, generate CurveZMQ keys.
+
+The slave's libraries (ZeroMQ, PyBullet, NumPy) are imported inside the commands, so
+that `teleop --help` loads none of them."""
 
 from __future__ import annotations
 
