@@ -203,7 +203,9 @@ def test_a_model_of_a_removed_form_fails_in_one_line_naming_it(scan_model, chang
             parse_model(data, "old.json")
 
 
-def test_cli_fit_form_calibrated(tmp_path):
+def fit_calibrated_by_cli(tmp_path):
+    """``fydpad texture fit --form calibrated`` on two generated felt strokes (10, 30
+    mm/s): (the parser, the scans, the model file written)."""
     parser = argparse.ArgumentParser(prog="fydpad")
     texture.register(parser.add_subparsers(dest="command"))
     args = parser.parse_args(["texture", "generate-scans", "--out-dir", str(tmp_path),
@@ -217,6 +219,11 @@ def test_cli_fit_form_calibrated(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         assert args.func(args) == 0
+    return parser, scans, out
+
+
+def test_cli_fit_form_calibrated(tmp_path):
+    parser, scans, out = fit_calibrated_by_cli(tmp_path)
     assert json.loads(out.read_text())["free_form"]["form"] == "calibrated"
     for gone in ("--free-form", "--pooled", "--two-part", "--speed-normalise",
                  "--prewhiten-order"):

@@ -6,14 +6,12 @@ answer at a speed the fit never saw is known exactly.
 
 from __future__ import annotations
 
-import argparse
 import json
 import warnings
 
 import numpy as np
 import pytest
 
-from fydpad.commands import texture
 from fydpad.errors import UserError
 from fydpad.synth.texture_scans import generate_scan
 from fydpad.texture.evaluation.evaluate import evaluate_scan
@@ -22,6 +20,7 @@ from fydpad.texture.lpc.fit import fit_texture
 from fydpad.texture.lpc.interpolation import build_table
 from fydpad.texture.lpc.model_file import load_model, model_to_json, parse_model, save_model
 from fydpad.texture.lpc.spectrum import TwoPartSpectrum, fit_two_part
+from tests.texture.test_calibrated import fit_calibrated_by_cli
 
 FS = 1000.0
 
@@ -212,19 +211,7 @@ def test_bad_two_part_block_names_the_key(scan_model):
 
 
 def test_cli_fit_form_calibrated_says_its_base(tmp_path, capsys):
-    parser = argparse.ArgumentParser(prog="fydpad")
-    texture.register(parser.add_subparsers(dest="command"))
-    args = parser.parse_args(["texture", "generate-scans", "--out-dir", str(tmp_path),
-                              "--textures", "felt", "--speeds", "10,30", "--strokes", "1",
-                              "--seconds", "4"])
-    assert args.func(args) == 0
-    scans = [str(tmp_path / f"felt_{v}mms_s1.csv") for v in (10, 30)]
-    out = tmp_path / "calibrated.json"
-    args = parser.parse_args(["texture", "fit", *scans, "--out", str(out), "--speeds",
-                              "10,30", "--order", "60", "--form", "calibrated"])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        assert args.func(args) == 0
+    _, _, out = fit_calibrated_by_cli(tmp_path)
     file_line = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith(str(out))]
     assert "calibrated spectrum on its two-part base (600 iterations)" in file_line[0]
     m = json.loads(out.read_text())
