@@ -28,7 +28,13 @@ from fydpad.motors.drive import build_drive
 from fydpad.motors.sim import indenter_press
 from fydpad.softness import SPECIMENS, fit_through_origin
 from fydpad.texture.evaluation.evaluate import BAND_HZ, welch_psd
-from fydpad.texture.evaluation.identify import DISTANCES, Identification
+from fydpad.texture.evaluation.identify import (
+    DISTANCES,
+    Identification,
+    scored_samples,
+    tally,
+    too_short,
+)
 from fydpad.texture.families import get_kind
 from fydpad.texture.families.friction import friction_coefficient
 from fydpad.texture.family import RateMismatch, finger_from_scan
@@ -69,33 +75,28 @@ def identify_families(models: Sequence, labels: Sequence[str], scans: Sequence, 
     """Assign each scan to the nearest model (all of one family, one per surface).
 
     ``distance``: "shape" (the module docstring; over each scan's moving samples) or
-    :mod:`fydpad.texture.evaluation.identify`'s "bands"/"lsd" (levels of the vibration against the
+    :mod:`~fydpad.texture.evaluation.identify`'s "bands"/"lsd" (the vibration against the
     acceleration high-passed as the family's fit, over the samples each model covers).
-    A family that synthesizes noise (LPC, HaTT: a ``seed`` parameter) draws it from
-    ``seed`` for every scan, so a run is reproducible."""
+    A family with a ``seed`` parameter (LPC, HaTT) draws its noise from ``seed`` for
+    every scan, so a run is reproducible."""
     if distance != "shape" and distance not in DISTANCES:
         raise ValueError(f"distance {distance!r}: expected shape or one of "
                          f"{', '.join(DISTANCES)}")
-    names = list(dict.fromkeys(list(labels) + [s.surface for s in scans]))
     where = list(model_names) if model_names is not None else list(labels)
-    conf = np.zeros((len(names), len(names)), int)
-    assignments = []
     channel, band, what = (OBSERVABLES.get(models[0].kind, DEFAULT_OBSERVABLE)
                            if distance == "shape" else DEFAULT_OBSERVABLE)
-    for scan in wrap(scans):
+
+    def distances(scan) -> list[float]:
         finger = finger_from_scan(scan)
         dists = []
         for m, name in zip(models, where, strict=True):
             mask = scan.speed_mm_s > 1.0
             if distance != "shape":
-                covered = m.covers(scan.speed_mm_s)
-                mask = covered if covered.sum() >= scan.fs_hz / 2 else mask
+                mask = scored_samples(scan, m.covers(scan.speed_mm_s))
             try:
                 f, pr = welch_psd(observe(scan, what, m.highpass_hz), scan.fs_hz, mask)
             except ValueError as exc:
-                raise UserError(f"{scan.path}: too short to identify ({scan.t_s.size} rows, "
-                                f"{int(mask.sum())} of them scanning by column "
-                                f"'speed_mm_s'): {exc}") from None
+                raise too_short(scan, mask, exc) from None
             if "seed" in m.parameters:
                 m.set_parameter("seed", seed)
             m.reset()
@@ -113,15 +114,10 @@ def identify_families(models: Sequence, labels: Sequence[str], scans: Sequence, 
             else:
                 _, ps = welch_psd(syn, scan.fs_hz, mask)
                 dists.append(DISTANCES[distance](f, pr, ps))
-        j = int(np.argmin(dists))
-        conf[names.index(scan.surface), names.index(labels[j])] += 1
-        key = "shape_distance_db" if distance == "shape" else "distance_db"
-        assignments.append({"scan": scan.path, "label": scan.surface, "predicted": labels[j],
-                            "distance": distance,
-                            key: {lab: round(d, 3) for lab, d in
-                                  zip(labels, dists, strict=True)}})
-    rate = float(np.trace(conf) / max(1, conf.sum()))
-    return Identification(names, conf.tolist(), rate, assignments)
+        return dists
+
+    key = "shape_distance_db" if distance == "shape" else "distance_db"
+    return tally(labels, scans, distances, distance, wrap, key)
 
 
 # --------------------------------------------------------------- the cross-family run
