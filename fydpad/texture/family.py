@@ -212,9 +212,7 @@ def finger_from_scan(scan: Any, fs_hz: float | None = None) -> FingerBlock:
     """The finger stream of a scan (contact throughout; x from ``x_mm`` or the speed;
     force from ``force_n`` or 1 N)."""
     n = scan.t_s.size
-    # x_mm is attached by fydpad.texture.families.read_scans when the scan has it.
-    x = getattr(scan, "x_mm", None)
-    x = x if x is not None else np.cumsum(scan.speed_mm_s) / scan.fs_hz
+    x = scan.x_mm if scan.x_mm is not None else np.cumsum(scan.speed_mm_s) / scan.fs_hz
     force = scan.force_n if scan.force_n is not None else np.ones(n)
     fb = FingerBlock(scan.fs_hz, np.asarray(scan.t_s, float), np.ones(n, bool),
                      np.asarray(x, float), np.zeros(n), np.asarray(scan.speed_mm_s, float),

@@ -1,18 +1,12 @@
-"""Cross-family identification: one confusion matrix per family, same scans.
+"""Cross-family identification: one confusion matrix per family on the same scans.
 
-Each family is identified on the signal it renders, against the same signal observed
-in the scan:
-
-- lpc, mlp, grating: the ``vibration`` channel along each scan's own finger stream
-  (position and speed) against the scan's DFT321 acceleration, 20-500 Hz;
-- friction: the ``tension`` channel (affine in mu(x)) against the scan's measured
-  F_f / F_n, 2-100 Hz (the model is low-passed at 100 Hz at its scan speed).
-
-The scan goes to the model whose spectrum has the nearest *shape*: the RMS of the dB
-difference after removing its mean and its linear trend in log frequency, since the
-families' levels and spectral tilts are set by gains and by what they model (a grating
-renders a force, the scan holds an acceleration: f^2 apart), while their lines and
-bands are what identifies a surface.
+Each family is compared on the signal it renders with that signal in the scan: the
+``vibration`` along the scan's own finger stream against its DFT321 acceleration
+(20-500 Hz), and friction's ``tension`` (affine in mu(x)) against the measured F_f / F_n
+(2-100 Hz). The scan goes to the model of nearest spectral *shape*: the RMS of the dB
+difference less its mean and linear trend in log frequency, since gains and what a
+family models set levels and tilts (a grating renders a force, the scan holds an
+acceleration: f^2 apart), while lines and bands identify a surface.
 """
 
 from __future__ import annotations
@@ -60,10 +54,9 @@ def shape_distance_db(p1: np.ndarray, p2: np.ndarray, f: np.ndarray | None = Non
 def observe(scan, what: str, highpass_hz: float = 10.0) -> np.ndarray:
     """The scan's signal a family is compared with (see the module docstring)."""
     if what == "friction":
-        ff = getattr(scan, "friction_n", None)
-        if ff is None or scan.force_n is None:
+        if scan.friction_n is None or scan.force_n is None:
             raise ValueError(f"{scan.path}: no friction_n/force_n columns")
-        mu = friction_coefficient(ff, scan.force_n)
+        mu = friction_coefficient(scan.friction_n, scan.force_n)
         return np.nan_to_num(mu - np.nanmean(mu))
     return preprocess(scan.acc, scan.fs_hz, highpass_hz)
 
@@ -144,11 +137,9 @@ def fit_per_surface(kind: str, train: dict[str, list], **options) -> tuple[list,
     return models, labels
 
 
-def compare_families(train: Sequence, test: Sequence, kinds: Sequence[str],
-                     wrap: Callable[[Iterable], Iterable] = lambda it: it, seed: int = 0
+def compare_families(train: Sequence, test: Sequence, kinds: Sequence[str], seed: int = 0
                      ) -> dict[str, Identification | str]:
-    """Per family: fit one model per training surface, identify every test scan (noise
-    drawn from ``seed``: :func:`identify_families`)."""
+    """Per family one model per training surface, and every test scan identified."""
     out: dict[str, Identification | str] = {}
     groups = by_surface(train)
     for kind in kinds:
@@ -157,14 +148,14 @@ def compare_families(train: Sequence, test: Sequence, kinds: Sequence[str],
         except Exception as exc:  # a family that cannot fit these scans is reported
             out[kind] = f"not fitted: {exc}"
             continue
-        out[kind] = identify_families(models, labels, test, wrap=wrap, seed=seed)
+        out[kind] = identify_families(models, labels, test, seed=seed)
     return out
 
 
 # --------------------------------------------------------------- Bianchi 2015 Table I
 def press_stiffness(drive, k_n_per_mm: float, rng: np.random.Generator) -> float:
-    """Render ``k_n_per_mm`` on the simulated fabric and measure it as the paper's
-    indenter does: press 0.5-10 mm (noisy force and depth), fit F = k delta."""
+    """``k_n_per_mm`` rendered on the simulated fabric and measured as the paper's
+    indenter does: presses of 0.5-10 mm (noisy force and depth), F = k delta fitted."""
     drive.set_stiffness(k_n_per_mm)
 
     def hold(ticks: int = 5) -> None:
@@ -178,16 +169,12 @@ def press_stiffness(drive, k_n_per_mm: float, rng: np.random.Generator) -> float
 
 def specimen_experiment(kind: str, train: dict[str, list], test: dict[str, list],
                         reference: dict[str, list], trials: int = 3, seed: int = 0) -> dict:
-    """Bianchi 2015's 2 x 2 (S1/S2 x R1/R2, specimens SS1..SS4) with the pad simulated.
-
-    Each trial renders a specimen: its roughness by the family's model of R1 or R2 along
-    a test stroke (vibration channel), its softness by the simulated motors holding the
-    specimen's stiffness, measured by a simulated indenter press. The identifier knows
-    the real specimens: their roughness scans (``reference``, spectra) and stiffness
-    (Table I). Spectra alone cannot separate SS1 from SS3 (both R1): they get the same
-    reference spectrum. With the stiffness feature the nearest specimen uses both,
-    each distance scaled by its spread over the specimens.
-    """
+    """Bianchi 2015's 2 x 2 (S1/S2 x R1/R2, specimens SS1..SS4) with the pad simulated:
+    each trial renders a specimen's roughness by the family's model of R1 or R2 along a
+    test stroke and its softness on the simulated motors, measured by an indenter press.
+    The identifier knows the specimens' roughness scans (``reference``) and stiffness
+    (Table I); spectra alone cannot separate SS1 from SS3 (both R1), spectra and
+    stiffness (each distance scaled by its spread over the specimens) can."""
     names = sorted(SPECIMENS)
     rough = {n: "R1" if abs(SPECIMENS[n].period_mm - 3.90) < 0.01 else "R2" for n in names}
     models, labels = fit_per_surface(kind, {r: train[r] for r in ("R1", "R2")})
@@ -201,7 +188,7 @@ def specimen_experiment(kind: str, train: dict[str, list], test: dict[str, list]
             ps.append(p)
         ref_psd[r] = np.mean(ps, axis=0)
     sel = (f >= band[0]) & (f <= band[1])
-    drive = build_drive(_sim_motors())  # its softness table measured on the plant
+    drive = build_drive(replace(MotorConfig(), backend="sim"))  # its softness table
     drive.start()
     rng = np.random.default_rng(seed)
     conf = {"spectra": np.zeros((4, 4), int), "spectra+stiffness": np.zeros((4, 4), int)}
@@ -236,7 +223,3 @@ def specimen_experiment(kind: str, train: dict[str, list], test: dict[str, list]
         "rate": {key: float(np.trace(c) / c.sum()) for key, c in conf.items()},
         "confusion": {key: c.tolist() for key, c in conf.items()}, "rows": rows,
     }
-
-
-def _sim_motors() -> MotorConfig:
-    return replace(MotorConfig(), backend="sim")

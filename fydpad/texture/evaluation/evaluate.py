@@ -177,11 +177,9 @@ def verdict_on_means(corr: ArrayLike, lsd_over_ceiling_db: ArrayLike) -> MeansVe
     return MeansVerdict(corr_mean, gap, c_se, g_se, met, decided)
 
 
-def evaluation_mask(scan: Scan, model: TextureModel, tolerance_mm_s: float | None = None
-                    ) -> NDArray[np.bool_]:
+def evaluation_mask(scan: Scan, model: TextureModel) -> NDArray[np.bool_]:
     """Samples within the model's speed range (widened by its tolerance)."""
-    tol = model.tolerance_mm_s if tolerance_mm_s is None else tolerance_mm_s
-    v = scan.speed_mm_s
+    tol, v = model.tolerance_mm_s, scan.speed_mm_s
     return (v >= model.speeds_mm_s[0] - tol) & (v <= model.speeds_mm_s[-1] + tol)
 
 
