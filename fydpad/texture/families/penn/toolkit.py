@@ -1,27 +1,17 @@
 """Penn Haptic Texture Toolkit (HaTT) model files: ARMA models over speed and force.
 
-A HaTT XML file (one per texture, ``Models_<material>.xml``; Culbertson, Lopez Delgado
-and Kuchenbecker 2014) is a ``<modelSet>`` with ``material``, optional ``AccelUnits``/
-``SpeedUnits``/``ForceUnits``, ``SampleRate`` (Hz; 10 kHz for the recorded models, lower
-for the toolkit's resampled sets), ``mu``, ``numMod``, ``numTri``, ``maxSpeed`` (mm/s),
-``maxForce`` (N), ``speedList``/``forceList`` (``<value>`` lists), the Delaunay
-triangulation of the (speed, force) points as ``<tri><value>i</value>x3</tri>`` (MATLAB's
-1-based indices into ``speedList``/``forceList``), ``numARCoeff``, ``numMACoeff``, then one
-``<model>`` per point: ``modNum``, ``ARcoeff`` (A(z) with its leading 1), ``ARlsf``,
-``MAcoeff`` (B(z) with its leading 1), ``MAlsf`` (radians), ``var``, ``gain``,
-``speedMod``, ``forceMod``. Checked against the toolkit's own code (docs/texture.md,
-"Penn Haptic Texture Toolkit"): its MATLAB writer ``CreateResampledModels.m``, its
-reader ``AutoGenHashMatrix`` and its synthesis ``AccSynthHashMatrix.cpp``/``LPCModel``.
-
-Synthesis (the toolkit's ``LPCvibration``), at the model's sample rate, in m/s^2:
+A ``Models_<material>.xml`` (Culbertson, Lopez Delgado and Kuchenbecker 2014) is a
+``<modelSet>``: ``SampleRate``, ``maxSpeed`` (mm/s), ``maxForce`` (N), ``speedList``/
+``forceList``, the Delaunay triangles ``<tri>`` (MATLAB's 1-based indices into those
+lists), ``numARCoeff``, ``numMACoeff``, and one ``<model>`` per point with ``ARlsf``,
+``MAlsf``, ``var``, ``gain``, ``speedMod``, ``forceMod``; as the toolkit's
+``CreateResampledModels.m`` writes and ``AutoGenHashMatrix`` reads it. Its synthesis
+(``LPCvibration``), in m/s^2 at the model rate:
 
     y(k) = -sum_i A_i y(k-i) + gain * (e(k) + sum_j B_j e(k-j)),  e ~ N(0, var)
 
-which is eq. 5 extended with the moving-average part; with ``numMACoeff`` 0 (AR models)
-the toolkit ignores ``gain`` and ``MAlsf``: y(k) = -sum_i A_i y(k-i) + e(k). Models are
-interpolated inside the Delaunay triangle holding (speed, force) by barycentric weights
-on the LSFs (stable), ``var`` and ``gain``. The toolkit's files are not shipped; point the
-reader at yours.
+(AR files, ``numMACoeff`` 0: no ``gain``, no B), with the LSFs, ``var`` and ``gain``
+interpolated by barycentric weights in the triangle holding (speed, force).
 """
 
 from __future__ import annotations
@@ -30,7 +20,6 @@ import math
 import warnings
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
-from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
@@ -86,8 +75,7 @@ def _num(root: ET.Element, key: str, where: str, default: float | None = None) -
 
 
 def _count(root: ET.Element, key: str, where: str, default: int | None = None) -> int:
-    """A count element (numARCoeff, numMod, ...): a whole number >= 0, else a UserError
-    naming the file and tag (``int()`` of inf or nan would raise a traceback)."""
+    """A count element (numARCoeff, numMod, ...): a whole number >= 0."""
     node = root.find(key)
     if node is None or node.text is None or not node.text.strip():
         if default is not None:
@@ -219,8 +207,7 @@ def _read_tri(root: ET.Element, n: int, w: str) -> NDArray[np.int64]:
 
 
 def write_penn(path: str | Path, ms: PennModelSet) -> Path:
-    """Write a model set in the toolkit's schema and element order (as its
-    ``CreateResampledModels.m`` does; for tests and hand-made models)."""
+    """A model set in the toolkit's schema and element order (``CreateResampledModels.m``)."""
     root = ET.Element("modelSet")
 
     def add(parent: ET.Element, tag: str, text: object) -> ET.Element:
@@ -266,8 +253,7 @@ def write_penn(path: str | Path, ms: PennModelSet) -> Path:
 
 
 def _clamp(ms: PennModelSet, speed_mm_s: Array, force_n: Array) -> tuple[Array, Array]:
-    """Into the modelled range, as the toolkit's ``HashAndInterp2`` does (it saturates
-    just inside ``maxSpeed``/``maxForce``); below 0 (and NaN) is 0."""
+    """Into [0, maxSpeed] x [0, maxForce] (NaN: 0), as the toolkit's ``HashAndInterp2``."""
     s = np.clip(np.nan_to_num(np.asarray(speed_mm_s, float)), 0.0, ms.max_speed_mm_s)
     f = np.clip(np.nan_to_num(np.asarray(force_n, float)), 0.0, ms.max_force_n)
     return s, f
@@ -307,17 +293,12 @@ def barycentric_weights(ms: PennModelSet, speed_mm_s: Array, force_n: Array) -> 
     return out
 
 
-def barycentric(ms: PennModelSet, speed_mm_s: float, force_n: float) -> tuple[NDArray, Array]:
-    """Vertex indices and weights of the triangle holding the point (clamped to the grid)."""
-    w = barycentric_weights(ms, speed_mm_s, force_n)[0]
-    idx = np.flatnonzero(w > 0)
-    return idx, w[idx]
-
-
 def interpolate(ms: PennModelSet, speed_mm_s: float, force_n: float
                 ) -> tuple[Array, Array, float, float]:
     """(A, B, var, gain) at (speed, force): LSFs, var and gain weighted barycentrically."""
-    idx, w = barycentric(ms, speed_mm_s, force_n)
+    w = barycentric_weights(ms, speed_mm_s, force_n)[0]
+    idx = np.flatnonzero(w > 0)
+    w = w[idx]
     a = lsf_to_poly(w @ ms.ar_lsf[idx])
     b = lsf_to_poly(w @ ms.ma_lsf[idx]) if ms.ma_lsf.shape[1] else np.array([1.0])
     return a, b, float(w @ ms.var[idx]), float(w @ ms.gain[idx])
@@ -327,12 +308,9 @@ class PennRenderer:
     """The ARMA synthesis at the model rate, state carried across blocks and models."""
 
     def __init__(self, ms: PennModelSet, seed: int | None = None):
-        self.ms = ms
-        self.rng = np.random.default_rng(seed)
-        self.p = ms.ar_lsf.shape[1]
-        self.q = ms.ma_lsf.shape[1]
-        self.y_hist = np.zeros(self.p)  # newest first
-        self.e_hist = np.zeros(self.q)
+        self.ms, self.rng = ms, np.random.default_rng(seed)
+        self.p, self.q = ms.ar_lsf.shape[1], ms.ma_lsf.shape[1]
+        self.y_hist, self.e_hist = np.zeros(self.p), np.zeros(self.q)  # newest first
 
     def block(self, speed_mm_s: float, force_n: float, n: int) -> Array:
         """``n`` samples at the model rate for one (speed, force)."""
@@ -345,15 +323,3 @@ class PennRenderer:
         self.y_hist = np.concatenate([y[::-1], self.y_hist])[: self.p]
         self.e_hist = np.concatenate([e[::-1], self.e_hist])[: self.q]
         return y
-
-    def render(self, speed_mm_s: float, force_n: float, seconds: float,
-               fs_out_hz: float = 1000.0, block_s: float = 0.01) -> Array:
-        """``seconds`` of output resampled (anti-aliased) to ``fs_out_hz``."""
-        n = round(seconds * self.ms.fs_hz)
-        step = max(1, round(block_s * self.ms.fs_hz))
-        y = np.concatenate([self.block(speed_mm_s, force_n, min(step, n - k))
-                            for k in range(0, n, step)]) if n else np.zeros(0)
-        if abs(fs_out_hz - self.ms.fs_hz) < 1e-9:
-            return y
-        fr = Fraction(fs_out_hz / self.ms.fs_hz).limit_denominator(1000)
-        return ss.resample_poly(y, fr.numerator, fr.denominator)
