@@ -39,10 +39,6 @@ PROFILES = ("sine", "rect")
 RATIOS = tuple((v, 10 - v) for v in range(11))  # 0:10 ... 10:0
 
 
-def default_ratio(wavelength_mm: float) -> tuple[int, int]:
-    return (8, 2) if wavelength_mm >= 1.0 else (6, 4)
-
-
 def level_value(level: int, at_1: float, at_10: float) -> float:
     """Linear in force between level 1 and level 10; level 0 is off (Ito 2019 4.2.3)."""
     if not 0 <= level <= 10:
@@ -102,7 +98,8 @@ class GratingFamily(FamilyBase):
             raise ValueError(f"profile must be one of {PROFILES}")
         self.wavelength_mm = float(wavelength_mm)
         self.profile, self.ridge_fraction, self.edge_mm = profile, ridge_fraction, edge_mm
-        self.ratio = tuple(ratio) if ratio is not None else default_ratio(wavelength_mm)
+        default = (8, 2) if wavelength_mm >= 1.0 else (6, 4)  # Ito 2019 Fig. 5
+        self.ratio = tuple(ratio) if ratio is not None else default
         if self.ratio not in RATIOS:
             raise ValueError(f"ratio must be v:f with v + f = 10, got {self.ratio}")
         self.vib_levels_n, self.friction_levels_n = vib_levels_n, friction_levels_n

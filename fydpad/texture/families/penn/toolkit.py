@@ -101,10 +101,15 @@ def _check_units(root: ET.Element, where: str) -> None:
                           f"{ok[0]} (the toolkit's unit)", stacklevel=3)
 
 
-def _check_lsf(lsf: Array, where: str) -> None:
-    """Sorted within [0, pi]: what the toolkit's LSF-to-polynomial step assumes."""
+def _lsf(m: ET.Element, tag: str, count_tag: str, size: int, where: str) -> Array:
+    """``size`` LSFs sorted within [0, pi] (what the toolkit's LSF-to-polynomial assumes)."""
+    # numMACoeff 0: the toolkit does not read <MAlsf>.
+    lsf = _values(m.find(tag), f"{where}: <{tag}>") if size or tag == "ARlsf" else np.zeros(0)
+    if lsf.size != size:
+        raise UserError(f"{where}: <{tag}> has {lsf.size} values, <{count_tag}> says {size}")
     if lsf.size and (lsf[0] < 0 or lsf[-1] > np.pi or np.any(np.diff(lsf) < 0)):
-        raise UserError(f"{where}: not sorted line spectral frequencies in [0, pi] rad")
+        raise UserError(f"{where}: <{tag}>: not sorted line spectral frequencies in [0, pi] rad")
+    return lsf
 
 
 def read_penn(path: str | Path) -> PennModelSet:
@@ -140,18 +145,10 @@ def read_penn(path: str | Path) -> PennModelSet:
         var.append(_num(m, "var", mw))
         if not var[-1] >= 0:
             raise UserError(f"{mw}: <var> must be >= 0, got {var[-1]:g}")
-        # AR models (numMACoeff 0): the toolkit reads neither gain nor MAlsf.
+        # AR models (numMACoeff 0): the toolkit reads no gain.
         gain.append(_num(m, "gain", mw, 1.0) if q else 1.0)
-        a = _values(m.find("ARlsf"), f"{mw}: <ARlsf>")
-        if a.size != p:
-            raise UserError(f"{mw}: <ARlsf> has {a.size} values, <numARCoeff> says {p}")
-        _check_lsf(a, f"{mw}: <ARlsf>")
-        ar.append(a)
-        b = _values(m.find("MAlsf"), f"{mw}: <MAlsf>") if q else np.zeros(0)
-        if b.size != q:
-            raise UserError(f"{mw}: <MAlsf> has {b.size} values, <numMACoeff> says {q}")
-        _check_lsf(b, f"{mw}: <MAlsf>")
-        ma.append(b)
+        ar.append(_lsf(m, "ARlsf", "numARCoeff", p, mw))
+        ma.append(_lsf(m, "MAlsf", "numMACoeff", q, mw))
     speeds, forces = np.asarray(sp), np.asarray(fo)
     order = _list_order(root, speeds, forces, w)
     tri = _read_tri(root, n, w)
