@@ -89,10 +89,6 @@ class MlpNet:
     w_out: Array  # (H,)
     b_out: float
 
-    @property
-    def hidden(self) -> int:
-        return int(self.w_in.shape[0])
-
     def forward(self, u: ArrayLike) -> Array:
         """Outputs for inputs ``u`` of shape (n, n_in): eq. 4-7."""
         return logsig(np.asarray(u, float) @ self.w_in.T + self.b_in) @ self.w_out + self.b_out

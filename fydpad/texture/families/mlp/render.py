@@ -55,7 +55,7 @@ class MlpTexture(FamilyBase):
         self._w, self._b = np.ascontiguousarray(w), 0.5 * net.b_in - w @ s.in_offset
         self._w2 = 0.5 * s.out_scale * net.w_out
         self._c = float(s.out_offset + s.out_scale * (net.b_out + 0.5 * net.w_out.sum()))
-        self._x, self._z = np.zeros(3), np.zeros(net.hidden)
+        self._x, self._z = np.zeros(3), np.zeros(net.b_in.size)
         self.reset()
 
     def reset(self) -> None:

@@ -249,18 +249,13 @@ def write_penn(path: str | Path, ms: PennModelSet) -> Path:
     return Path(path)
 
 
-def _clamp(ms: PennModelSet, speed_mm_s: Array, force_n: Array) -> tuple[Array, Array]:
-    """Into [0, maxSpeed] x [0, maxForce] (NaN: 0), as the toolkit's ``HashAndInterp2``."""
-    s = np.clip(np.nan_to_num(np.asarray(speed_mm_s, float)), 0.0, ms.max_speed_mm_s)
-    f = np.clip(np.nan_to_num(np.asarray(force_n, float)), 0.0, ms.max_force_n)
-    return s, f
-
-
 def barycentric_weights(ms: PennModelSet, speed_mm_s: Array, force_n: Array) -> Array:
     """(k, m) weights of the m models at k (speed, force) points: barycentric in the first
     Delaunay triangle holding the point; outside every triangle the nearest model alone
-    (the toolkit's walk is undefined outside the hull: it prints "Unstable!")."""
-    s, f = _clamp(ms, np.atleast_1d(speed_mm_s), np.atleast_1d(force_n))
+    (the toolkit's walk is undefined outside the hull: it prints "Unstable!"). Points are
+    clamped into [0, maxSpeed] x [0, maxForce] (NaN: 0), as the toolkit's ``HashAndInterp2``."""
+    s = np.clip(np.nan_to_num(np.atleast_1d(speed_mm_s).astype(float)), 0.0, ms.max_speed_mm_s)
+    f = np.clip(np.nan_to_num(np.atleast_1d(force_n).astype(float)), 0.0, ms.max_force_n)
     k, m = s.size, ms.speeds_mm_s.size
     out = np.zeros((k, m))
     todo = np.ones(k, bool)
