@@ -135,12 +135,6 @@ class MlpModel:
     surface: str = ""
     provenance: dict[str, Any] = field(default_factory=dict)
 
-    def predict(self, vx_mm_s: ArrayLike, vy_mm_s: ArrayLike, df_n: ArrayLike) -> Array:
-        """Normal acceleration in m/s^2 for per-sample inputs."""
-        x = np.column_stack([np.ravel(vx_mm_s), np.ravel(vy_mm_s), np.ravel(df_n)])
-        return self.scaling.out_offset + self.scaling.out_scale * self.net.forward(
-            self.scaling.inputs(x))
-
 
 def model_to_json(model: MlpModel) -> dict[str, Any]:
     s, net = model.scaling, model.net

@@ -40,12 +40,12 @@ class MlpTexture(FamilyBase):
     tick_channels = ("vibration",)
     needs = frozenset({"speed_mm_s", "x_mm", "y_mm", "force_change"})
 
-    def __init__(self, model: MlpModel, *, still_mm_s: float = 1.0, gain: float = 1.0):
+    def __init__(self, model: MlpModel, *, still_mm_s: float = 1.0):
         super().__init__()
         self.model, self.surface = model, model.surface
         fs = float(model.fs_hz)
         self.channels = {"vibration": fs, "audio": fs}
-        self.still_mm_s, self.gain = float(still_mm_s), float(gain)
+        self.still_mm_s = float(still_mm_s)
         self._alpha = 1.0 - math.exp(-1.0 / (model.df_tau_s * fs))
         self._r = math.exp(-2.0 * math.pi * model.band_hz[0] / fs)  # DC blocker pole
         # Fold input scaling and logsig(z) = 0.5 + 0.5 tanh(z / 2) into the weights:
@@ -67,7 +67,7 @@ class MlpTexture(FamilyBase):
         self._last_f = 0.0  # the last finite force: a missing reading holds it
 
     def raw(self, vx: Array, vy: Array, df: Array) -> Array:
-        """The network's acceleration (m/s^2) for per-sample inputs (folded weights)."""
+        """The network's normal acceleration (m/s^2) for per-sample inputs (eq. 4-7)."""
         z = np.tanh(np.column_stack([vx, vy, df]) @ self._w.T + self._b)
         return self._c + z @ self._w2
 
@@ -93,7 +93,7 @@ class MlpTexture(FamilyBase):
         y, _ = ss.lfilter([1.0], [1.0, -self._r], d, zi=[self._r * self._hp_y])
         self._hp_x, self._hp_y = float(r[-1]), float(y[-1])
         on = finger.contact & (speed >= self.still_mm_s)
-        return np.where(on, self.gain * y, 0.0)
+        return np.where(on, y, 0.0)
 
     def _render_other_rate(self, finger: FingerBlock) -> Array:
         """Another rate (the sound card's): rendered at the network's own (Δf and the
@@ -133,7 +133,7 @@ class MlpTexture(FamilyBase):
         y = r - prev + self._r * self._hp_y
         self._hp_x, self._hp_y = r, y
         on = contact and speed_mm_s >= self.still_mm_s
-        return (self.gain * y if on else 0.0,)
+        return (y if on else 0.0,)
 
 
 def _from_json(data: dict[str, Any], where: str) -> MlpTexture:
