@@ -207,26 +207,20 @@ def write_penn(path: str | Path, ms: PennModelSet) -> Path:
     """A model set in the toolkit's schema and element order (``CreateResampledModels.m``)."""
     root = ET.Element("modelSet")
 
-    def add(parent: ET.Element, tag: str, text: object) -> ET.Element:
-        e = ET.SubElement(parent, tag)
-        e.text = str(text)
-        return e
+    def add(parent: ET.Element, tag: str, text: object) -> None:
+        ET.SubElement(parent, tag).text = str(text)
 
     def add_list(parent: ET.Element, tag: str, vals: Array) -> None:
         e = ET.SubElement(parent, tag)
         for v in vals:
             add(e, "value", repr(float(v)) if not isinstance(v, np.integer) else int(v))
 
-    add(root, "material", ms.name)
-    add(root, "AccelUnits", "m/s^2")
-    add(root, "SpeedUnits", "mm/s")
-    add(root, "ForceUnits", "N")
-    add(root, "SampleRate", ms.fs_hz)
-    add(root, "mu", 0.0 if ms.mu is None or not np.isfinite(ms.mu) else ms.mu)
-    add(root, "numMod", len(ms.speeds_mm_s))
-    add(root, "numTri", len(ms.tri))
-    add(root, "maxSpeed", ms.max_speed_mm_s)
-    add(root, "maxForce", ms.max_force_n)
+    mu = 0.0 if ms.mu is None or not np.isfinite(ms.mu) else ms.mu
+    for tag, text in (("material", ms.name), ("AccelUnits", "m/s^2"), ("SpeedUnits", "mm/s"),
+                      ("ForceUnits", "N"), ("SampleRate", ms.fs_hz), ("mu", mu),
+                      ("numMod", len(ms.speeds_mm_s)), ("numTri", len(ms.tri)),
+                      ("maxSpeed", ms.max_speed_mm_s), ("maxForce", ms.max_force_n)):
+        add(root, tag, text)
     add_list(root, "speedList", ms.speeds_mm_s)
     add_list(root, "forceList", ms.forces_n)
     for t in ms.tri + 1:
@@ -240,10 +234,9 @@ def write_penn(path: str | Path, ms: PennModelSet) -> Path:
         add_list(m, "ARlsf", ms.ar_lsf[i])
         add_list(m, "MAcoeff", lsf_to_poly(ms.ma_lsf[i]) if ms.ma_lsf.shape[1] else [1.0])
         add_list(m, "MAlsf", ms.ma_lsf[i])
-        add(m, "var", ms.var[i])
-        add(m, "gain", ms.gain[i])
-        add(m, "speedMod", ms.speeds_mm_s[i])
-        add(m, "forceMod", ms.forces_n[i])
+        for tag, vals in (("var", ms.var), ("gain", ms.gain), ("speedMod", ms.speeds_mm_s),
+                          ("forceMod", ms.forces_n)):
+            add(m, tag, vals[i])
     ET.indent(root)
     ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
     return Path(path)
