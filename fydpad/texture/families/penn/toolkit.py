@@ -76,29 +76,26 @@ def _num(root: ET.Element, key: str, where: str, default: float | None = None) -
 
 def _count(root: ET.Element, key: str, where: str, default: int | None = None) -> int:
     """A count element (numARCoeff, numMod, ...): a whole number >= 0."""
-    node = root.find(key)
-    if node is None or node.text is None or not node.text.strip():
+    text = (root.findtext(key) or "").strip()
+    if not text:
         if default is not None:
             return default
         raise UserError(f"{where}: missing element <{key}>")
     try:
-        v = float(node.text)
+        v = float(text)
     except ValueError:
         v = math.nan
     if not (math.isfinite(v) and v >= 0 and v == round(v)):
-        raise UserError(f"{where}: <{key}> is not a whole number >= 0 ({node.text.strip()!r})")
+        raise UserError(f"{where}: <{key}> is not a whole number >= 0 ({text!r})")
     return int(v)
 
 
 def _check_units(root: ET.Element, where: str) -> None:
     for key, ok in _UNITS.items():
-        node = root.find(key)
-        if node is None or not (node.text or "").strip():
-            continue
-        unit = "".join((node.text or "").split()).lower()
-        if unit not in ok:
-            warnings.warn(f"{where}: <{key}> is {node.text.strip()!r}; read as "
-                          f"{ok[0]} (the toolkit's unit)", stacklevel=3)
+        text = (root.findtext(key) or "").strip()
+        if text and "".join(text.split()).lower() not in ok:
+            warnings.warn(f"{where}: <{key}> is {text!r}; read as {ok[0]} (the toolkit's unit)",
+                          stacklevel=3)
 
 
 def _lsf(m: ET.Element, tag: str, count_tag: str, size: int, where: str) -> Array:
