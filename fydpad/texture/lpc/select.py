@@ -1,21 +1,15 @@
 """Choosing the LPC model form on the user's own scans by held-out validation.
 
-Folds (one 30 s stroke with four plateaus is enough):
-
-- *time blocks*: each speed plateau (the longest run within the tolerance of a target
-  speed) is cut into ``BLOCKS`` equal blocks; fold k holds out block k of every plateau;
-- *between plateaus*: each inner plateau (neither the slowest nor the fastest) is held
-  out whole, with every sample within the tolerance of its speed, so the speeds between
-  the remaining plateaus are judged as a user's finger meets them.
-
-Every candidate is fitted on the rest of each fold and scored on each held-out block by
-the log-spectral distance of :func:`evaluate.compare` (its synthesis along the block's
-own speed trace against the block's DFT321 signal, 4 Hz bins over 20-500 Hz). The
-score is the mean over all blocks; the noise is the standard error of the paired
-difference to the best candidate over the blocks. The winner is the simplest candidate
-(:data:`CANDIDATES` order) within that noise of the best, refitted on all the scans.
-Where the scans cannot be validated (fewer than two plateaus of ``MIN_PLATEAU_S``) the
-plain paper method is fitted, and the reason recorded.
+Folds: *time blocks*, each speed plateau (a target's longest run within the tolerance)
+cut into ``BLOCKS`` equal blocks, fold k holding out block k of every plateau; *between
+plateaus*, each inner plateau held out whole with every sample within the tolerance of
+its speed, so the speeds between the others are judged as a finger meets them. Each
+candidate fitted on the rest is scored on each held-out block by the log-spectral
+distance of :func:`evaluate.compare` (its synthesis along the block's speed trace against
+the block's DFT321 signal). The winner is the simplest candidate (``CANDIDATES`` order)
+whose mean is within the noise (the standard error of the paired difference to the
+best) of the best, refitted on all the scans. Fewer than two plateaus of
+``MIN_PLATEAU_S``: the plain paper method, and the reason recorded.
 """
 
 from __future__ import annotations
@@ -23,6 +17,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,7 +30,6 @@ from fydpad.texture.lpc.model_file import TextureModel
 from fydpad.texture.lpc.synthesis import TextureRenderer
 from fydpad.texture.scan_io import Scan
 
-Array = NDArray[np.float64]
 #: Simplest first: a tie within the noise goes to the earlier one.
 CANDIDATES = ("paper", "calibrated")
 BLOCKS = 2
@@ -53,16 +47,12 @@ class CandidateScore:
     between_lsd_db: list[float]  # inner plateaus held out whole
 
     @property
-    def scores(self) -> Array:
+    def scores(self) -> NDArray[np.float64]:
         return np.asarray(self.block_lsd_db + self.between_lsd_db)
 
     @property
     def mean_lsd_db(self) -> float:
         return float(np.mean(self.scores))
-
-    @property
-    def spread_db(self) -> float:
-        return float(np.std(self.scores, ddof=1)) if self.scores.size > 1 else 0.0
 
 
 @dataclass
@@ -81,7 +71,7 @@ class Selection:
             "score": "mean log-spectral distance (dB, 20-500 Hz, 4 Hz bins) on held-out blocks",
             "plateaus_mm_s": [r3(v) for v in self.plateaus_mm_s],
             "candidates": [
-                {"name": c.name, "mean_lsd_db": r3(c.mean_lsd_db), "spread_db": r3(c.spread_db),
+                {"name": c.name, "mean_lsd_db": r3(c.mean_lsd_db), "spread_db": r3(_spread(c)),
                  "time_block_lsd_db": [r3(x) for x in c.block_lsd_db],
                  "between_plateaus_lsd_db": [r3(x) for x in c.between_lsd_db],
                  "noise_to_best_db": r3(self.noise_db.get(c.name, 0.0))}
@@ -89,28 +79,31 @@ class Selection:
         }
 
 
+def _spread(c: CandidateScore) -> float:
+    return float(np.std(c.scores, ddof=1)) if c.scores.size > 1 else 0.0
+
+
 def fit_candidate(name: str, scans: Sequence[Scan], speeds_mm_s: Sequence[float], *,
                   order: int = 200, tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S,
                   highpass_hz: float = 10.0, surface: str | None = None,
                   drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
-                  lines: str | float | None = "auto",
+                  lines: str | float | None = "auto", min_seconds: float = 0.25,
                   wrap_iterations: Callable[[Iterable], Iterable] = lambda it: it,
                   ) -> TextureModel:
-    """One candidate form fitted on ``scans`` (``lines``: the calibrated form's periodic
-    lines, :func:`fit.fit_texture`)."""
+    """One candidate form fitted on ``scans`` (``lines``, ``min_seconds``: the calibrated
+    form's, :func:`fit.fit_texture`)."""
     if name == "paper":
         return fit_paper(scans, order=order, window_mm_s=tolerance_mm_s,
                          highpass_hz=highpass_hz, surface=surface, drive_band_hz=drive_band_hz)
-    if name == "calibrated":
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # speeds a fold lacks: said by the final fit
-            model, _ = fit_texture(scans, order=order, speeds_mm_s=speeds_mm_s,
-                                   tolerance_mm_s=tolerance_mm_s, highpass_hz=highpass_hz,
-                                   surface=surface, drive_band_hz=drive_band_hz,
-                                   lines=lines, wrap_iterations=wrap_iterations)
-        model.provenance["form"] = name
-        return model
-    raise ValueError(f"unknown candidate {name!r}; one of {CANDIDATES}")
+    if name != "calibrated":
+        raise ValueError(f"unknown candidate {name!r}; one of {CANDIDATES}")
+    model = fit_texture(scans, order=order, speeds_mm_s=speeds_mm_s,
+                        tolerance_mm_s=tolerance_mm_s, highpass_hz=highpass_hz,
+                        min_seconds=min_seconds, surface=surface,
+                        drive_band_hz=drive_band_hz, lines=lines,
+                        wrap_iterations=wrap_iterations)
+    model.provenance["form"] = name
+    return model
 
 
 def plateaus(scans: Sequence[Scan], speeds_mm_s: Sequence[float], tolerance_mm_s: float
@@ -119,15 +112,12 @@ def plateaus(scans: Sequence[Scan], speeds_mm_s: Sequence[float], tolerance_mm_s
     tolerance, for the targets that have one of at least ``MIN_PLATEAU_S``."""
     out = []
     for s in sorted(float(v) for v in speeds_mm_s):
-        best = None
-        for i, sc in enumerate(scans):
-            # A hand sways about 10 % around a plateau: widened to 20 % of its speed.
-            for a, b in runs(np.abs(sc.speed_mm_s - s) <= max(tolerance_mm_s, 0.2 * s),
-                             round(MIN_PLATEAU_S * sc.fs_hz)):
-                if best is None or b - a > best[2] - best[1]:
-                    best = (i, a, b)
-        if best is not None:
-            out.append((s, *best))
+        # A hand sways about 10 % around a plateau: widened to 20 % of its speed.
+        found = [(b - a, -i, i, a, b) for i, sc in enumerate(scans)
+                 for a, b in runs(np.abs(sc.speed_mm_s - s) <= max(tolerance_mm_s, 0.2 * s),
+                                  round(MIN_PLATEAU_S * sc.fs_hz))]
+        if found:  # the longest; the first of equals
+            out.append((s, *max(found, key=lambda r: (r[0], r[1], -r[3]))[2:]))
     return out
 
 
@@ -139,45 +129,39 @@ def _piece(scan: Scan, a: int, b: int, tag: str) -> Scan:
 
 def _without(scans: Sequence[Scan], drop: list[NDArray[np.bool_]]) -> list[Scan]:
     """The scans cut into the pieces outside ``drop`` (one mask per scan)."""
-    out = []
-    for sc, d in zip(scans, drop, strict=True):
-        for a, b in runs(~d, round(MIN_PIECE_S * sc.fs_hz)):
-            out.append(_piece(sc, a, b, f"{a}:{b}"))
-    return out
+    return [_piece(sc, a, b, f"{a}:{b}") for sc, d in zip(scans, drop, strict=True)
+            for a, b in runs(~d, round(MIN_PIECE_S * sc.fs_hz))]
 
 
 def held_out_lsd_db(model: TextureModel, blocks: Sequence[Scan], seed: int = 0
                     ) -> list[float]:
     """Each block's LSD: the model synthesized along the block's speed trace (one
     renderer, reseeded per block) against the block's DFT321 signal."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # a block beyond a fold's fitted speeds is clamped
-        r = TextureRenderer(model, ramp_s=1e-6, step_mm_s=SCORE_STEP_MM_S)
-        out = []
-        for blk in blocks:
-            r.reset()
-            r.reseed(seed)
-            r.warmup(float(blk.speed_mm_s[0]), 0.5)
-            syn = r.block(blk.speed_mm_s, True)
-            c, *_ = compare(preprocess(blk.acc, blk.fs_hz, model.highpass_hz), syn, blk.fs_hz)
-            out.append(c.lsd_db)
+    r = TextureRenderer(model, ramp_s=1e-6, step_mm_s=SCORE_STEP_MM_S)
+    out = []
+    for blk in blocks:
+        r.reset()
+        r.reseed(seed)
+        r.warmup(float(blk.speed_mm_s[0]), 0.5)
+        syn = r.block(blk.speed_mm_s, True)
+        c, *_ = compare(preprocess(blk.acc, blk.fs_hz, model.highpass_hz), syn, blk.fs_hz)
+        out.append(c.lsd_db)
     return out
 
 
 def select_model(
     scans: Sequence[Scan], *, speeds_mm_s: Sequence[float] = DEFAULT_SPEEDS_MM_S,
-    tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S, order: int = 200,
-    highpass_hz: float = 10.0, surface: str | None = None,
-    drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
-    candidates: Sequence[str] = CANDIDATES, seed: int = 0, lines: str | float | None = "auto",
-    wrap: Callable[[Iterable], Iterable] = lambda it: it,
+    tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S, candidates: Sequence[str] = CANDIDATES,
+    seed: int = 0, wrap: Callable[[Iterable], Iterable] = lambda it: it, **fit_options: Any,
 ) -> tuple[TextureModel, Selection]:
     """The validated winner refitted on all ``scans`` and the validation (module doc).
-    ``wrap`` wraps the list of (fold, candidate) fits (a progress bar)."""
+    ``fit_options`` go to :func:`fit_candidate`; ``wrap`` wraps the list of (fold,
+    candidate) fits (a progress bar)."""
     scans = list(scans)
-    kw = dict(order=order, tolerance_mm_s=tolerance_mm_s, highpass_hz=highpass_hz,
-              surface=surface or scans[0].surface, drive_band_hz=drive_band_hz, lines=lines)
+    kw = {"tolerance_mm_s": tolerance_mm_s, **fit_options,
+          "surface": fit_options.get("surface") or scans[0].surface}
     found = plateaus(scans, speeds_mm_s, tolerance_mm_s)
+    targets = [s for s, *_ in found]
     if len(found) < 2:
         reason = (f"{len(found)} speed plateau(s) of at least {MIN_PLATEAU_S:g} s within "
                   f"{tolerance_mm_s:g} mm/s of {', '.join(f'{v:g}' for v in speeds_mm_s)} "
@@ -191,21 +175,20 @@ def select_model(
         drop = [np.zeros(sc.speed_mm_s.size, bool) for sc in scans]
         held = []
         for _, i, a, b in found:
-            lo = a + (b - a) * k // BLOCKS
-            hi = a + (b - a) * (k + 1) // BLOCKS
+            lo, hi = a + (b - a) * k // BLOCKS, a + (b - a) * (k + 1) // BLOCKS
             drop[i][lo:hi] = True
             held.append(_piece(scans[i], lo, hi, f"block{k}"))
-        folds.append(("block", _without(scans, drop), [s for s, *_ in found], held))
-    for j in range(1, len(found) - 1):
-        s, i, a, b = found[j]
+        folds.append(("block", _without(scans, drop), targets, held))
+    for s, i, a, b in found[1:-1]:
         drop = [np.abs(sc.speed_mm_s - s) <= tolerance_mm_s for sc in scans]
-        folds.append(("between", _without(scans, drop),
-                      [v for v, *_ in found if v != s], [_piece(scans[i], a, b, f"{s:g}")]))
+        folds.append(("between", _without(scans, drop), [v for v in targets if v != s],
+                      [_piece(scans[i], a, b, f"{s:g}")]))
     scores = {c: CandidateScore(c, [], []) for c in candidates}
-    jobs = [(f, c) for f in folds for c in candidates]
-    for (kind, train, speeds, held), c in wrap(jobs):
-        model = fit_candidate(c, train, speeds, **kw)
-        got = held_out_lsd_db(model, held, seed)
+    for (kind, train, speeds, held), c in wrap([(f, c) for f in folds for c in candidates]):
+        with warnings.catch_warnings():
+            # speeds a fold lacks, blocks beyond its speeds (clamped): the final fit says
+            warnings.simplefilter("ignore")
+            got = held_out_lsd_db(fit_candidate(c, train, speeds, **kw), held, seed)
         (scores[c].block_lsd_db if kind == "block" else scores[c].between_lsd_db).extend(got)
     table = [scores[c] for c in candidates]
     best = min(table, key=lambda t: t.mean_lsd_db)
@@ -216,8 +199,8 @@ def select_model(
     winner = next(t for t in table if t.mean_lsd_db - best.mean_lsd_db <= noise[t.name])
     reason = (f"lowest held-out LSD within the noise, simplest first "
               f"({len(folds)} folds, {best.scores.size} held-out blocks)")
-    model = fit_candidate(winner.name, scans, [s for s, *_ in found], **kw)
-    sel = Selection(winner.name, True, reason, table, noise, [s for s, *_ in found])
+    model = fit_candidate(winner.name, scans, targets, **kw)
+    sel = Selection(winner.name, True, reason, table, noise, targets)
     model.selection = sel.to_json()
     return model, sel
 
@@ -235,6 +218,6 @@ def selection_table(sel: Selection) -> list[str]:
         between = f"{np.mean(c.between_lsd_db):9.2f}" if c.between_lsd_db else f"{'-':>9}"
         mark = "  <- chosen" if c.name == sel.winner else ""
         lines.append(f"  {c.name:<12}{np.mean(c.block_lsd_db):12.2f}{between}"
-                     f"{c.mean_lsd_db:7.2f}{c.spread_db:8.2f}"
+                     f"{c.mean_lsd_db:7.2f}{_spread(c):8.2f}"
                      f"{c.mean_lsd_db - best:+10.2f} +- {sel.noise_db[c.name]:.2f}{mark}")
     return lines
