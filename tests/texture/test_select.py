@@ -102,8 +102,9 @@ def test_removed_interpolation_fails_in_one_line(stroke, tmp_path):
 def test_model_json_is_strict(stroke, tmp_path):
     model = fit_paper([stroke], order=20)
     model.selection = {"winner": "paper", "mean_lsd_db": float("nan")}
-    with pytest.raises(ValueError):
+    with pytest.raises(UserError, match=r"nan\.json: the model holds a non-finite number"):
         save_model(model, tmp_path / "nan.json")
+    assert not (tmp_path / "nan.json").exists()
 
 
 def test_cli_fit_validates_and_synth_uses_the_models_interpolation(stroke, tmp_path, capsys):

@@ -1,8 +1,7 @@
-"""The texture model file: a documented JSON (docs/texture_model_format.md)."""
+"""The LPC texture model file: strict JSON (docs/texture_model_format.md)."""
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -12,11 +11,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError, read_json
+from fydpad.texture.family import FORMAT, save_model_json
 from fydpad.texture.lpc.analysis import is_stable, poly_from_h
 from fydpad.texture.lpc.coverage import check_provenance
 from fydpad.texture.lpc.lines import LineSpectrum
 
-FORMAT = "fydpad-texture-model"
 #: With a ``lines`` block (models[] alone would render a periodic surface without its
 #: lines: an older reader must refuse it); ``PLAIN_VERSION`` without, read by every reader.
 FORMAT_VERSION = 2
@@ -65,17 +64,15 @@ class TextureModel:
 
 
 def model_to_json(model: TextureModel) -> dict[str, Any]:
+    optional = {"two_part": model.two_part, "free_form": model.free_form,
+                "lines": model.lines, "selection": model.selection}
     return {
         "format": FORMAT,
         "format_version": PLAIN_VERSION if model.lines is None else FORMAT_VERSION,
-        "surface": model.surface,
-        "sample_rate_hz": model.fs_hz,
-        "order": model.order,
-        "highpass_hz": model.highpass_hz,
-        "fit_band_hz": list(model.fit_band_hz),
+        "surface": model.surface, "sample_rate_hz": model.fs_hz, "order": model.order,
+        "highpass_hz": model.highpass_hz, "fit_band_hz": list(model.fit_band_hz),
         "drive_band_hz": None if model.drive_band_hz is None else list(model.drive_band_hz),
-        "gain": model.gain,
-        "speed_tolerance_mm_s": model.tolerance_mm_s,
+        "gain": model.gain, "speed_tolerance_mm_s": model.tolerance_mm_s,
         "interpolation": model.interpolation,
         "coefficient_convention": "a(k) = e(k) + sum_i h[i] * a(k-1-i), e ~ N(0, sigma2)",
         "units": {"sigma2": "(m/s^2)^2", "speed_mm_s": "mm/s"},
@@ -84,18 +81,13 @@ def model_to_json(model: TextureModel) -> dict[str, Any]:
             for s, v, h in zip(model.speeds_mm_s, model.sigma2, model.h, strict=True)
         ],
         "provenance": model.provenance,
-        **({} if model.two_part is None else {"two_part": model.two_part}),
-        **({} if model.free_form is None else {"free_form": model.free_form}),
-        **({} if model.lines is None else {"lines": model.lines}),
-        **({} if model.selection is None else {"selection": model.selection}),
+        **{k: v for k, v in optional.items() if v is not None},
     }
 
 
 def save_model(model: TextureModel, path: str | Path) -> Path:
-    path = Path(path)
-    text = json.dumps(model_to_json(model), indent=1, allow_nan=False)  # strict JSON
-    path.write_text(text + "\n", encoding="utf-8")
-    return path
+    """Strict JSON: a non-finite number is a UserError naming the file."""
+    return save_model_json(model_to_json(model), path)
 
 
 def load_model(path: str | Path) -> TextureModel:

@@ -1,16 +1,8 @@
-"""Choosing the LPC model form on the user's own scans by held-out validation.
-
-Folds: *time blocks*, each speed plateau (a target's longest run within the tolerance)
-cut into ``BLOCKS`` equal blocks, fold k holding out block k of every plateau; *between
-plateaus*, each inner plateau held out whole with every sample within the tolerance of
-its speed, so the speeds between the others are judged as a finger meets them. Each
-candidate fitted on the rest is scored on each held-out block by the log-spectral
-distance of :func:`evaluate.compare` (its synthesis along the block's speed trace against
-the block's DFT321 signal). The winner is the simplest candidate (``CANDIDATES`` order)
-whose mean is within the noise (the standard error of the paired difference to the
-best) of the best, refitted on all the scans. Fewer than two plateaus of
-``MIN_PLATEAU_S``: the plain paper method, and the reason recorded.
-"""
+"""Choosing the LPC model form on the user's own scans by held-out validation
+(docs/texture.md, "How fit chooses"): time blocks of each speed plateau and whole inner
+plateaus held out in turn; each candidate fitted on the rest is scored by the
+log-spectral distance of its synthesis along each held-out block's own speed; the
+simplest candidate within the noise of the best is refitted on all the scans."""
 
 from __future__ import annotations
 
