@@ -12,7 +12,6 @@ filter (``counters()["limiter_resets"]``) and is clipped.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
@@ -178,7 +177,10 @@ def fit_command(scan_paths: list[str], opts: dict[str, Any], out: str,
     whole, and with ``plot`` the recorded against the model spectra (Bianchi 2015 Fig. 10)."""
     if not scan_paths:
         raise UserError("fit: give at least one SCAN.csv")
-    scans = [read_scan_or_fail(p) for p in scan_paths]
+    try:
+        scans = [read_scan(p) for p in scan_paths]
+    except RecordingError as exc:
+        raise UserError(str(exc)) from None
     check_fit_options(opts, scans[0].fs_hz)
     labels = [sc.meta.get("surface") for sc in scans]
     notes = []
@@ -191,7 +193,7 @@ def fit_command(scan_paths: list[str], opts: dict[str, Any], out: str,
               highpass_hz=opts["highpass_hz"], surface=opts["surface"],
               drive_band_hz=tuple(opts["drive_band"]), min_seconds=opts["min_seconds"],
               lines=lines_option(opts["lines"], "--lines"))
-    wrap = opts.get("wrap_iterations", _no_wrap)
+    wrap = opts.get("wrap_iterations", lambda it: it)
     if opts["form"] == "auto":
         model, sel = select_model(scans, speeds_mm_s=opts["speeds"], wrap=wrap, **kw)
         table = selection_table(sel)
@@ -244,17 +246,6 @@ def plot_fit(path: str, scans: list[Scan], model: TextureModel, opts: dict[str, 
     plot_spectra(path, panels, f"{model.surface}: recorded vs model "
                  f"({model.provenance['form']}, {model.interpolation})",
                  coverage=SpeedCoverage(edges, seconds, fitted, gaps))
-
-
-def read_scan_or_fail(path: str) -> Scan:
-    try:
-        return read_scan(path)
-    except RecordingError as exc:
-        raise UserError(str(exc)) from None
-
-
-def _no_wrap(it: Iterable) -> Iterable:
-    return it
 
 
 KIND = Kind("lpc", _from_json, _fit,

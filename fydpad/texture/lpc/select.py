@@ -46,6 +46,10 @@ class CandidateScore:
     def mean_lsd_db(self) -> float:
         return float(np.mean(self.scores))
 
+    @property
+    def spread_db(self) -> float:
+        return float(np.std(self.scores, ddof=1)) if self.scores.size > 1 else 0.0
+
 
 @dataclass
 class Selection:
@@ -63,16 +67,12 @@ class Selection:
             "score": "mean log-spectral distance (dB, 20-500 Hz, 4 Hz bins) on held-out blocks",
             "plateaus_mm_s": [r3(v) for v in self.plateaus_mm_s],
             "candidates": [
-                {"name": c.name, "mean_lsd_db": r3(c.mean_lsd_db), "spread_db": r3(_spread(c)),
+                {"name": c.name, "mean_lsd_db": r3(c.mean_lsd_db), "spread_db": r3(c.spread_db),
                  "time_block_lsd_db": [r3(x) for x in c.block_lsd_db],
                  "between_plateaus_lsd_db": [r3(x) for x in c.between_lsd_db],
                  "noise_to_best_db": r3(self.noise_db.get(c.name, 0.0))}
                 for c in self.candidates],
         }
-
-
-def _spread(c: CandidateScore) -> float:
-    return float(np.std(c.scores, ddof=1)) if c.scores.size > 1 else 0.0
 
 
 def fit_candidate(name: str, scans: Sequence[Scan], speeds_mm_s: Sequence[float], *,
@@ -210,6 +210,6 @@ def selection_table(sel: Selection) -> list[str]:
         between = f"{np.mean(c.between_lsd_db):9.2f}" if c.between_lsd_db else f"{'-':>9}"
         mark = "  <- chosen" if c.name == sel.winner else ""
         lines.append(f"  {c.name:<12}{np.mean(c.block_lsd_db):12.2f}{between}"
-                     f"{c.mean_lsd_db:7.2f}{_spread(c):8.2f}"
+                     f"{c.mean_lsd_db:7.2f}{c.spread_db:8.2f}"
                      f"{c.mean_lsd_db - best:+10.2f} +- {sel.noise_db[c.name]:.2f}{mark}")
     return lines
