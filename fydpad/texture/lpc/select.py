@@ -104,12 +104,15 @@ def plateaus(scans: Sequence[Scan], speeds_mm_s: Sequence[float], tolerance_mm_s
     tolerance, for the targets that have one of at least ``MIN_PLATEAU_S``."""
     out = []
     for s in sorted(float(v) for v in speeds_mm_s):
-        # A hand sways about 10 % around a plateau: widened to 20 % of its speed.
-        found = [(b - a, -i, i, a, b) for i, sc in enumerate(scans)
-                 for a, b in runs(np.abs(sc.speed_mm_s - s) <= max(tolerance_mm_s, 0.2 * s),
-                                  round(MIN_PLATEAU_S * sc.fs_hz))]
-        if found:  # the longest; the first of equals
-            out.append((s, *max(found, key=lambda r: (r[0], r[1], -r[3]))[2:]))
+        best = None
+        for i, sc in enumerate(scans):
+            # A hand sways about 10 % around a plateau: widened to 20 % of its speed.
+            for a, b in runs(np.abs(sc.speed_mm_s - s) <= max(tolerance_mm_s, 0.2 * s),
+                             round(MIN_PLATEAU_S * sc.fs_hz)):
+                if best is None or b - a > best[2] - best[1]:
+                    best = (i, a, b)
+        if best is not None:
+            out.append((s, *best))
     return out
 
 
