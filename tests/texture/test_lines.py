@@ -128,8 +128,8 @@ def test_between_the_strokes_speeds_the_generators_grating_keeps_its_level():
     level g(v) of the factor model bridged the gap as its smoothing penalty bent it)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        model, _ = fit_texture([generate_scan("R1", v, 10.0, seed=1 + j)
-                                for v in SPEEDS for j in (0, 1)])
+        model = fit_texture([generate_scan("R1", v, 10.0, seed=1 + j)
+                             for v in SPEEDS for j in (0, 1)])
         truth_scans = [generate_scan("R1", 15.0, 12.0, seed=100 + j) for j in range(4)]
         truth = fit_lines([preprocess(sc.acc, FS) for sc in truth_scans],
                           [sc.speed_mm_s for sc in truth_scans], FS, (10.0, 20.0)).spectrum
@@ -181,7 +181,7 @@ def test_the_table_is_finite_when_one_strokes_fit_makes_a_line(tmp_path):
     own fit made a harmonic present once gave a negative power, NaN in the factor model
     and a file no reader accepts; every amplitude is finite and the file reads back."""
     scans = [generate_scan("mesh_steel", s, 10.0, seed=5 + j) for s in SPEEDS for j in (0, 1)]
-    model, _ = fit_texture(scans)
+    model = fit_texture(scans)
     assert np.all(np.isfinite(np.asarray(model.lines["amplitude"])))
     load_model(save_model(model, tmp_path / "mesh.json"))
 
@@ -224,7 +224,7 @@ def test_a_ribs_residual_is_a_surface_and_gets_the_spectral_form():
         warnings.simplefilter("ignore")
         train = [generate_scan("corduroy", v, 8.0, seed=3 + j)
                  for v in (10.0, 15.0, 20.0, 30.0, 40.0) for j in (0, 1)]
-        default, _ = fit_texture(train)
+        default = fit_texture(train)
     assert default.lines is not None and default.free_form["form"] == "calibrated"
     assert default.provenance["lines"]["share"] < 0.9
     held, mask, ceil = held_out("corduroy", 15.0, default, 12.0, 50, 51)
@@ -244,7 +244,7 @@ def test_a_combs_residual_gets_the_spectral_form_too():
         warnings.simplefilter("ignore")
         train = [generate_scan("aluminum_knurl", v, 10.0, seed=1 + j)
                  for v in SPEEDS for j in (0, 1)]
-        default, _ = fit_texture(train)
+        default = fit_texture(train)
     assert default.lines is not None and default.free_form["form"] == "calibrated"
     assert default.provenance["lines"]["share"] > 0.9
     held, mask, ceil = held_out("aluminum_knurl", 15.0, default, 12.0, 50, 51)
@@ -328,7 +328,7 @@ def test_fit_texture_without_lines_is_the_model_it_was(tmp_path):
     """A surface without a period: no 'lines' block, a version-1 file (every reader since
     the first reads it)."""
     scans = [generate_scan("felt", s, 6.0, seed=1) for s in SPEEDS]
-    auto, _ = fit_texture(scans, order=60)
+    auto = fit_texture(scans, order=60)
     assert auto.lines is None and "no spatial period" in auto.provenance["lines"]["note"]
     data = json.loads(save_model(auto, tmp_path / "felt.json").read_text())
     assert data["format_version"] == 1 and "lines" not in data
@@ -337,7 +337,7 @@ def test_fit_texture_without_lines_is_the_model_it_was(tmp_path):
 @pytest.fixture(scope="module")
 def r2_model(tmp_path_factory):
     scans = [generate_scan("R2", s, 6.0, seed=1) for s in SPEEDS]
-    model, _ = fit_texture(scans)
+    model = fit_texture(scans)
     path = save_model(model, tmp_path_factory.mktemp("lines") / "R2.json")
     return model, path
 
@@ -467,7 +467,7 @@ def test_a_constant_speed_rig_keeps_its_lines():
     in one speed row: the lines are kept there (not vetoed by rows without data) and the
     rendering along each stroke has its recording's power within 1 dB."""
     scans = [generate_scan("R2", s, 6.0, seed=1, hand_variation=0.0) for s in SPEEDS]
-    model, _ = fit_texture(scans)
+    model = fit_texture(scans)
     assert model.lines is not None
     for sc in scans:
         rec = preprocess(sc.acc, FS)[1000:-1000]

@@ -14,8 +14,8 @@ from fydpad.texture.families.penn.toolkit import (
     read_penn,
     write_penn,
 )
-from fydpad.texture.lpc.analysis import reflection_to_poly
-from fydpad.texture.lpc.lsf import lsf_to_poly, poly_to_lsf
+from fydpad.texture.lpc.lsf import lsf_to_poly
+from tests.texture.lpc_polys import poly_to_lsf, reflection_to_poly
 
 
 def _resonator(f_hz: float, fs: float, r: float = 0.97) -> np.ndarray:
