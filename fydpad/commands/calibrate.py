@@ -341,7 +341,7 @@ def run_indentation(args: argparse.Namespace) -> int:
     import numpy as np
 
     from vision.config import IRConfig
-    from vision.indentation import PlaneCorrection, rmse
+    from vision.indentation import SagCorrection, rmse
 
     if args.protocol:
         from fydpad.indentation_protocol import protocol_text
@@ -366,7 +366,7 @@ def run_indentation(args: argparse.Namespace) -> int:
             raise UserError("the recordings state different IR sensor positions: calibrate "
                             "one device at a time")
     data = {k: np.concatenate([part[k] for part in parts]) for k in parts[0]}
-    need = 3 * PlaneCorrection.n_coef(args.xy_degree, args.depth_degree)
+    need = 3 * SagCorrection.n_coef(args.xy_degree, args.depth_degree)
     n = int(data["depth"].size)
     names = ", ".join(args.recdirs)
     if n < need:
@@ -375,7 +375,7 @@ def run_indentation(args: argparse.Namespace) -> int:
     if np.unique(data["press"] % 2).size < 2:
         raise UserError(f"{names}: a single press; record several, at different places")
     try:
-        final, held_rmse, scores = PlaneCorrection.fit_cv(
+        final, held_rmse, scores = SagCorrection.fit_cv(
             data["e"], data["x"], data["y"], data["depth"], data["press"],
             args.xy_degree, args.depth_degree, sensors_mm=sensors)
     except ValueError as exc:

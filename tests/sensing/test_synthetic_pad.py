@@ -15,7 +15,7 @@ from fydpad.synth import SynthConfig, SyntheticPad
 from vision.config import IRConfig
 from vision.indentation import (
     IndentationEstimator,
-    PlaneCorrection,
+    SagCorrection,
     indentation_at_frames,
     rmse,
 )
@@ -56,7 +56,7 @@ def test_indentation_on_the_synthetic_pad():
         np.testing.assert_allclose(s["rest_used"], s["rest_true"], atol=0.15)
     data = {k: np.concatenate([s[k] for s in cal]) for k in ("e", "x", "y", "depth",
                                                              "press")}
-    corr, _, _ = PlaneCorrection.fit_cv(data["e"], data["x"], data["y"], data["depth"],
+    corr, _, _ = SagCorrection.fit_cv(data["e"], data["x"], data["y"], data["depth"],
                                         data["press"])
     d = test["depth"]
     assert d.max() > 40.0
