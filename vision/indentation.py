@@ -426,7 +426,7 @@ class IndentationEstimator:
                                     else config.base_to_fabric_mm),
             baseline_mm=None if base is None else tuple(float(b) for b in base),  # type: ignore[arg-type]
             correction=SagCorrection(tuple(config.correction_coef), config.correction_xy_degree,
-                                       config.correction_depth_degree)
+                                     config.correction_depth_degree)
             if config.correction_coef else None,
             sensor_period_s=tuple(float(t) for t in config.sensor_period_s),  # type: ignore[arg-type]
         )

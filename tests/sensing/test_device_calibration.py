@@ -43,14 +43,14 @@ def test_the_demo_loads_the_bundled_device_configuration(tmp_path: Path):
     ir = load_config(DEVICE).ir
     assert ir.correction_per_sensor
     assert len(ir.correction_coef) == SagCorrection.n_coef(ir.correction_xy_degree,
-                                                              ir.correction_depth_degree)
+                                                          ir.correction_depth_degree)
 
 
 @pytest.mark.parametrize("seed", [21, 22])
 def test_the_device_calibration_corrects_fresh_sessions(seed: int):
     ir = load_config(DEVICE).ir
     corr = SagCorrection(np.asarray(ir.correction_coef), ir.correction_xy_degree,
-                           ir.correction_depth_degree)
+                         ir.correction_depth_degree)
     s = session(seed)  # 60 s of taps at random places, truth's centroids
     d = s["depth"]
     plane = rmse(s["plane"], d)

@@ -163,7 +163,7 @@ def test_the_per_frame_path_equals_the_vectorised_one():
     x[9] = np.nan
     e = rng.uniform(0, 20, (400, 3))
     corr = SagCorrection.fit(e, rng.uniform(-50, 50, 400), rng.uniform(-35, 35, 400),
-                               e.mean(axis=1) * 1.3 + 0.01 * e[:, 0] ** 2)
+                             e.mean(axis=1) * 1.3 + 0.01 * e[:, 0] ** 2)
     for c in (None, corr):
         est = IndentationEstimator(baseline_mm=BASELINE_MM, correction=c)
         r = est.estimate_from_distances(d, x, y)
