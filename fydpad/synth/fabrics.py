@@ -90,18 +90,20 @@ def calibrate(pad_name: str, sessions: Sequence[tuple[str, int]] = PROTOCOL_SESS
         offset = int(p["press"].max(initial=offset)) + 1
     d = {k: np.concatenate([p[k] for p in parts]) for k in ("e", "x", "y", "depth", "press")}
     corr, held, _ = SagCorrection.fit_cv(d["e"], d["x"], d["y"], d["depth"], d["press"],
-                                           xy_degree, depth_degree,
-                                           sensors_mm=parts[0]["sensors"])
+                                         xy_degree, depth_degree,
+                                         sensors_mm=parts[0]["sensors"])
     return corr, held
 
 
 def causal_indentation(pad_name: str, trajectory: str, seed: int, correction: SagCorrection,
-                       seconds: float = 20.0, fps: float = 30.0
+                       seconds: float | None = None, fps: float = 30.0
                        ) -> tuple[np.ndarray, np.ndarray]:
     """(estimate, true depth) in mm at the contact frames of a session with a usable
     estimate, through ``fydpad track``'s path: ``CausalIndentation`` fed frame by frame,
     the correction in the estimator, the rest distances from the samples before the
-    first contact (the rule ``indentation_samples`` follows too)."""
+    first contact (the rule ``indentation_samples`` follows too). ``seconds``: by
+    default ``session_seconds``."""
+    seconds = session_seconds(trajectory) if seconds is None else seconds
     pad = SyntheticPad(SynthConfig(trajectory=trajectory, seconds=seconds, seed=seed,
                                    fps=fps, **TEST_PADS[pad_name]))
     t_ir, volts = pad.ir()

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fydpad import indentation_protocol as proto
+
 TRAJECTORIES = ("circle", "lissajous", "tapping", "walk", "fast", "hover", "presses",
                 "protocol")
 
@@ -351,8 +353,6 @@ def protocol(seconds: float, rng: np.random.Generator, p: TrajectoryParams) -> F
     the next mark at a hand's pace (``HOP_SPEED_MM_S``). Each press lands within
     ``PROTOCOL_AIM_MM`` of its mark and within ``PROTOCOL_DEPTH_SPREAD`` of its depth.
     Built whole whatever ``seconds`` (``protocol_duration_s`` says how long it takes)."""
-    from fydpad import indentation_protocol as proto  # lazy: synth loads without it
-
     marks = proto.presses(PRESSES_WORKSPACE_MM)
     b = _start(p, marks[0].x_mm, marks[0].y_mm)
     for rec in range(1, proto.RECORDINGS + 1):
