@@ -205,8 +205,8 @@ def test_rest_distances_resolve_finer_than_one_adc_step():
 
 
 def test_indentation_target_on_a_non_planar_fabric():
-    """RMSE <= 3 mm over 0-50 mm against the true depth (paper: 2.88 mm), across the
-    whole 100 x 70 mm workspace; the correction is fitted on one set of presses and
+    """RMSE <= 0.6 mm over 0-50 mm against the true depth (measured 0.43; the paper's
+    plane reports 2.88 mm), across the whole 100 x 70 mm workspace; the correction is fitted on one set of presses and
     scored on another."""
     rng = np.random.default_rng(4)
     fabric = MembraneFabric()
@@ -228,10 +228,10 @@ def test_indentation_target_on_a_non_planar_fabric():
     assert rmse(plane.indentation_mm[deep], d[deep]) > 4.0
     inside = deep & (np.abs(x) < 10) & (np.abs(y) < 10)
     assert np.mean(plane.indentation_mm[inside] - d[inside]) < -4.0
-    assert corr_rmse <= 3.0
-    assert corr_rmse <= 0.6 * plane_rmse
-    assert rmse(corr.indentation_mm[deep], d[deep]) <= 3.0
-    assert abs(np.mean(corr.indentation_mm[deep] - d[deep])) < 0.5
+    assert corr_rmse <= 0.6
+    assert corr_rmse <= 0.25 * plane_rmse
+    assert rmse(corr.indentation_mm[deep], d[deep]) <= 0.6
+    assert abs(np.mean(corr.indentation_mm[deep] - d[deep])) < 0.2
 
 
 def test_cross_validation_scores_each_press_by_the_fit_on_all_the_others():
