@@ -387,7 +387,7 @@ def _refine(strokes: Sequence[_Stroke], lam: float, f_lo: float, f_hi: float,
     At lambda_0 / (1 + eps) harmonic n's phase gains 2 pi n s eps / lambda_0, slowly
     along the stroke: the demodulated signal is summed over blocks short enough for that
     phase to stay put, and each eps costs one small matrix product."""
-    pieces = []
+    blocks = []  # demodulated once, summed over blocks short enough for the span
     for st in strokes:
         a, b = _longest_run(st.valid)
         if b - a < 256:
@@ -401,18 +401,15 @@ def _refine(strokes: Sequence[_Stroke], lam: float, f_lo: float, f_hi: float,
             z = np.concatenate([np.abs(y @ _phasors(s, n[c], min(_CHUNK, n.size - c), lam))
                                 for c in range(0, n.size, _CHUNK)])
             n = np.sort(n[np.argsort(z)[::-1][:24]])
-        pieces.append((s, y, n))
-    if not pieces:
-        return lam
-    lam0, blocks = lam, []
-    for s, y, n in pieces:  # demodulated once, summed over blocks short enough for span
         ds = float(s[-1] - s[0]) / max(s.size - 1, 1)
-        blk = max(1, int(0.05 * lam0 / (n.max() * max(ds, 1e-12) * span)))
+        blk = max(1, int(0.05 * lam / (n.max() * max(ds, 1e-12) * span)))
         blk = min(blk, max(1, s.size // 64))  # enough blocks to see the phase ramp
         m = (s.size // blk) * blk
-        z = y[:m, None] * np.exp(-2j * np.pi * np.outer(s[:m], n / lam0))
+        z = y[:m, None] * np.exp(-2j * np.pi * np.outer(s[:m], n / lam))
         blocks.append((z.reshape(-1, blk, n.size).sum(axis=1),
-                       s[:m].reshape(-1, blk).mean(axis=1), n / lam0, blk * ds))
+                       s[:m].reshape(-1, blk).mean(axis=1), n / lam, blk * ds))
+    if not blocks:
+        return lam
     centre = 0.0  # lambda = lambda_0 / (1 + eps)
     for _ in range(4):
         grid = np.linspace(-span, span, 21)
@@ -433,7 +430,7 @@ def _refine(strokes: Sequence[_Stroke], lam: float, f_lo: float, f_hi: float,
         step = grid[1] - grid[0]
         centre += grid[i] + (0.5 * step * (y0 - y2) / den if den < 0 else 0.0)
         span = 2 * step
-    return lam0 / (1.0 + centre)
+    return lam / (1.0 + centre)
 
 
 @dataclass
@@ -773,10 +770,8 @@ def fit_lines(signals: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     ref = min(range(len(strokes)), key=lambda i: (strokes[i].med, -strokes[i].valid.sum()))
     phase = np.angle(fits[ref].at(np.array([strokes[ref].med]))[0])
     kept = int(np.sum(present.any(axis=0)))
-    if rib is not None:
-        what = ("a rib: one line" if kept == 1 else f"a rib: {kept} harmonics") + ", no comb"
-    else:
-        what = f"{kept} harmonics kept"
+    what = f"{kept} harmonics kept" if rib is None else (
+        f"a rib: {'one line' if kept == 1 else f'{kept} harmonics'}, no comb")
     note = (f"period {lam:.4f} mm, {what}, {100 * share:.1f} % of the power in "
             + ("the line" if kept == 1 else "lines"))
     if capped:
