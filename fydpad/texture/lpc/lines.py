@@ -195,6 +195,7 @@ class _Stroke:
     s: Array  # arc length, mm
     med: float
     valid: Mask  # the samples that carry the line fit
+    run: slice | None  # the longest run of them, if 256 samples or more
 
 
 def _stroke(i: int, y: Array, v: Array, speed_range: tuple[float, float], fs_hz: float
@@ -214,11 +215,9 @@ def _stroke(i: int, y: Array, v: Array, speed_range: tuple[float, float], fs_hz:
     valid = inr & ~fast & (np.abs(v - med) < SPEED_SPAN * med)
     if valid.sum() < 0.5 * fs_hz:
         return None
-    return _Stroke(i, y, v, arc_length_mm(v, fs_hz), med, valid)
-
-
-def _longest_run(mask: Mask) -> tuple[int, int]:
-    return max(runs(mask), key=lambda r: r[1] - r[0], default=(0, 0))
+    a, b = max(runs(valid), key=lambda r: r[1] - r[0], default=(0, 0))
+    return _Stroke(i, y, v, arc_length_mm(v, fs_hz), med, valid,
+                   slice(a, b) if b - a >= 256 else None)
 
 
 @dataclass
@@ -235,10 +234,9 @@ class _Spectrum:
 def _spatial_spectrum(st: _Stroke, f_lo: float, f_hi: float) -> _Spectrum | None:
     """Hann periodogram of the stroke's longest valid run on a uniform arc-length grid,
     where the harmonics stand at n / lambda whatever the speed."""
-    a, b = _longest_run(st.valid)
-    if b - a < 256:
+    if st.run is None:
         return None
-    s, y, v = st.s[a:b], st.y[a:b], st.v[a:b]
+    s, y, v = st.s[st.run], st.y[st.run], st.v[st.run]
     ds = 0.5 * float(np.median(np.diff(s)))  # twice the samples: no harmonic folds
     if not ds > 0:
         return None
@@ -389,10 +387,9 @@ def _refine(strokes: Sequence[_Stroke], lam: float, f_lo: float, f_hi: float,
     phase to stay put, and each eps costs one small matrix product."""
     blocks = []  # demodulated once, summed over blocks short enough for the span
     for st in strokes:
-        a, b = _longest_run(st.valid)
-        if b - a < 256:
+        if st.run is None:
             continue
-        s, y, v = st.s[a:b] - st.s[a], st.y[a:b], st.v[a:b]
+        s, y, v = st.s[st.run] - st.s[st.run.start], st.y[st.run], st.v[st.run]
         n = np.arange(max(1, math.ceil(f_lo * lam / v.min())),
                       math.floor(f_hi * lam / v.max()) + 1, dtype=float)
         if n.size == 0:
