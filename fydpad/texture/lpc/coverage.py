@@ -2,9 +2,8 @@
 
 A hand asked for a speed wanders about +-2 mm/s around it, so strokes at 10, 20, 30 and
 40 mm/s leave gaps between them, where the model is an interpolation and measurably less
-accurate on held-out strokes (docs/texture.md, "Speed coverage"). The fit records the
-gaps so that a lab knows where to scan more; ``evaluate`` and ``synth`` say when they
-work inside one.
+accurate on held-out strokes. The fit records the gaps so that a lab knows where to scan
+more; ``evaluate`` and ``synth`` say when they work inside one.
 """
 
 from __future__ import annotations
