@@ -628,7 +628,7 @@ def _fill(power: Array, present: Mask, data: Mask, model: Array) -> Array:
     slowest instants, where noise over the threshold grew 15 dB across a gap (canvas,
     +3.1 dB LSD at 15 mm/s); a single isolated row (a constant-speed rig) is carried."""
     out = np.where(data, power, 0.0)
-    rows = np.flatnonzero(present)  # rows with data
+    rows = np.flatnonzero(present)  # (a present row always has data)
     if rows.size == 0 or (rows.size == 1 and data[max(rows[0] - 1, 0):rows[0] + 2].sum() > 1):
         return out
     x = np.arange(power.size, dtype=float)
