@@ -199,6 +199,8 @@ def specimen_experiment(kind: str, train: dict[str, list], test: dict[str, list]
                 r = rough[n]
                 stroke = test[r][k % len(test[r])]
                 m = fam[r]
+                if "seed" in m.parameters:  # the same seed, the same confusion matrix
+                    m.set_parameter("seed", seed + k)
                 m.reset()
                 syn = m.render(finger_from_scan(stroke), channel)
                 _, ps = welch_psd(syn - syn.mean(), stroke.fs_hz, stroke.speed_mm_s > 1)
