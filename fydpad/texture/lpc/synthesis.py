@@ -30,15 +30,8 @@ import scipy.signal as ss
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import maximum_filter1d, minimum_filter1d
 
+from fydpad.texture.lpc import fir_warp
 from fydpad.texture.lpc.analysis import energy_length, impulse_responses
-from fydpad.texture.lpc.fir_warp import (
-    WARP_LAGS,
-    WARP_SLACK_MM_S,
-    lag_fade,
-    lag_speeds,
-    table_position,
-    warped_responses,
-)
 from fydpad.texture.lpc.interpolation import build_table
 from fydpad.texture.lpc.line_voice import LineVoice
 from fydpad.texture.lpc.lines import LineSpectrum
@@ -102,7 +95,7 @@ class TextureRenderer:
         self._noise_pos = _NOISE_CHUNK
         self._g = 0.0
         self.clamped = False
-        self.warp_slack_mm_s = WARP_SLACK_MM_S  # inf: the plain FIR
+        self.warp_slack_mm_s = fir_warp.WARP_SLACK_MM_S  # inf: the plain FIR
         # The per-sample path's rows and history windows: views made once, none per tick.
         self._v0 = float(t.speeds_mm_s[0])
         self._inv_step = 1.0 / float(t.step_mm_s)
@@ -142,7 +135,7 @@ class TextureRenderer:
         if g.shape[0] == 1:  # one model: two equal rows keep the interpolation uniform
             g = np.vstack([g, g])
         self.fir = fir = np.ascontiguousarray(g[:, :n_fir])
-        self._n_fir_rows, self._n_fir = rows, _ = fir.shape
+        self._n_fir_rows, self._n_fir = rows, n_fir = fir.shape
         self._fir_rev = np.ascontiguousarray(fir[:, ::-1])
         # Block path: FFT size (chunks of >= 1024 samples), each entry's spectrum once used.
         self._nfft = sfft.next_fast_len(n_fir + 1023)
@@ -150,12 +143,12 @@ class TextureRenderer:
         self._gspec_ok = np.zeros(rows, bool)
         self._ebuf = np.zeros(2 * n_fir)  # noise, newest first, written twice
         self._epos = 0
-        self._lags = lags = min(WARP_LAGS, n_fir)
+        self._lags = lags = min(fir_warp.WARP_LAGS, n_fir)
         self._vbuf = np.zeros(2 * lags)  # the last speeds, newest first, written twice
         self._vpos = 0
         self._v_last = 0.0  # the last finite speed (what a lost track holds)
         self._inv_count = 1.0 / np.arange(1.0, lags + 1.0)
-        self._fade = lag_fade(lags)
+        self._fade = fir_warp.lag_fade(lags)
         self._fade_per_step = self._fade / float(self.table.step_mm_s)
         # A warped tick's scratch: lag deviations, clipped, upper weights, the two taps.
         self._vdev, self._vclip, self._ww, self._g0, self._g1 = np.empty((5, lags))
@@ -245,16 +238,14 @@ class TextureRenderer:
         self._noise_pos += 1
         if self.structure == "fir":
             n_fir = self._n_fir
-            pos = self._epos
-            pos = pos - 1 if pos > 0 else n_fir - 1
+            pos = (self._epos or n_fir) - 1  # the ring's next slot, newest first
             self._ebuf[pos] = e
             self._ebuf[pos + n_fir] = e
             self._epos = pos
             # Each lag's speed (fir_warp.lag_speeds, the same operations): the mean of the
             # newest speeds, its deviation from this one.
             lags = self._lags
-            vpos = self._vpos
-            vpos = vpos - 1 if vpos > 0 else lags - 1
+            vpos = (self._vpos or lags) - 1
             if finite:
                 self._v_last = min(max(speed_mm_s, 0.0), _HISTORY_MAX_MM_S)
             vh = self._v_last
@@ -286,10 +277,9 @@ class TextureRenderer:
             i = self.table.index(speed_mm_s)
             if i != self._last_i:
                 self._limit_history(i)
-            pos = self._pos
             p = self.p
-            y = self._sigma[i] * e + float(self._h_rows[i].dot(self._bwin[pos]))
-            pos = pos - 1 if pos > 0 else p - 1
+            y = self._sigma[i] * e + float(self._h_rows[i].dot(self._bwin[self._pos]))
+            pos = (self._pos or p) - 1
             self._buf[pos] = y
             self._buf[pos + p] = y
             self._pos = pos
@@ -348,8 +338,8 @@ class TextureRenderer:
         e = self._take_noise(n)
         if self.structure == "fir":
             # A speed that is not finite is no speed (as in tick): the first entry.
-            idx, lam = table_position(np.where(np.isfinite(v), v, self._v0), self._v0,
-                                      t.step_mm_s, self._n_fir_rows)
+            v_ok = np.where(np.isfinite(v), v, self._v0)
+            idx, lam = fir_warp.table_position(v_ok, self._v0, t.step_mm_s, self._n_fir_rows)
             y = self._fir_block(e, idx, lam, self._history_speeds(v))
         else:
             idx = np.clip(((v - t.speeds_mm_s[0]) / t.step_mm_s + 0.5).astype(np.int64),
@@ -453,14 +443,14 @@ class TextureRenderer:
         noise = np.lib.stride_tricks.sliding_window_view(full[n_fir - lags:], lags)
         for a in range(0, cand.size, 512):  # (512, lags) taps at a time
             i = cand[a:a + 512]
-            u, warped = lag_speeds(windows[i, ::-1], slack, self._fade)
+            u, warped = fir_warp.lag_speeds(windows[i, ::-1], slack, self._fade)
             i, u = i[warped], u[warped]
             if i.size:
                 # The warped taps less the plain ones (the tails are the same: u ends at v).
                 k, w = idx[i], lam[i, None]
                 plain = (1.0 - w) * self.fir[k, :lags] + w * self.fir[k + 1, :lags]
-                dg = warped_responses(self.fir[:, :lags], self._v0, self.table.step_mm_s,
-                                      u) - plain
+                dg = fir_warp.warped_responses(self.fir[:, :lags], self._v0,
+                                               self.table.step_mm_s, u) - plain
                 y[i] += np.einsum("ij,ij->i", dg, noise[i, ::-1])
 
     def _direct_block(self, e: Array, idx: NDArray[np.int64]) -> Array:
