@@ -377,12 +377,10 @@ class TextureRenderer:
             spec = None
             # Every (sample, entry, weight): 1 - lam on the lower entry, lam on the upper,
             # grouped by entry, each group's samples ascending.
-            m = b - a
             entry = np.concatenate([idx[a:b], idx[a:b] + 1])
-            sample = np.concatenate([np.arange(m), np.arange(m)])
+            sample = np.tile(np.arange(b - a), 2)
             order = np.lexsort((sample, entry))
-            entry = entry[order]
-            sample = sample[order]
+            entry, sample = entry[order], sample[order]
             weight = np.concatenate([1.0 - lam[a:b], lam[a:b]])[order]
             edges = np.flatnonzero(np.diff(entry)) + 1
             for lo, hi in zip(np.r_[0, edges], np.r_[edges, entry.size], strict=True):
@@ -404,9 +402,7 @@ class TextureRenderer:
                 z = sfft.irfft(spec * self._gspec[j], nfft)
                 y[a + k] += wj * z[n_fir - 1 + k]
         self._warp_block(y, full, v, idx, lam)
-        newest = full[::-1][:n_fir]
-        self._ebuf[:n_fir] = newest
-        self._ebuf[n_fir:] = newest
+        self._ebuf[:] = np.tile(full[::-1][:n_fir], 2)
         self._epos = 0
         return y
 
@@ -428,9 +424,7 @@ class TextureRenderer:
         lags, n_fir = self._lags, self._n_fir
         vpos = self._vpos
         hv = np.concatenate([self._vbuf[vpos:vpos + lags - 1][::-1], v])
-        newest = hv[::-1][:lags]
-        self._vbuf[:lags] = newest
-        self._vbuf[lags:] = newest
+        self._vbuf[:] = np.tile(hv[::-1][:lags], 2)
         self._vpos = 0
         o = (lags - 1) // 2  # a trailing window: sample i's last `lags` speeds
         slack = self.warp_slack_mm_s
@@ -467,9 +461,7 @@ class TextureRenderer:
             zi = -np.correlate(t.polys[i, 1:], hist, "full")[p - 1:]
             y[a:b], _ = ss.lfilter([t.sigma[i]], t.polys[i], e[a:b], zi=zi)
             m = min(b - a, p)  # push the run's newest outputs onto the history
-            hist = np.concatenate([y[a:b][::-1][:m], hist[:p - m]])
-            self._buf[:p] = hist
-            self._buf[p:] = hist
+            self._buf[:] = np.tile(np.concatenate([y[a:b][::-1][:m], hist[:p - m]]), 2)
             self._pos = 0
         return y
 
