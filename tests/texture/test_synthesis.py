@@ -214,8 +214,8 @@ def sandpaper_calibrated() -> TextureModel:
     """The same scans fitted by default (the calibrated spectrum)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        model, _ = fit_texture([generate_scan("sandpaper_p80", s, 3.0, seed=1)
-                                for s in (10.0, 20.0, 30.0, 40.0)], order=200)
+        model = fit_texture([generate_scan("sandpaper_p80", s, 3.0, seed=1)
+                             for s in (10.0, 20.0, 30.0, 40.0)], order=200)
     return model
 
 

@@ -29,7 +29,7 @@ from tests.conftest import REPO
 def files(tmp_path_factory):
     d = tmp_path_factory.mktemp("families")
     scans = [generate_scan("canvas", v, 3.0, seed=1, friction=True) for v in (10.0, 30.0)]
-    model, _ = fit_texture(scans, order=40, speeds_mm_s=[10.0, 30.0])
+    model = fit_texture(scans, order=40, speeds_mm_s=[10.0, 30.0])
     save_model(model, d / "lpc.json")  # an LPC file: no "kind"
     save_model_json(fit_family("friction", scans[:1]), d / "friction.json")
     save_model_json(fit_family("grating", None, wavelength_mm=2.15), d / "grating.json")
