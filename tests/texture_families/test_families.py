@@ -130,7 +130,7 @@ def test_station_renders_the_evaluated_method_and_the_drive_band(files):
         family.prepare(1000.0)
     lo, hi = plain.model.drive_band_hz
     # Power through the drive filter against without it, per band (dB), on the same draw:
-    # the filter's own work (measured -30 and -32 dB out of band, -1.2 in it).
+    # the filter's own work (measured -30 and -32 dB out of band, -0.8 in it).
     f, p_plain = ss.welch(_ticks(plain), fs=1000.0, nperseg=256)
     _, p_band = ss.welch(_ticks(band), fs=1000.0, nperseg=256)
 
