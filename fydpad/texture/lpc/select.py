@@ -11,9 +11,10 @@ Folds (one 30 s stroke with four plateaus is enough):
 Every candidate is fitted on the rest of each fold and scored on each held-out block by
 the log-spectral distance of :func:`evaluate.compare` (its synthesis along the block's
 own speed trace against the block's DFT321 signal, 4 Hz bins over 20-500 Hz). The
-score is the mean over all blocks; the noise is the standard error of the paired
-difference to the best candidate over the blocks. The winner is the simplest candidate
-(:data:`CANDIDATES` order) within that noise of the best, refitted on all the scans.
+score is the mean over the time blocks and the between blocks, half each; the noise is
+the standard error of that mean of the paired difference to the best candidate. The
+winner is the simplest candidate (:data:`CANDIDATES` order) within that noise of the
+best, refitted on all the scans.
 Where the scans cannot be validated (fewer than two plateaus of ``MIN_PLATEAU_S``) the
 plain paper method is fitted, and the reason recorded.
 """
@@ -57,8 +58,18 @@ class CandidateScore:
         return np.asarray(self.block_lsd_db + self.between_lsd_db)
 
     @property
+    def weights(self) -> Array:
+        """Each block's weight in the score: the time blocks and the between-plateau
+        blocks count half each (a finger meets the speeds between the plateaus as often as
+        the plateaus'; by count the between blocks were 2 of 10)."""
+        nb, nt = len(self.block_lsd_db), len(self.between_lsd_db)
+        if nb == 0 or nt == 0:
+            return np.full(nb + nt, 1.0 / (nb + nt))
+        return np.r_[np.full(nb, 0.5 / nb), np.full(nt, 0.5 / nt)]
+
+    @property
     def mean_lsd_db(self) -> float:
-        return float(np.mean(self.scores))
+        return float(self.weights @ self.scores)
 
     @property
     def spread_db(self) -> float:
@@ -211,8 +222,9 @@ def select_model(
     best = min(table, key=lambda t: t.mean_lsd_db)
     noise = {}
     for t in table:
-        d = t.scores - best.scores
-        noise[t.name] = float(np.std(d, ddof=1) / np.sqrt(d.size)) if d.size > 1 else 0.0
+        d = t.scores - best.scores  # the weighted mean's standard error
+        noise[t.name] = (float(np.sqrt(np.sum(t.weights ** 2) * np.var(d, ddof=1)))
+                         if d.size > 1 else 0.0)
     winner = next(t for t in table if t.mean_lsd_db - best.mean_lsd_db <= noise[t.name])
     reason = (f"lowest held-out LSD within the noise, simplest first "
               f"({len(folds)} folds, {best.scores.size} held-out blocks)")
