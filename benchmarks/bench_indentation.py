@@ -30,7 +30,7 @@ sys.path.insert(0, str(REPO))
 from vision.indentation import (  # noqa: E402
     IndentationEstimator,
     IRFlag,
-    PlaneCorrection,
+    SagCorrection,
     indentation_at_frames,
     rmse,
 )
@@ -80,7 +80,7 @@ def report(plane, e, flags, x, y, d, groups) -> None:
     for g in (0, 1):
         fit = ok & (groups == g)
         score = ok & (groups != g)
-        corr = PlaneCorrection.fit(e[fit], x[fit], y[fit], d[fit])
+        corr = SagCorrection.fit(e[fit], x[fit], y[fit], d[fit])
         corrected[score] = corr.apply(e[score], x[score], y[score])
     print(f"samples {int(ok.sum())} valid of {ok.size}; flat-region readings "
           f"{np.mean((flags & int(IRFlag.FLAT_REGION)) != 0) * 100:.1f} %")

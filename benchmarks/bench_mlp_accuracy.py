@@ -118,7 +118,7 @@ def thesis_vs_lpc(texture: str, cfg: TrainConfig | None = None, seconds: float =
         rec = feats.y[s]
         net = MlpTexture(model).render(finger_from_scan(scan))[s]
         test = _third(scan, 2)
-        lpc_sig = _synth(lpc, test.speed_mm_s, seed=10 + i)  # LSF interpolation
+        lpc_sig = _synth(lpc, test.speed_mm_s, seed=10 + i)
         mask = evaluation_mask(test, lpc)
         m_net.append(compare(rec, net, scan.fs_hz, mask)[0])
         m_lpc.append(compare(rec, lpc_sig, scan.fs_hz, mask)[0])
@@ -217,7 +217,7 @@ def main() -> None:
             print(f"{kind} {opts}: identification rate {rate:.3f} over "
                   f"{3 * len(IDENTIFY_SURFACES)} strokes")
         return
-    print("thesis network (3-10-1) vs LPC (LSF interpolation), z acceleration, test thirds")
+    print("thesis network (3-10-1) vs LPC (the paper's method), z acceleration, test thirds")
     print(f"{'texture':9s} {'force':9s} {'stop':>10s} {'ep':>4s} {'R2 mlp':>8s} {'R2 lpc':>8s} "
           f"{'R2 lin':>7s} {'corr mlp':>8s} {'corr lpc':>8s} {'LSD mlp':>8s} {'LSD lpc':>8s} "
           f"{'rms mlp':>8s}")

@@ -49,7 +49,7 @@ def main() -> None:
     # The two forms on the whole signal (canvas is periodic: lines_benchmark has the lines).
     t_paper = best(lambda: fit_paper(sc), 3)
     t_cal = best(lambda: fit_texture(sc, lines="off"), 3)
-    models = {"paper": fit_paper(sc), "calibrated": fit_texture(sc, lines="off")[0]}
+    models = {"paper": fit_paper(sc), "calibrated": fit_texture(sc, lines="off")}
     print(f"  fit a whole texture (4 speeds x 11 s, incl. preprocessing): calibrated "
           f"{t_cal * 1e3:.0f} ms, the paper's per-speed fits {t_paper * 1e3:.0f} ms "
           f"({t_cal / t_paper:.1f}x)")
@@ -132,8 +132,8 @@ def lines_benchmark(best) -> None:
     t_off = best(lambda: fit_texture(train, lines="off"), 3)
     t_one = best(lambda: fit_lines([preprocess(s.acc, 1000.0) for s in one],
                                    [s.speed_mm_s for s in one], 1000.0, (15.0, 25.0)), 3)
-    model, _ = fit_texture(train)
-    plain, _ = fit_texture(train)
+    model = fit_texture(train)
+    plain = fit_texture(train)
     plain.lines = None
     n_h = len(model.lines["phase_rad"])
     print(f"  [lines] R1 ({n_h} harmonics, period {model.lines['period_mm']:.4f} mm): fit a "
@@ -180,7 +180,7 @@ def quality(textures: list[str] | None = None) -> None:
     for name in names:
         train = [generate_scan(name, s, 8.0, seed=k) for s in (10.0, 20.0, 30.0, 40.0)
                  for k in (1, 2)]
-        fitted = {"paper": fit_paper(train), "calibrated": fit_texture(train)[0]}
+        fitted = {"paper": fit_paper(train), "calibrated": fit_texture(train)}
         for f in forms:
             models[f].append(fitted[f])
         for v in (10.0, 15.0, 20.0, 25.0, 30.0, 35.0, 40.0):

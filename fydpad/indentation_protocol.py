@@ -2,8 +2,10 @@
 ``fydpad calibrate indentation`` can fit the correction beyond the plane for a new
 fabric (docs/indentation.md), in about two minutes.
 
-Three recordings of 30 s: 3 s with the fabric clear (the sensors' rest distances),
-then 12 presses, each 2 s (down, hold 1.5 s at the target depth, up). The marks form a
+Three recordings of 39 s: 3 s with the fabric clear (the sensors' rest distances),
+then 12 presses, each about 3 s (down in under a second, hold 1.5 s at the target
+depth, lift clear and move to the next mark: the pace of the synthetic hand,
+``fydpad.synth.trajectory.protocol``, at a finger's 80 mm/s). The marks form a
 4 x 3 grid over 80 % of the workspace, shifted by a third of a cell in each recording
 so that the 36 presses cover it, edges included; the depths, 4 to 35 mm, rotate along
 the rows so that every part of the workspace is seen shallow and deep. The true depth
@@ -23,7 +25,7 @@ from dataclasses import dataclass
 DEPTHS_MM = (4.0, 10.0, 20.0, 35.0)
 RECORDINGS = 3
 CLEAR_S = 3.0
-PRESS_S = 2.0
+PRESS_S = 3.0
 HOLD_S = 1.5
 GRID = (4, 3)
 
@@ -95,7 +97,8 @@ def steps(workspace_mm: tuple[float, float] = (100.0, 70.0)) -> list[Step]:
             f"Start recording (fydpad run --record cal{r}). Keep the fabric clear for "
             f"{CLEAR_S:.0f} s (the sensors' rest distances). Then press the {len(ps)} "
             f"points in order ({rows} rows of {cols}, far row first, left to right), "
-            f"each: down in about 0.3 s, hold {HOLD_S:.1f} s at the depth, lift clear. "
+            f"each: down in under a second, hold {HOLD_S:.1f} s at the depth, lift clear "
+            "and move on. "
             "x to the right, y away from you, from the workspace's centre:",
             tuple(ps)))
     out.append(Step(

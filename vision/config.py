@@ -41,7 +41,7 @@ class IRConfig:
     )
     base_to_fabric_mm: float = 100.0
     baseline_mm: tuple[float, float, float] | None = None
-    #: Correction beyond the plane (``vision.indentation.PlaneCorrection``: each sensor's
+    #: Correction beyond the plane (``vision.indentation.SagCorrection``: each sensor's
     #: deflection weighted by a polynomial of the centroid): its coefficients, empty for
     #: none; fitted by ``fydpad calibrate indentation``.
     correction_coef: tuple[float, ...] = ()

@@ -187,8 +187,9 @@ def resolve_baseline_mm(
 
 
 @dataclass(frozen=True)
-class PlaneCorrection:
-    """Indentation beyond the plane: each sensor's own deflection e_i (positive down)
+class SagCorrection:
+    """The depth from how the fabric sags between each sensor and the finger (the
+    correction beyond the plane): each sensor's own deflection e_i (positive down)
     weighted by a polynomial of the centroid, u = x/50, v = y/50,
     ``depth = sum_a sum_i sum_jk c e_i^a / 50^(a-1) u^j v^k``, a = 1..``depth_degree``,
     j + k <= ``xy_degree`` (what ``fydpad calibrate indentation`` fits). Every term
@@ -253,7 +254,7 @@ class PlaneCorrection:
 
     @classmethod
     def identity(cls, xy_degree: int = 3, depth_degree: int = 2,
-                 sensors_mm: Sequence[Sequence[float]] = PAPER_SENSORS_MM) -> PlaneCorrection:
+                 sensors_mm: Sequence[Sequence[float]] = PAPER_SENSORS_MM) -> SagCorrection:
         """depth = the plane: the barycentric weights of ``sensors_mm`` written as
         polynomials of (x, y) (none for ``xy_degree`` 0, which cannot hold them)."""
         coef = np.zeros(cls.n_coef(xy_degree, depth_degree))
@@ -280,27 +281,41 @@ class PlaneCorrection:
                          for j in range(xy_degree + 1 - i)])
 
     @classmethod
-    def fit(
-        cls, e_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike, truth_mm: ArrayLike,
-        xy_degree: int = 3, depth_degree: int = 2, ridge: float = 1e-2,
-        sensors_mm: Sequence[Sequence[float]] = PAPER_SENSORS_MM,
-    ) -> PlaneCorrection:
-        """Ridge least squares of the true depth on the features, the ridge (relative to
-        the features' mean square) weighted by ``penalty`` and shrinking towards the
-        plane of the nominal ``sensors_mm``, so sparse data (few press positions) cannot
-        run away."""
+    def _solve(cls, gram: NDArray[np.float64], rhs: NDArray[np.float64], mean_sq: float,
+               xy_degree: int, depth_degree: int, ridge: float,
+               sensors_mm: Sequence[Sequence[float]]) -> NDArray[np.float64]:
+        """The ridge solution from the normal equations ``F'F``, ``F't`` (``fit``)."""
+        prior = np.asarray(cls.identity(xy_degree, depth_degree, sensors_mm).coef)
+        lam = ridge * mean_sq * np.diag(cls.penalty(xy_degree, depth_degree))
+        return np.linalg.solve(gram + lam, rhs + lam @ prior)
+
+    @classmethod
+    def _design(cls, e_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike, truth_mm: ArrayLike,
+                xy_degree: int, depth_degree: int
+                ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+        """The features and truth of the usable samples, and which samples those are."""
         n = cls.n_coef(xy_degree, depth_degree)
         f = cls.features(e_mm, x_mm, y_mm, xy_degree, depth_degree)
         t = np.asarray(truth_mm, np.float64)
         ok = np.all(np.isfinite(f), axis=1) & np.isfinite(t)
-        f, t = f[ok], t[ok]
-        if t.size < 3 * n:
+        if int(ok.sum()) < 3 * n:
             raise ValueError(f"correction: need at least {3 * n} calibration samples with "
-                             f"valid readings, got {t.size}")
-        prior = np.asarray(cls.identity(xy_degree, depth_degree, sensors_mm).coef)
-        lam = ridge * float(np.mean(np.sum(f * f, axis=1))) * np.diag(
-            cls.penalty(xy_degree, depth_degree))
-        coef = np.linalg.solve(f.T @ f + lam, f.T @ t + lam @ prior)
+                             f"valid readings, got {int(ok.sum())}")
+        return f[ok], t[ok], ok
+
+    @classmethod
+    def fit(
+        cls, e_mm: ArrayLike, x_mm: ArrayLike, y_mm: ArrayLike, truth_mm: ArrayLike,
+        xy_degree: int = 3, depth_degree: int = 2, ridge: float = 1e-2,
+        sensors_mm: Sequence[Sequence[float]] = PAPER_SENSORS_MM,
+    ) -> SagCorrection:
+        """Ridge least squares of the true depth on the features, the ridge (relative to
+        the features' mean square) weighted by ``penalty`` and shrinking towards the
+        plane of the nominal ``sensors_mm``, so sparse data (few press positions) cannot
+        run away."""
+        f, t, _ = cls._design(e_mm, x_mm, y_mm, truth_mm, xy_degree, depth_degree)
+        coef = cls._solve(f.T @ f, f.T @ t, float(np.mean(np.sum(f * f, axis=1))),
+                          xy_degree, depth_degree, ridge, sensors_mm)
         return cls(tuple(float(c) for c in coef), xy_degree, depth_degree)
 
     @classmethod
@@ -309,23 +324,36 @@ class PlaneCorrection:
         groups: ArrayLike, xy_degree: int = 3, depth_degree: int = 2,
         ridges: Sequence[float] = (1e-4, 1e-3, 1e-2, 1e-1, 1.0),
         sensors_mm: Sequence[Sequence[float]] = PAPER_SENSORS_MM,
-    ) -> tuple[PlaneCorrection, float, dict[float, float]]:
-        """The ridge chosen by two-fold cross-validation over ``groups`` (e.g. press
-        numbers: even presses fit, odd ones score, and back), then fitted on all data.
-        Returns the correction, its held-out RMSE and the RMSE per ridge tried."""
-        e = np.atleast_2d(np.asarray(e_mm, np.float64))
-        x, y, t = (np.asarray(a, np.float64) for a in (x_mm, y_mm, truth_mm))
-        half = np.asarray(groups) % 2
+    ) -> tuple[SagCorrection, float, dict[float, float]]:
+        """The ridge chosen by leave-one-group-out cross-validation over ``groups`` (press
+        numbers: each press scored by the fit on all the others), then fitted on all
+        data. Returns the correction, its held-out RMSE and the RMSE per ridge tried.
+
+        One press out at a time asks what a user needs: the depth at a place and depth
+        between the presses recorded. A split into two halves (even and odd presses)
+        leaves out a whole column of a press grid, and so scores extrapolation instead.
+        Each press's normal equations are summed once and subtracted from the total, so
+        a fold costs one small solve."""
+        f, t, ok = cls._design(e_mm, x_mm, y_mm, truth_mm, xy_degree, depth_degree)
+        g = np.asarray(groups)[ok]
+        labels, inv = np.unique(g, return_inverse=True)
+        if labels.size < 2:
+            raise ValueError("correction: cross-validation needs at least two presses")
+        sq = np.sum(f * f, axis=1)
+        parts = [(f[inv == k], t[inv == k], sq[inv == k]) for k in range(labels.size)]
+        grams = [(fk.T @ fk, fk.T @ tk, float(sk.sum()), tk.size) for fk, tk, sk in parts]
+        gram_all, rhs_all = f.T @ f, f.T @ t
+        sq_all, n_all = float(sq.sum()), t.size
         scores: dict[float, float] = {}
         for ridge in ridges:
-            held = np.full(t.size, np.nan)
-            for g in (0, 1):
-                a, b = half == g, half != g
-                c = cls.fit(e[a], x[a], y[a], t[a], xy_degree, depth_degree, ridge, sensors_mm)
-                held[b] = c.apply(e[b], x[b], y[b])
-            scores[ridge] = rmse(held, t)
+            err2 = 0.0
+            for (fk, tk, _), (gk, bk, sk, nk) in zip(parts, grams, strict=True):
+                coef = cls._solve(gram_all - gk, rhs_all - bk, (sq_all - sk) / (n_all - nk),
+                                  xy_degree, depth_degree, ridge, sensors_mm)
+                err2 += float(np.sum((fk @ coef - tk) ** 2))
+            scores[ridge] = math.sqrt(err2 / n_all)
         best = min(scores, key=lambda r: scores[r])
-        final = cls.fit(e, x, y, t, xy_degree, depth_degree, best, sensors_mm)
+        final = cls.fit(e_mm, x_mm, y_mm, truth_mm, xy_degree, depth_degree, best, sensors_mm)
         return final, scores[best], scores
 
 
@@ -367,7 +395,7 @@ class IndentationEstimator:
     valid_range_v: tuple[tuple[float, float], ...] = (VALID_VOLTAGE_RANGE_V,) * 3
     base_to_fabric_mm: float = 100.0
     baseline_mm: tuple[float, float, float] | None = None
-    correction: PlaneCorrection | None = None
+    correction: SagCorrection | None = None
     #: Each sensor's own measurement period, held in between (``resample_distances_mm``).
     sensor_period_s: tuple[float, float, float] = (SENSOR_PERIOD_S,) * 3
 
@@ -397,8 +425,8 @@ class IndentationEstimator:
             base_to_fabric_mm=float(base_to_fabric_mm if base_to_fabric_mm is not None
                                     else config.base_to_fabric_mm),
             baseline_mm=None if base is None else tuple(float(b) for b in base),  # type: ignore[arg-type]
-            correction=PlaneCorrection(tuple(config.correction_coef), config.correction_xy_degree,
-                                       config.correction_depth_degree)
+            correction=SagCorrection(tuple(config.correction_coef), config.correction_xy_degree,
+                                     config.correction_depth_degree)
             if config.correction_coef else None,
             sensor_period_s=tuple(float(t) for t in config.sensor_period_s),  # type: ignore[arg-type]
         )
@@ -416,7 +444,8 @@ class IndentationEstimator:
         self, volts: ArrayLike, no_contact: ArrayLike, min_samples: int = 5,
     ) -> IndentationEstimator:
         """The estimator with its rest distances resolved: kept if given, else the
-        median of the samples without contact, else ``base_to_fabric_mm``."""
+        interquartile mean of the samples marked ``no_contact``
+        (``estimate_baseline_mm``), else ``base_to_fabric_mm``."""
         if self.baseline_mm is not None:
             return self
         d, _ = self.distances_mm(volts)
@@ -676,20 +705,26 @@ def filter_distances_mm(
     return out, int(IRFlag.NO_IR) if no_ir else state.last_flags, state
 
 
-def no_contact_mask(
-    t_ir_s: ArrayLike, t_frames_s: ArrayLike, contact: ArrayLike, margin_s: float = 0.1,
+#: IR samples within this time of the first contact frame are not used for the rest
+#: distances (a finger landing is already pushing the fabric).
+BASELINE_MARGIN_S = 0.1
+
+
+def before_first_contact_mask(
+    t_ir_s: ArrayLike, t_frames_s: ArrayLike, contact: ArrayLike,
+    margin_s: float = BASELINE_MARGIN_S,
 ) -> NDArray[np.bool_]:
-    """IR samples taken surely without contact: at least one frame within ``margin_s``
-    and no contact in any of them (a finger landing or lifting is kept out)."""
+    """The IR samples the rest distances come from: those taken more than ``margin_s``
+    before the first contact frame (all of them in a recording without contact). The
+    same rule as the live station's (``vision.stream.LiveIndentation``), which knows
+    nothing later when the finger first lands, so a calibration and ``fydpad track``
+    read a recording with the same rest distances."""
     t = np.asarray(t_ir_s, np.float64)
     tf = np.asarray(t_frames_s, np.float64)
     c = np.asarray(contact, bool)
-    order = np.argsort(tf, kind="stable")
-    tf, c = tf[order], c[order]
-    csum = np.concatenate([[0], np.cumsum(c)])
-    a = np.searchsorted(tf, t - margin_s, side="left")
-    b = np.searchsorted(tf, t + margin_s, side="right")
-    return (b > a) & (csum[b] - csum[a] == 0)
+    if not c.any():
+        return np.ones(t.size, bool)
+    return t < float(tf[c].min()) - margin_s
 
 
 def indentation_at_frames(
@@ -701,11 +736,13 @@ def indentation_at_frames(
     """What ``fydpad track`` needs: the indentation at each video frame of a recording
     from its ``ir.csv`` samples and the tracked centroids.
 
-    Rest distances are resolved first (given, else from the IR samples away from any
-    contact frame, else ``base_to_fabric_mm``); returns the result and the estimator
-    actually used (with its baseline), so the caller can report it.
+    Rest distances are resolved first (given, else from the IR samples before the first
+    contact, ``before_first_contact_mask``, else ``base_to_fabric_mm``); returns the
+    result and the estimator actually used (with its baseline), so the caller can report
+    it.
     """
-    est = estimator.with_baseline_from(volts, no_contact_mask(t_ir_s, t_frames_s, contact))
+    est = estimator.with_baseline_from(volts,
+                                      before_first_contact_mask(t_ir_s, t_frames_s, contact))
     d, flags = est.distances_mm(volts)
     d_f, fl_f = filter_distances_at_frames(t_ir_s, d, flags, t_frames_s, max_gap_s,
                                            est.sensor_period_s)

@@ -17,6 +17,7 @@ import numpy as np
 from vision.config import IRConfig
 from vision.contact import Contact, ContactTracker
 from vision.indentation import (
+    BASELINE_MARGIN_S,
     INVALID,
     DistanceFilterState,
     IndentationEstimator,
@@ -26,9 +27,6 @@ from vision.recording import PadRecording
 from vision.sources import Frame, VideoSource
 from vision.speed import SpeedState, speed_update
 from vision.state import FingerState
-
-#: IR samples within this time of a contact frame are not used for the rest distances.
-BASELINE_MARGIN_S = 0.1
 
 
 @dataclass

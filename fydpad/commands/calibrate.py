@@ -88,7 +88,8 @@ def register_indentation(sub: argparse._SubParsersAction) -> None:
             "session recordings that have ir.csv and truth.csv (presses of known depth: an "
             "indenter, or the synthetic pad). The truth's contact and centroid are used, so "
             "the fit concerns the indentation alone. Prints the plane's RMSE and the "
-            "corrected one on held-out presses (two-fold, alternate presses), and writes "
+            "corrected one on held-out presses (each press scored by the fit on the others; "
+            "the ridge chosen by that score), and writes "
             "correction_coef into the [ir] section. The correction weighs each sensor's "
             "deflection by a polynomial of the contact's position, so a fit on presses "
             "holds for strokes. --protocol prints the 2-minute session to record "
@@ -311,10 +312,19 @@ def _plot_ir(path: str, d_mm: np.ndarray, cols: dict[str, np.ndarray],
 # --------------------------------------------------------------------------- indentation
 
 
+#: IR samples before the first press a calibration recording needs for its rest
+#: distances (``estimate_baseline_mm``'s minimum; the protocol's 3 s clear give ~300).
+REST_SAMPLES_MIN = 5
+
+
 def _press_samples(path: str, ir_config: IRConfig) -> dict[str, np.ndarray]:
     import numpy as np
 
-    from vision.indentation import IndentationEstimator, indentation_at_frames
+    from vision.indentation import (
+        IndentationEstimator,
+        before_first_contact_mask,
+        indentation_at_frames,
+    )
     from vision.recording import PadRecording
 
     rec = PadRecording(path)
@@ -326,6 +336,16 @@ def _press_samples(path: str, ir_config: IRConfig) -> dict[str, np.ndarray]:
     est = IndentationEstimator.from_config(
         replace(ir_config, correction_coef=()), sensors_mm=m.ir_sensors_mm,
         baseline_mm=m.ir_baseline_mm, base_to_fabric_mm=m.base_to_fabric_mm)
+    if est.baseline_mm is None:
+        # The rest distances come from the samples before the first press, as in ``fydpad
+        # track``; without them every deflection would be off by the mounting's spread.
+        rest = before_first_contact_mask(ir[0], truth.t_s, truth.contact)  # type: ignore[index,union-attr]
+        if int(rest.sum()) < REST_SAMPLES_MIN:
+            raise UserError(
+                f"{rec.path / 'ir.csv'}: {int(rest.sum())} IR samples before the first "
+                f"press, need {REST_SAMPLES_MIN} for the rest distances: start each "
+                "recording with the fabric clear (the protocol's first 3 s) or give "
+                "ir.baseline_mm in meta.json")
     r, _ = indentation_at_frames(est, ir[0], ir[1], truth.t_s, truth.contact,  # type: ignore[index]
                                  truth.x_mm, truth.y_mm)  # type: ignore[union-attr]
     c = truth.contact & r.valid & np.isfinite(truth.indentation_mm)  # type: ignore[union-attr]
@@ -341,7 +361,7 @@ def run_indentation(args: argparse.Namespace) -> int:
     import numpy as np
 
     from vision.config import IRConfig
-    from vision.indentation import PlaneCorrection, rmse
+    from vision.indentation import SagCorrection, rmse
 
     if args.protocol:
         from fydpad.indentation_protocol import protocol_text
@@ -366,7 +386,7 @@ def run_indentation(args: argparse.Namespace) -> int:
             raise UserError("the recordings state different IR sensor positions: calibrate "
                             "one device at a time")
     data = {k: np.concatenate([part[k] for part in parts]) for k in parts[0]}
-    need = 3 * PlaneCorrection.n_coef(args.xy_degree, args.depth_degree)
+    need = 3 * SagCorrection.n_coef(args.xy_degree, args.depth_degree)
     n = int(data["depth"].size)
     names = ", ".join(args.recdirs)
     if n < need:
@@ -375,7 +395,7 @@ def run_indentation(args: argparse.Namespace) -> int:
     if np.unique(data["press"] % 2).size < 2:
         raise UserError(f"{names}: a single press; record several, at different places")
     try:
-        final, held_rmse, scores = PlaneCorrection.fit_cv(
+        final, held_rmse, scores = SagCorrection.fit_cv(
             data["e"], data["x"], data["y"], data["depth"], data["press"],
             args.xy_degree, args.depth_degree, sensors_mm=sensors)
     except ValueError as exc:

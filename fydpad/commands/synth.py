@@ -16,7 +16,8 @@ if TYPE_CHECKING:  # annotations only: the synthetic pad (OpenCV, NumPy) loads i
 # The synthetic pad's option lists, written out so that --help loads neither OpenCV nor
 # NumPy (tests/cli/test_fast_help.py keeps each equal to its source).
 #: fydpad.synth.TRAJECTORIES
-TRAJECTORIES = ("circle", "lissajous", "tapping", "walk", "fast", "hover", "presses")
+TRAJECTORIES = ("circle", "lissajous", "tapping", "walk", "fast", "hover", "presses",
+                "protocol")
 #: vision.recording.IMAGE_FLIPS and VIDEO_NAMES
 IMAGE_FLIPS = ("none", "horizontal", "vertical", "both")
 VIDEO_NAMES = ("video.avi", "video.mp4")

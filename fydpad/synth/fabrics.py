@@ -7,11 +7,15 @@ depth) and IR sensors mounted off the places the recording states.
 synthetic session's IR and truth (no video needed): the plane estimate, the sensors'
 deflections (the causal filter's readings, as ``fydpad track`` applies the correction
 to), the true centroid and depth over the contact frames with valid readings.
-``causal_indentation`` is what ``fydpad track`` gives with a correction, frame by frame.
+``calibrate`` fits the correction on sessions of a pad as ``fydpad calibrate
+indentation`` does (by default one run of the calibration protocol, the ``protocol``
+trajectory: what a user records); ``causal_indentation`` is what ``fydpad track`` gives
+with a correction, frame by frame.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -19,7 +23,8 @@ import numpy as np
 from fydpad.fabric import Fabric
 from fydpad.synth.pad import SynthConfig, SyntheticPad
 from fydpad.synth.sensors import IRParams
-from vision.indentation import IndentationEstimator, PlaneCorrection, indentation_at_frames
+from fydpad.synth.trajectory import protocol_duration_s
+from vision.indentation import IndentationEstimator, SagCorrection, indentation_at_frames
 from vision.stream import CausalIndentation
 
 #: name -> SynthConfig fields of the pad.
@@ -35,11 +40,24 @@ TEST_PADS: dict[str, dict[str, Any]] = {
 }
 
 
-def indentation_samples(pad_name: str, trajectory: str, seed: int, seconds: float = 20.0,
-                        fps: float = 30.0) -> dict[str, np.ndarray]:
+#: The calibration a user does: one run of the protocol (``fydpad calibrate indentation
+#: --protocol``, three recordings, 36 presses).
+PROTOCOL_SESSIONS: tuple[tuple[str, int], ...] = (("protocol", 101),)
+
+
+def session_seconds(trajectory: str) -> float:
+    """20 s, or for the protocol as long as the synthetic hand takes to follow it."""
+    return protocol_duration_s() + 1.0 if trajectory == "protocol" else 20.0
+
+
+def indentation_samples(pad_name: str, trajectory: str, seed: int,
+                        seconds: float | None = None, fps: float = 30.0
+                        ) -> dict[str, np.ndarray]:
     """Contact frames of a session on a test pad: ``plane``, ``e`` (n, 3), ``x``, ``y``,
     ``depth`` (truth) and ``press`` (the number of the contact each frame is in);
-    ``sensors`` the sensor positions the recording states."""
+    ``sensors`` the sensor positions the recording states. ``seconds``: by default
+    ``session_seconds``."""
+    seconds = session_seconds(trajectory) if seconds is None else seconds
     pad = SyntheticPad(SynthConfig(trajectory=trajectory, seconds=seconds, seed=seed,
                                    fps=fps, **TEST_PADS[pad_name]))
     t_ir, volts = pad.ir()
@@ -60,13 +78,32 @@ def indentation_samples(pad_name: str, trajectory: str, seed: int, seconds: floa
             "sensors": np.asarray(m.ir_sensors_mm, np.float64)}
 
 
-def causal_indentation(pad_name: str, trajectory: str, seed: int, correction: PlaneCorrection,
-                       seconds: float = 20.0, fps: float = 30.0
+def calibrate(pad_name: str, sessions: Sequence[tuple[str, int]] = PROTOCOL_SESSIONS,
+              xy_degree: int = 3, depth_degree: int = 2) -> tuple[SagCorrection, float]:
+    """The correction fitted on the pad's ``sessions`` ((trajectory, seed) pairs) as
+    ``fydpad calibrate indentation`` fits it (``SagCorrection.fit_cv``: the ridge by
+    cross-validation over presses), and its held-out RMSE in mm."""
+    parts = [indentation_samples(pad_name, t, s) for t, s in sessions]
+    offset = 0
+    for p in parts:  # presses of different sessions are different presses
+        p["press"] = p["press"] + offset
+        offset = int(p["press"].max(initial=offset)) + 1
+    d = {k: np.concatenate([p[k] for p in parts]) for k in ("e", "x", "y", "depth", "press")}
+    corr, held, _ = SagCorrection.fit_cv(d["e"], d["x"], d["y"], d["depth"], d["press"],
+                                         xy_degree, depth_degree,
+                                         sensors_mm=parts[0]["sensors"])
+    return corr, held
+
+
+def causal_indentation(pad_name: str, trajectory: str, seed: int, correction: SagCorrection,
+                       seconds: float | None = None, fps: float = 30.0
                        ) -> tuple[np.ndarray, np.ndarray]:
     """(estimate, true depth) in mm at the contact frames of a session with a usable
     estimate, through ``fydpad track``'s path: ``CausalIndentation`` fed frame by frame,
     the correction in the estimator, the rest distances from the samples before the
-    first contact."""
+    first contact (the rule ``indentation_samples`` follows too). ``seconds``: by
+    default ``session_seconds``."""
+    seconds = session_seconds(trajectory) if seconds is None else seconds
     pad = SyntheticPad(SynthConfig(trajectory=trajectory, seconds=seconds, seed=seed,
                                    fps=fps, **TEST_PADS[pad_name]))
     t_ir, volts = pad.ir()

@@ -538,10 +538,9 @@ def penn_scan(ms: PennModelSet, speed_mm_s: Array, seed: int, force_n: float = 1
     r = PennRenderer(ms, seed=int(rng.integers(2**31)))
     y = np.concatenate([r.block(float(np.mean(v[k:k + step])), float(np.mean(load[k:k + step])),
                                 min(step, n - k)) for k in range(0, n, step)])
-    # An impact is 3x the texture's RMS where it happens (over the surrounding 1 s), so
-    # a surface at a given speed and force is the same whatever else the stroke visits;
-    # the RMS of the whole stroke made the slow part of a 10-40 mm/s stroke up to 26 dB
-    # rougher than a 15 mm/s stroke of the same surface.
+    # An impact is 3x the texture's RMS where it happens (over the surrounding 1 s), so a
+    # surface at a given speed and force is the same whatever else the stroke visits (a
+    # stroke's overall RMS is its fastest part's: up to 26 dB over its slow part's).
     win = np.ones(min(n, round(fs)))
     rms = np.sqrt(np.convolve(y * y, win, "same") / np.convolve(np.ones(n), win, "same")) + 1e-9
     dist = np.cumsum(v) / fs

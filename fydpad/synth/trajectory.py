@@ -17,7 +17,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-TRAJECTORIES = ("circle", "lissajous", "tapping", "walk", "fast", "hover", "presses")
+from fydpad import indentation_protocol as proto
+
+TRAJECTORIES = ("circle", "lissajous", "tapping", "walk", "fast", "hover", "presses",
+                "protocol")
 
 #: Peak speed of a minimum-jerk move over its mean speed.
 _MIN_JERK_PEAK = 1.875
@@ -336,9 +339,47 @@ def presses(seconds: float, rng: np.random.Generator, p: TrajectoryParams) -> Fi
     return b.build(seconds)
 
 
+#: How far a hand following the indentation protocol misses a mark (mm, radius) and its
+#: target depth (fraction): the truth records where and how deep it really pressed.
+PROTOCOL_AIM_MM = 2.0
+PROTOCOL_DEPTH_SPREAD = 0.1
+
+
+def protocol(seconds: float, rng: np.random.Generator, p: TrajectoryParams) -> FingerPath:
+    """The indentation calibration protocol (``fydpad.indentation_protocol``), its three
+    recordings in turn: each starts with the fabric clear for ``CLEAR_S`` (the rest
+    distances), then presses its 12 marks in order: down to the mark's depth at up to
+    ``max_z_speed`` (at least 0.3 s), held ``HOLD_S``, lifted 3 mm clear and hopped to
+    the next mark at a hand's pace (``HOP_SPEED_MM_S``). Each press lands within
+    ``PROTOCOL_AIM_MM`` of its mark and within ``PROTOCOL_DEPTH_SPREAD`` of its depth.
+    Built whole whatever ``seconds`` (``protocol_duration_s`` says how long it takes)."""
+    marks = proto.presses(PRESSES_WORKSPACE_MM)
+    b = _start(p, marks[0].x_mm, marks[0].y_mm)
+    for rec in range(1, proto.RECORDINGS + 1):
+        b.move_at(b.pos[0], b.pos[1], -p.far_height_mm, HOP_SPEED_MM_S, p.max_z_speed_mm_s)
+        b.hold(max(proto.CLEAR_S - (p.lead_in_s if rec == 1 else 0.0), 0.0))
+        for m in (m for m in marks if m.recording == rec):
+            r = PROTOCOL_AIM_MM * np.sqrt(rng.uniform())
+            a = rng.uniform(0.0, 2.0 * np.pi)
+            x, y = m.x_mm + r * np.cos(a), m.y_mm + r * np.sin(a)
+            depth = m.depth_mm * rng.uniform(1 - PROTOCOL_DEPTH_SPREAD, 1 + PROTOCOL_DEPTH_SPREAD)
+            b.move_at(x, y, -3.0, HOP_SPEED_MM_S, p.max_z_speed_mm_s, 0.3)
+            b.move_at(x, y, depth, p.max_speed_mm_s, p.max_z_speed_mm_s, 0.3)
+            b.hold(proto.HOLD_S)
+            b.move_at(x, y, -3.0, p.max_speed_mm_s, p.max_z_speed_mm_s, 0.3)
+    b.move_at(b.pos[0], b.pos[1], -p.far_height_mm, HOP_SPEED_MM_S, p.max_z_speed_mm_s)
+    return b.build(seconds)
+
+
+def protocol_duration_s(params: TrajectoryParams = TrajectoryParams()) -> float:
+    """How long the synthetic hand takes to follow the whole protocol (three recordings)."""
+    return protocol(0.0, np.random.default_rng(0), params).duration_s
+
+
 _BUILDERS: dict[str, Callable[[float, np.random.Generator, TrajectoryParams], FingerPath]] = {
     "circle": circle, "lissajous": lissajous, "tapping": tapping, "walk": walk,
     "fast": fast, "hover": hover, "presses": presses,
+    "protocol": protocol,
 }
 
 

@@ -177,6 +177,26 @@ def test_calibrate_indentation_fits_the_correction_from_recordings(tmp_path: Pat
     assert rmse(corrected, d) < 0.8 * rmse(plane.indentation_mm, d)
 
 
+def test_calibrate_indentation_needs_the_fabric_clear_before_the_first_press(
+        tmp_path: Path, capsys):
+    """The rest distances come from before the first press (``fydpad track``'s rule): a
+    recording that starts pressing is refused, naming its ir.csv, not fitted on the
+    wrong rest distances."""
+    from tests.sensing.fabric_model import write_press_recording
+
+    recs = [tmp_path / "a", tmp_path / "b"]
+    for r in recs:
+        write_press_recording(r, np.random.default_rng(3), n_presses=30)
+    ir = recs[1] / "ir.csv"
+    lines = ir.read_text().splitlines()
+    keep = [ln for ln in lines[1:] if float(ln.split(",")[0]) >= 0.42]
+    ir.write_text("\n".join([lines[0], *keep]) + "\n")
+    assert cli.main(["calibrate", "indentation", *map(str, recs)]) == 2
+    err = capsys.readouterr().err
+    assert f"{ir}: 2 IR samples before the first press" in err
+    assert "start each recording with the fabric clear" in err
+
+
 def test_calibrate_indentation_needs_truth(tmp_path: Path, capsys):
     from tests.sensing.fabric_model import write_press_recording
 

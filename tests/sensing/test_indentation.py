@@ -19,13 +19,13 @@ from vision.indentation import (
     IndentationEstimator,
     IRCalibrationError,
     IRFlag,
-    PlaneCorrection,
+    SagCorrection,
+    before_first_contact_mask,
     distance_resolution_mm,
     estimate_baseline_mm,
     filter_distances_mm,
     fit_ir_polynomial,
     indentation_at_frames,
-    no_contact_mask,
     paper_eq2_delta_mm,
     plane_delta_mm,
     plane_weights,
@@ -142,7 +142,7 @@ def test_vectorised_and_per_sample_paths_agree():
     v = synth_ir(fabric, x, y, d, rng, BASELINE_MM)
     v[7, 1] = 3.2  # one invalid
     est = IndentationEstimator(baseline_mm=BASELINE_MM,
-                               correction=PlaneCorrection.identity())
+                               correction=SagCorrection.identity())
     r = est.estimate(v, x, y)
     for k in range(50):
         one, flags = est.estimate_one(v[k], x[k], y[k])
@@ -162,8 +162,8 @@ def test_the_per_frame_path_equals_the_vectorised_one():
     d[5, 1] = np.nan
     x[9] = np.nan
     e = rng.uniform(0, 20, (400, 3))
-    corr = PlaneCorrection.fit(e, rng.uniform(-50, 50, 400), rng.uniform(-35, 35, 400),
-                               e.mean(axis=1) * 1.3 + 0.01 * e[:, 0] ** 2)
+    corr = SagCorrection.fit(e, rng.uniform(-50, 50, 400), rng.uniform(-35, 35, 400),
+                             e.mean(axis=1) * 1.3 + 0.01 * e[:, 0] ** 2)
     for c in (None, corr):
         est = IndentationEstimator(baseline_mm=BASELINE_MM, correction=c)
         r = est.estimate_from_distances(d, x, y)
@@ -205,8 +205,8 @@ def test_rest_distances_resolve_finer_than_one_adc_step():
 
 
 def test_indentation_target_on_a_non_planar_fabric():
-    """RMSE <= 3 mm over 0-50 mm against the true depth (paper: 2.88 mm), across the
-    whole 100 x 70 mm workspace; the correction is fitted on one set of presses and
+    """RMSE <= 0.6 mm over 0-50 mm against the true depth (measured 0.43; the paper's
+    plane reports 2.88 mm), across the whole 100 x 70 mm workspace; the correction is fitted on one set of presses and
     scored on another."""
     rng = np.random.default_rng(4)
     fabric = MembraneFabric()
@@ -215,7 +215,7 @@ def test_indentation_target_on_a_non_planar_fabric():
     cal = est.estimate(synth_ir(fabric, xc, yc, dc, rng, BASELINE_MM), xc, yc)
     corrected = IndentationEstimator(
         baseline_mm=BASELINE_MM,
-        correction=PlaneCorrection.fit(cal.deflection_mm, xc, yc, dc))
+        correction=SagCorrection.fit(cal.deflection_mm, xc, yc, dc))
     x, y, d = random_presses(3000, rng)
     v = synth_ir(fabric, x, y, d, rng, BASELINE_MM)
     plane = est.estimate(v, x, y)
@@ -228,34 +228,60 @@ def test_indentation_target_on_a_non_planar_fabric():
     assert rmse(plane.indentation_mm[deep], d[deep]) > 4.0
     inside = deep & (np.abs(x) < 10) & (np.abs(y) < 10)
     assert np.mean(plane.indentation_mm[inside] - d[inside]) < -4.0
-    assert corr_rmse <= 3.0
-    assert corr_rmse <= 0.6 * plane_rmse
-    assert rmse(corr.indentation_mm[deep], d[deep]) <= 3.0
-    assert abs(np.mean(corr.indentation_mm[deep] - d[deep])) < 0.5
+    assert corr_rmse <= 0.6
+    assert corr_rmse <= 0.25 * plane_rmse
+    assert rmse(corr.indentation_mm[deep], d[deep]) <= 0.6
+    assert abs(np.mean(corr.indentation_mm[deep] - d[deep])) < 0.2
+
+
+def test_cross_validation_scores_each_press_by_the_fit_on_all_the_others():
+    """``fit_cv``'s held-out RMSE per ridge is the fit without one press scored on that
+    press, press by press (its normal equations less the press's are that fit's)."""
+    rng = np.random.default_rng(11)
+    fabric = MembraneFabric()
+    est = IndentationEstimator(baseline_mm=BASELINE_MM)
+    xs, ys, ds = random_presses(12, rng)
+    press = np.repeat(np.arange(12), 30)
+    x, y = xs[press] + rng.normal(0, 0.5, press.size), ys[press] + rng.normal(0, 0.5, press.size)
+    depth = ds[press] * rng.uniform(0.3, 1.0, press.size)
+    r = est.estimate(synth_ir(fabric, x, y, depth, rng, BASELINE_MM), x, y)
+    e = r.deflection_mm
+    ridges = (1e-3, 1e-1)
+    final, held, scores = SagCorrection.fit_cv(e, x, y, depth, press, 2, 2, ridges)
+    for ridge in ridges:
+        pred = np.empty(press.size)
+        for g in range(12):
+            out = press == g
+            c = SagCorrection.fit(e[~out], x[~out], y[~out], depth[~out], 2, 2, ridge)
+            pred[out] = c.apply(e[out], x[out], y[out])
+        assert scores[ridge] == pytest.approx(rmse(pred, depth), rel=1e-9)
+    assert held == min(scores.values())
+    best = min(scores, key=lambda k: scores[k])
+    np.testing.assert_allclose(final.coef, SagCorrection.fit(e, x, y, depth, 2, 2, best).coef)
 
 
 def test_correction_from_configuration_round_trips():
     rng = np.random.default_rng(5)
     x, y, d = random_presses(400, rng)
     e = d[:, None] * np.array([0.5, 0.3, 0.4]) * (1.0 + 0.002 * x[:, None])
-    corr = PlaneCorrection.fit(e, x, y, d)
+    corr = SagCorrection.fit(e, x, y, d)
     cfg = IRConfig(correction_coef=corr.coef, correction_xy_degree=corr.xy_degree,
                    correction_depth_degree=corr.depth_degree, baseline_mm=BASELINE_MM)
     est = IndentationEstimator.from_config(cfg)
     assert est.correction == corr
     np.testing.assert_allclose(corr.apply(e, x, y), d, atol=0.05)
     with pytest.raises(ValueError, match="coefficients"):
-        PlaneCorrection((1.0, 2.0))
+        SagCorrection((1.0, 2.0))
     with pytest.raises(ValueError, match="correction_coef"):
         IRConfig(correction_coef=(1.0, 2.0))
     with pytest.raises(ValueError, match="calibration samples"):
-        PlaneCorrection.fit(e[:10], x[:10], y[:10], d[:10])
+        SagCorrection.fit(e[:10], x[:10], y[:10], d[:10])
 
 
 def test_a_correction_on_the_plane_estimate_alone_is_refused():
     """Device files from before the per-sensor form (``correction_per_sensor = false``)
     are refused with a message saying how to refit, not read as something else."""
-    coef = PlaneCorrection.identity().coef
+    coef = SagCorrection.identity().coef
     with pytest.raises(ValueError, match=r"correction_per_sensor.*fydpad calibrate indentation"):
         IRConfig(correction_coef=coef, correction_per_sensor=False)
     assert IRConfig(correction_coef=coef).correction_per_sensor
@@ -310,12 +336,16 @@ def test_resampling_never_bridges_an_invalid_sample():
     assert np.isnan(out[3]).all() and ofl[3] & IRFlag.NO_IR
 
 
-def test_no_contact_mask_keeps_a_margin_around_contact():
+def test_rest_distances_come_from_before_the_first_contact_less_a_margin():
+    """The live station's rule: nothing after the finger first lands, nor within the
+    margin before it; a recording without contact uses every sample."""
     t_f = np.arange(10) / 10.0
     contact = np.zeros(10, bool)
-    contact[5] = True
-    m = no_contact_mask([0.1, 0.42, 0.5, 0.58, 0.9, 5.0], t_f, contact, margin_s=0.1)
-    assert list(m) == [True, False, False, False, True, False]
+    contact[[5, 6]] = True
+    t_ir = [0.1, 0.38, 0.42, 0.5, 0.58, 0.9, 5.0]
+    m = before_first_contact_mask(t_ir, t_f, contact, margin_s=0.1)
+    assert list(m) == [True, True, False, False, False, False, False]
+    assert before_first_contact_mask(t_ir, t_f, np.zeros(10, bool)).all()
 
 
 def test_flat_region_resolution_figures():

@@ -15,7 +15,7 @@ from fydpad.synth import SynthConfig, SyntheticPad
 from vision.config import IRConfig
 from vision.indentation import (
     IndentationEstimator,
-    PlaneCorrection,
+    SagCorrection,
     indentation_at_frames,
     rmse,
 )
@@ -52,16 +52,18 @@ def test_indentation_on_the_synthetic_pad():
     test = session(13)
     for s in (*cal, test):
         assert s["all_valid"]
-        # Rest distances estimated from the samples between taps, finer than an ADC step.
+        # Rest distances from the samples before the first tap, finer than an ADC step.
         np.testing.assert_allclose(s["rest_used"], s["rest_true"], atol=0.15)
     data = {k: np.concatenate([s[k] for s in cal]) for k in ("e", "x", "y", "depth",
                                                              "press")}
-    corr, _, _ = PlaneCorrection.fit_cv(data["e"], data["x"], data["y"], data["depth"],
-                                        data["press"])
+    corr, _, _ = SagCorrection.fit_cv(data["e"], data["x"], data["y"], data["depth"],
+                                      data["press"])
     d = test["depth"]
     assert d.max() > 40.0
     plane_rmse = rmse(test["plane"], d)
     corrected_rmse = rmse(corr.apply(test["e"], test["x"], test["y"]), d)
+    print(f"seed 13, fitted on seeds 11 and 12: plane {plane_rmse:.2f} mm, corrected "
+          f"{corrected_rmse:.2f} mm")
     # The plane alone is 2-3.4 mm on such sessions (paper: 2.88 mm); the corrected
     # estimate is the one held to the target.
     assert plane_rmse > 2.0

@@ -20,7 +20,8 @@ import pytest
 from fydpad.commands import texture
 from fydpad.errors import UserError
 from fydpad.synth.texture_scans import generate_scan
-from fydpad.texture.lpc.analysis import is_stable, segment_by_speed
+from fydpad.texture.lpc.analysis import is_stable
+from fydpad.texture.lpc.analysis import runs as mask_runs
 from fydpad.texture.lpc.fit import fit_texture
 from fydpad.texture.lpc.model_file import load_model, model_to_json, parse_model, save_model
 from fydpad.texture.lpc.spectrum import (
@@ -68,8 +69,9 @@ def fitted():
     two = fit_two_part(x, v, FS, (5.0, 45.0))
     by: dict[float, list] = {}
     for xi, vi in runs:
-        for s, rs in segment_by_speed(vi, FS, SPEEDS, 5.0, 0.25).items():
-            by.setdefault(s, []).extend((xi[a:b], vi[a:b]) for a, b in rs)
+        for s in SPEEDS:  # the runs of 0.25 s or more within 5 mm/s of each speed
+            by.setdefault(float(s), []).extend(
+                (xi[a:b], vi[a:b]) for a, b in mask_runs(np.abs(vi - s) <= 5.0, 250))
     return {"two": two, "calibrated": fit_calibrated(by, FS, two),
             "by": by,
             "held": {t: t * np.random.default_rng(7).uniform(0.8, 1.2, 24)
@@ -141,7 +143,7 @@ def scan_model():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         scans = [generate_scan("felt", v, 5.0, seed=1) for v in (10.0, 20.0, 30.0)]
-        model, _ = fit_texture(scans, speeds_mm_s=(10.0, 20.0, 30.0), order=60)
+        model = fit_texture(scans, speeds_mm_s=(10.0, 20.0, 30.0), order=60)
     return model
 
 
@@ -245,8 +247,8 @@ def target_figures():
         for name in ("R1", "R2", "felt", "glass"):
             # The calibrated form on the whole signal (lines off: R1 and R2 would get
             # their lines and the form would model only what they leave).
-            model, _ = fit_texture([generate_scan(name, s, 8.0, seed=1) for s in SPEEDS],
-                                   lines="off")
+            model = fit_texture([generate_scan(name, s, 8.0, seed=1) for s in SPEEDS],
+                                lines="off")
             for v in (20.0, 25.0):
                 held, mask, ceil = held_out(name, v, model)
                 c, _ = evaluate_scan(model, held, mask=mask)
@@ -338,7 +340,7 @@ def test_speeds_fitted_every_5_mm_s_meet_the_target_between(monkeypatch):
         monkeypatch.setattr(free_form, "TAPER_PER_SPACING", per_spacing)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            model, _ = fit_texture(train, speeds_mm_s=speeds)
+            model = fit_texture(train, speeds_mm_s=speeds)
         held, mask, ceil = held_out("cork", 15.0, model, 12.0, 50, 51)
         over[label] = evaluate_scan(model, held, mask=mask)[0].lsd_db - ceil.lsd_db
     assert over["scaled"] <= 0.25 < over["7.5"], over

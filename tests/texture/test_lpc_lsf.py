@@ -6,14 +6,9 @@ import numpy as np
 import pytest
 import scipy.signal as ss
 
-from fydpad.texture.lpc.analysis import (
-    is_stable,
-    levinson,
-    lpc_autocorrelation,
-    poly_to_reflection,
-    reflection_to_poly,
-)
-from fydpad.texture.lpc.lsf import lsf_to_poly, poly_to_lsf
+from fydpad.texture.lpc.analysis import is_stable, lpc_autocorrelation
+from fydpad.texture.lpc.lsf import lsf_to_poly
+from tests.texture.lpc_polys import poly_to_lsf, reflection_to_poly
 
 TRUE_A = np.array([1.0, -1.6, 1.5, -0.7, 0.2])
 
@@ -45,14 +40,17 @@ def test_order_200_fit_is_stable(ar_signal):
 def test_stability_check_detects_unstable():
     assert not is_stable([1.0, -2.1, 1.1])  # a pole at 1.1
     assert is_stable([1.0, -0.5])
-    k = poly_to_reflection(TRUE_A)
-    np.testing.assert_allclose(reflection_to_poly(k), TRUE_A, atol=1e-12)
-    _, _, k2 = levinson(np.array([1.0, 0.5, 0.2]), 2)
-    assert np.all(np.abs(k2) < 1)
+    assert not is_stable(reflection_to_poly([0.5, -1.0, 0.2]))  # |k_2| = 1: on the circle
+    assert is_stable(reflection_to_poly([0.5, -0.99, 0.2]))
 
 
-def test_lsf_round_trip_order_200(ar_signal):
-    a, _ = lpc_autocorrelation([ar_signal[:20_000]], 200)
-    lsf = poly_to_lsf(a)
-    assert lsf.size == 200 and np.all(np.diff(lsf) > 0) and 0 < lsf[0] and lsf[-1] < np.pi
-    np.testing.assert_allclose(lsf_to_poly(lsf), a, atol=1e-9)
+def test_lsf_to_poly_inverts_the_lsfs():
+    """Odd and even order, against LSFs found from the polynomial's roots."""
+    for a in (TRUE_A, reflection_to_poly([0.5, -0.3, 0.2])):
+        np.testing.assert_allclose(lsf_to_poly(poly_to_lsf(a)), a, atol=1e-12)
+
+
+def test_sorted_lsfs_at_order_200_are_a_stable_filter():
+    jitter = np.random.default_rng(0).uniform(-0.4, 0.4, 200)
+    lsf = np.pi * (np.arange(1, 201) + jitter) / 201  # sorted, interlaced
+    assert is_stable(lsf_to_poly(lsf))

@@ -14,8 +14,7 @@ from fydpad.errors import UserError
 from fydpad.texture.families import constant_stroke, load_family, spec_kind
 from fydpad.texture.families.penn.render import PennTexture
 from fydpad.texture.families.penn.toolkit import PennModelSet, write_penn
-from fydpad.texture.lpc.analysis import reflection_to_poly
-from fydpad.texture.lpc.lsf import poly_to_lsf
+from tests.texture.lpc_polys import poly_to_lsf, reflection_to_poly
 
 FS = 10_000.0
 

@@ -12,13 +12,13 @@ from fydpad.errors import UserError
 from fydpad.synth.texture_scans import hand_speed, penn_scan, plateau_speed
 from fydpad.texture.evaluation.evaluate import lsd_db, welch_psd
 from fydpad.texture.families.penn.toolkit import PennModelSet
-from fydpad.texture.lpc.analysis import ar_psd, autocorrelation, reflection_to_poly
+from fydpad.texture.lpc.analysis import ar_psd, autocorrelation
 from fydpad.texture.lpc.dft321 import preprocess
 from fydpad.texture.lpc.fit import fit_paper
-from fydpad.texture.lpc.lsf import poly_to_lsf
 from fydpad.texture.lpc.model_file import load_model, model_to_json, save_model
 from fydpad.texture.lpc.select import CANDIDATES, CandidateScore, select_model
 from fydpad.texture.scan_io import write_scan
+from tests.texture.lpc_polys import poly_to_lsf, reflection_to_poly
 from tests.texture_families.helpers import run_cli
 
 FS = 1000.0
@@ -102,8 +102,9 @@ def test_removed_interpolation_fails_in_one_line(stroke, tmp_path):
 def test_model_json_is_strict(stroke, tmp_path):
     model = fit_paper([stroke], order=20)
     model.selection = {"winner": "paper", "mean_lsd_db": float("nan")}
-    with pytest.raises(ValueError):
+    with pytest.raises(UserError, match=r"nan\.json: the model holds a non-finite number"):
         save_model(model, tmp_path / "nan.json")
+    assert not (tmp_path / "nan.json").exists()
 
 
 def test_cli_fit_validates_and_synth_uses_the_models_interpolation(stroke, tmp_path, capsys):

@@ -1,10 +1,8 @@
 """The texture-family registry: read, fit and select models of every family.
 
-A model file is JSON with ``"format": "fydpad-texture-model"`` and ``"kind"`` naming
-its family (an LPC file without ``"kind"`` is ``lpc``); a HaTT model is its XML file. A
-spec is ``MODEL.json``, ``KIND:MODEL.json``, ``FILE.xml`` or ``penn:FILE.xml``. Each
-family's module offers one :class:`~fydpad.texture.family.Kind` (``KIND``); this module
-imports them all and nothing imports it back.
+A model file is JSON with ``"format": "fydpad-texture-model"`` and ``"kind"`` naming its
+family (none: ``lpc``); a HaTT model is its XML file. A spec is ``[KIND:]MODEL.json`` or
+``[penn:]FILE.xml``. Each family's module offers one ``Kind``; nothing imports this back.
 """
 
 from __future__ import annotations
@@ -61,8 +59,7 @@ def model_kind(data: dict[str, Any]) -> str:
 
 def _file_format_kind(want: str | None, path: str) -> str | None:
     """The kind of a spec whose file is not JSON: ``penn:`` or a bare ``.xml`` path."""
-    if want is None and path.lower().endswith(".xml"):
-        want = "penn"
+    want = "penn" if want is None and path.lower().endswith(".xml") else want
     return want if want is not None and get_kind(want).from_file is not None else None
 
 
@@ -98,9 +95,8 @@ def fit_family(kind: str, scans: list, **options: Any) -> dict[str, Any]:
 
 
 def read_scans(paths: list[str]) -> list:
-    """Texture scans (``fydpad.texture.scan_io.read_scan``) with their ``x_mm`` and
-    ``friction_n`` columns attached when present (the position-indexed families need
-    them)."""
+    """Texture scans (``scan_io.read_scan``) with their ``x_mm`` and ``friction_n`` columns
+    attached when present (the position-indexed families need them)."""
     out = []
     try:
         for p in paths:

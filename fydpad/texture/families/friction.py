@@ -1,21 +1,11 @@
-"""Position-indexed friction playback (Jiao 2018, section IV-B).
+"""Position-indexed friction playback (Jiao 2018, section IV-B; docs/texture_friction.md).
 
-Fit: mu(x) = F_f(x) / F_n(x) (eq. 1) from scans with ``force_n``, ``friction_n`` and a
-position, resampled onto a uniform position grid and low-passed. The paper low-passes
-the recorded signal at 100 Hz in time; a position-indexed model is sampled in x, so the
-cutoff is applied in x at k_c = 100 Hz / v_ref cycles/mm, with v_ref the median sliding
-speed of the scans: the paper's filter at the speed the texture was scanned, but not
-moving with the hand's speed wander within a stroke (docs/texture_friction.md).
-
-Playback by position whatever the speed: u = (x - x0) mod L on the recorded strip.
-
-- External electrostatic display (``audio`` channel, 44.1/48 kHz): eq. 2,
-  V = b mu(x) Y(t), Y the 0/1 square carrier at 240 Hz, b = 400 V by default.
-- FYD-pad (no electrode; ``vibration`` and ``tension`` at 1 kHz):
-  tension: s = clip(1 + g_t (mu(x) - mu_mean) / mu_mean, 0.5, 1.5), a scale on the
-  softness stiffness request (more friction, a tauter, stiffer fabric);
-  vibration: a = g_v (mu(x) - mu_mean) / mu_mean in m/s^2 while the finger slides,
-  faded in over 0-``still_mm_s`` of speed (a resting finger feels no friction change).
+Fit: mu(x) = F_f(x) / F_n(x) (eq. 1) on a uniform position grid, low-passed at the paper's
+100 Hz taken to x: k_c = 100 Hz / v_ref cycles/mm, v_ref the scans' median sliding speed.
+Playback by position at any speed, u = (x - x0) mod L: ``audio`` (an electrostatic
+display) V = b mu(x) Y(t), Y the 0/1 square carrier at 240 Hz (eq. 2); on the FYD-pad
+``tension`` = clip(1 + g_t (mu - mean) / mean, 0.5, 1.5), a scale on the stiffness
+request, and ``vibration`` = g_v (mu - mean) / mean m/s^2, faded in over 0-``still_mm_s``.
 """
 
 from __future__ import annotations
@@ -56,29 +46,18 @@ def friction_coefficient(friction_n: Array, force_n: Array, min_force_n: float =
 
 def lowpass_position(mu: Array, dx_mm: float, cutoff_per_mm: float, order: int = 4) -> Array:
     """Zero-phase Butterworth low-pass of a position-sampled signal (cycles/mm)."""
-    nyq = 0.5 / dx_mm
-    if cutoff_per_mm >= nyq:
+    if cutoff_per_mm >= 0.5 / dx_mm:
         return np.asarray(mu, float).copy()
     sos = ss.butter(order, cutoff_per_mm, fs=1.0 / dx_mm, output="sos")
     return ss.sosfiltfilt(sos, mu)
 
 
-def mu_on_grid(x_mm: Array, mu: Array, x0_mm: float, dx_mm: float, n: int) -> Array:
-    """mu samples at increasing positions -> the grid x0 + k dx (NaN outside)."""
-    grid = x0_mm + dx_mm * np.arange(n)
-    out = np.interp(grid, x_mm, mu, left=np.nan, right=np.nan)
-    return out
-
-
 def fit_friction(scans: list, *, dx_mm: float = 0.01, lowpass_hz: float = LOWPASS_HZ,
                  min_speed_fraction: float = 0.5, surface: str | None = None,
                  b: float = B_DEFAULT, min_force_n: float = 0.05) -> dict[str, Any]:
-    """A friction model file (JSON dict) from scans with force_n, friction_n and x_mm.
-
-    Only steady sliding is used (speed >= ``min_speed_fraction`` x the scan's median):
-    at rest the contact sticks and F_f / F_n is any value below mu_s. Scans cover their
-    own strips of the surface; where they overlap their mu are averaged.
-    """
+    """A friction model file (JSON) from scans with force_n, friction_n and x_mm; only steady
+    sliding (speed >= ``min_speed_fraction`` x median: a sticking contact's F_f / F_n is
+    anything below mu_s); where scans' strips overlap their mu are averaged."""
     if not (dx_mm > 0 and math.isfinite(dx_mm)):
         raise UserError("--dx-mm must be positive")
     if not scans:
@@ -100,25 +79,22 @@ def fit_friction(scans: list, *, dx_mm: float = 0.01, lowpass_hz: float = LOWPAS
         keep &= np.isfinite(mu)
         if keep.sum() < 16 or vmed <= 0:
             raise UserError(f"{sc.path}: too little steady sliding to fit mu(x)")
-        pieces.append((sc, np.asarray(x)[keep], mu[keep], v[keep]))
-    v_ref = float(np.median(np.concatenate([p[3] for p in pieces])))
+        pieces.append((np.asarray(x)[keep], mu[keep], v[keep]))
+    v_ref = float(np.median(np.concatenate([p[2] for p in pieces])))
     cutoff = lowpass_hz / v_ref
-    x0 = min(float(p[1].min()) for p in pieces)
-    x1 = max(float(p[1].max()) for p in pieces)
-    n = int((x1 - x0) / dx_mm) + 1
-    acc = np.zeros(n)
-    w = np.zeros(n)
-    for _sc, x, mu, _ in pieces:
+    x0 = min(float(p[0].min()) for p in pieces)
+    n = int((max(float(p[0].max()) for p in pieces) - x0) / dx_mm) + 1
+    acc, w = np.zeros(n), np.zeros(n)
+    grid = x0 + dx_mm * np.arange(n)
+    for x, mu, _ in pieces:
         order = np.argsort(x, kind="stable")
-        xs, ms = x[order], mu[order]
-        # Equal positions (a hand that paused): average them.
-        uniq, inv = np.unique(xs, return_inverse=True)
-        ms = np.bincount(inv, ms) / np.bincount(inv)
-        g = mu_on_grid(uniq, ms, x0, dx_mm, n)
-        ok = np.isfinite(g)
+        # Equal positions (a hand that paused): averaged.
+        uniq, inv = np.unique(x[order], return_inverse=True)
+        g = np.interp(grid, uniq, np.bincount(inv, mu[order]) / np.bincount(inv),
+                      left=np.nan, right=np.nan)
         filt = np.full(n, np.nan)
         # Low-pass each scan's strip on its own (no jump at a strip's edge).
-        for a, bnd in _runs(ok):
+        for a, bnd in _runs(np.isfinite(g)):
             seg = g[a:bnd]
             pad = min(seg.size - 1, int(3 / cutoff / dx_mm))
             ext = np.pad(seg, pad, mode="reflect") if pad > 0 else seg
@@ -152,8 +128,7 @@ def _runs(mask: Array) -> list[tuple[int, int]]:
 
 
 class FrictionFamily(FamilyBase):
-    """Plays mu(x) back by position on the audio, vibration and tension channels; its
-    parameter ``b_v`` is the electrostatic gain b (V per unit mu) of eq. 2."""
+    """mu(x) played back by position; parameter ``b_v``: the gain b of eq. 2 (V per mu)."""
 
     kind = NAME
     tick_channels = ("vibration", "tension")
@@ -167,13 +142,11 @@ class FrictionFamily(FamilyBase):
         self.mu = np.asarray(mu, float)
         self._mu = [*self.mu.tolist(), float(self.mu[0])]  # floats for the tick (wraps)
         self.x0_mm, self.dx_mm = float(x0_mm), float(dx_mm)
-        self.length_mm = self.mu.size * self.dx_mm
-        self.mu_mean = float(np.mean(self.mu))
+        self.length_mm, self.mu_mean = self.mu.size * self.dx_mm, float(np.mean(self.mu))
         self.parameters = {"b_v": float(b)}
-        self.carrier_hz = float(carrier_hz)
+        self.carrier_hz, self.still_mm_s = float(carrier_hz), float(still_mm_s)
         self.vibration_gain_m_s2 = float(vibration_gain_m_s2)
         self.tension_gain = float(tension_gain)
-        self.still_mm_s = float(still_mm_s)
         self.surface = surface
         self.channels = {"vibration": 1000.0, "tension": 1000.0, "audio": float(audio_hz)}
         self._pos = TickPosition()
@@ -187,34 +160,24 @@ class FrictionFamily(FamilyBase):
             raise UserError(f"friction b_v must be a finite number of volts, not {value!r}")
         super().set_parameter(name, float(value))
 
-    # ------------------------------------------------------------------ pure parts
     def mu_at(self, x_mm: Array | float) -> Array:
         """mu at finger positions (the strip tiled along x: (x - x0) mod L)."""
         u = np.mod(np.asarray(x_mm, float) - self.x0_mm, self.length_mm) / self.dx_mm
         return np.interp(u, np.arange(self.mu.size + 1),
                          np.concatenate([self.mu, self.mu[:1]]))
 
-    def tension_of(self, mu: Array) -> Array:
-        return np.clip(1.0 + self.tension_gain * (mu - self.mu_mean) / self.mu_mean, 0.5, 1.5)
-
-    def vibration_of(self, mu: Array, speed_mm_s: Array, contact: Array) -> Array:
-        fade = np.clip(np.asarray(speed_mm_s) / self.still_mm_s, 0.0, 1.0) * contact
-        return self.vibration_gain_m_s2 * (mu - self.mu_mean) / self.mu_mean * fade
-
-    def carrier(self, t_s: Array) -> Array:
-        """Y(t) of Jiao 2018 eq. 2: 1 in the first half of each 1/f0 period, else 0."""
-        return (np.mod(np.asarray(t_s) * self.carrier_hz, 1.0) < 0.5).astype(float)
-
-    # ------------------------------------------------------------------ interface
     def render(self, finger: FingerBlock, channel: str) -> Array:
         self.check_channel(channel)
         c = finger.contact.astype(float)
         mu = self.mu_at(np.where(finger.contact, finger.x_mm, self.x0_mm))
-        if channel == "audio":
-            return self.b * mu * self.carrier(finger.t_s) * c
+        if channel == "audio":  # Y(t): 1 in the first half of each carrier period (eq. 2)
+            carrier = (np.mod(np.asarray(finger.t_s) * self.carrier_hz, 1.0) < 0.5)
+            return self.b * mu * carrier.astype(float) * c
         if channel == "tension":
-            return np.where(finger.contact, self.tension_of(mu), 1.0)
-        return self.vibration_of(mu, finger.speed_mm_s, c)
+            ten = 1.0 + self.tension_gain * (mu - self.mu_mean) / self.mu_mean
+            return np.where(finger.contact, np.clip(ten, 0.5, 1.5), 1.0)
+        fade = np.clip(np.asarray(finger.speed_mm_s) / self.still_mm_s, 0.0, 1.0) * c
+        return self.vibration_gain_m_s2 * (mu - self.mu_mean) / self.mu_mean * fade
 
     def tick(self, t_s: float, contact: bool, x_mm: float, y_mm: float,
              speed_mm_s: float, force_n: float) -> tuple[float, ...]:
@@ -237,9 +200,8 @@ class FrictionFamily(FamilyBase):
 def parse_friction(data: dict[str, Any], where: str) -> FrictionFamily:
     """Check a friction model file; errors name the file and the key."""
     require_version(data, where, NAME, FORMAT_VERSION)
-    mu = require(data, "mu", where, list)
     try:
-        arr = np.asarray(mu, float)
+        arr = np.asarray(require(data, "mu", where, list), float)
     except (TypeError, ValueError):
         raise UserError(f"{where}: key 'mu' must be a list of numbers") from None
     if arr.ndim != 1 or arr.size < 2 or not np.isfinite(arr).all() or (arr <= 0).any():
@@ -247,11 +209,9 @@ def parse_friction(data: dict[str, Any], where: str) -> FrictionFamily:
     dx = float(require(data, "dx_mm", where))
     if not dx > 0 or not math.isfinite(dx):
         raise UserError(f"{where}: key 'dx_mm' must be positive")
-    x0 = float(require(data, "x0_mm", where))
-    es = data.get("electrostatic", {})
-    pad = data.get("fydpad", {})
+    es, pad = data.get("electrostatic", {}), data.get("fydpad", {})
     return FrictionFamily(
-        arr, x0, dx, b=float(es.get("b_v", B_DEFAULT)),
+        arr, float(require(data, "x0_mm", where)), dx, b=float(es.get("b_v", B_DEFAULT)),
         carrier_hz=float(es.get("carrier_hz", CARRIER_HZ)),
         vibration_gain_m_s2=float(pad.get("vibration_gain_m_s2", 2.0)),
         tension_gain=float(pad.get("tension_gain", 1.0)),

@@ -4,22 +4,14 @@
     V_e = B cos(2 pi x / (2 lambda))                   (eq. 2, electrostatic voltage)
     F_e = mu (W + k V_e^2) = mu (W + k B^2/2 (1 + cos(2 pi x / lambda)))   (eq. 3-4)
 
-A ratio v:f (0:10 ... 10:0) picks level v of the vibrotactile stimulus and level f of
-the friction one. Levels are linear in force between level 1 (just perceivable) and
-level 10 (realistic alone); level 0 is off (Ito 2019 4.2.3): A_L = A_1 + (L-1)(A_10-A_1)/9,
-and the friction modulation mu k B_L^2 / 2 likewise, so B_L = sqrt(2 F_L / (mu k)).
-8:2 is the default for lambda >= 1 mm (Ito 2019 Fig. 5: most chosen at 1.0-3.0 mm); below,
-6:4 (the most chosen at 0.5 mm, not significantly).
-
-Rectangular profile (the FYD-pad specimens R1 3.90 mm and R2 2.15 mm, ridge 90 %):
-the sine is replaced by p(x) = 2 (r(x) - d), r the 0/1 ridge indicator (raised-cosine
-edges ``edge_mm`` wide), d the ridge fraction: the same peak-to-peak 2 as the sine, zero
-mean. The friction follows the sine's quarter-period lead (Ito 2019 4.2.2: friction goes with
-the gradient): V_e^2 = B^2 (1 + p(x + lambda/4)) / 2.
-
-Channels: ``vibration`` (FYD-pad, 1 kHz) = g_v F_v / A_10 in m/s^2; ``tension`` (FYD-pad)
-= clip(1 + g_t (F_e - mean F_e) / (mu W), 0.5, 1.5); ``audio`` = V_e in volts for an
-external electrostatic display, and ``force`` = F_v in N for an external voice coil.
+A ratio v:f picks level v of the vibrotactile stimulus and f of the friction one, levels
+linear in force from 1 (just perceivable) to 10 (realistic alone), 0 off (4.2.3); 8:2 for
+lambda >= 1 mm, 6:4 below (Fig. 5). The rectangular profile (the FYD-pad specimens, 90 %
+ridge) replaces the sine by p(x) = 2 (r(x) - d), r the 0/1 ridge with raised-cosine edges,
+d the ridge fraction; friction leads by a quarter period (4.2.2): V_e^2 = B^2 (1 + p(x +
+lambda/4)) / 2. Channels: ``vibration`` = g_v F_v / A_10 m/s^2 and ``tension`` = clip(1 +
+g_t (F_e - mean) / (mu W), 0.5, 1.5) at 1 kHz; ``audio`` = V_e (V) and ``force`` = F_v (N)
+for external displays.
 """
 
 from __future__ import annotations
@@ -47,10 +39,6 @@ PROFILES = ("sine", "rect")
 RATIOS = tuple((v, 10 - v) for v in range(11))  # 0:10 ... 10:0
 
 
-def default_ratio(wavelength_mm: float) -> tuple[int, int]:
-    return (8, 2) if wavelength_mm >= 1.0 else (6, 4)
-
-
 def level_value(level: int, at_1: float, at_10: float) -> float:
     """Linear in force between level 1 and level 10; level 0 is off (Ito 2019 4.2.3)."""
     if not 0 <= level <= 10:
@@ -66,8 +54,7 @@ def profile_wave(x_mm: Array, wavelength_mm: float, profile: str = "sine",
         return np.sin(2 * np.pi * x / wavelength_mm)
     d = ridge_fraction * wavelength_mm
     w = max(min(edge_mm, 0.5 * d, 0.5 * (wavelength_mm - d)), 1e-9)
-    # Position in the period, in [-w/2, lambda - w/2): the rise edge centred at 0, the
-    # fall edge at d, each a raised cosine w wide.
+    # In [-w/2, lambda - w/2): the rise edge centred at 0, the fall at d, each w wide.
     ph = np.mod(x + w / 2, wavelength_mm) - w / 2
 
     def step(u: Array) -> Array:
@@ -79,7 +66,7 @@ def profile_wave(x_mm: Array, wavelength_mm: float, profile: str = "sine",
 
 def profile_scalar(x_mm: float, wavelength_mm: float, ridge_fraction: float,
                    edge_mm: float) -> float:
-    """:func:`profile_wave` of the rectangle for one position, in floats (the 1 kHz tick)."""
+    """:func:`profile_wave`'s rectangle at one position in floats (the tick: no arrays)."""
     d = ridge_fraction * wavelength_mm
     w = max(min(edge_mm, 0.5 * d, 0.5 * (wavelength_mm - d)), 1e-9)
     ph = (x_mm + w / 2) % wavelength_mm - w / 2
@@ -111,13 +98,13 @@ class GratingFamily(FamilyBase):
             raise ValueError(f"profile must be one of {PROFILES}")
         self.wavelength_mm = float(wavelength_mm)
         self.profile, self.ridge_fraction, self.edge_mm = profile, ridge_fraction, edge_mm
-        self.ratio = tuple(ratio) if ratio is not None else default_ratio(wavelength_mm)
+        default = (8, 2) if wavelength_mm >= 1.0 else (6, 4)  # Ito 2019 Fig. 5
+        self.ratio = tuple(ratio) if ratio is not None else default
         if self.ratio not in RATIOS:
             raise ValueError(f"ratio must be v:f with v + f = 10, got {self.ratio}")
         self.vib_levels_n, self.friction_levels_n = vib_levels_n, friction_levels_n
         self.A_n = level_value(self.ratio[0], *vib_levels_n)
-        #: The friction modulation's amplitude mu k B^2 / 2, and B from it.
-        self.Fe_mod_n = level_value(self.ratio[1], *friction_levels_n)
+        self.Fe_mod_n = level_value(self.ratio[1], *friction_levels_n)  # mu k B^2 / 2
         self.mu, self.load_n, self.k_n_per_v2 = mu, load_n, k_n_per_v2
         self.B_v = math.sqrt(2 * self.Fe_mod_n / (mu * k_n_per_v2))
         self.vibration_gain_m_s2, self.tension_gain = vibration_gain_m_s2, tension_gain
@@ -126,21 +113,9 @@ class GratingFamily(FamilyBase):
                          "force": float(audio_hz)}
         self._pos = TickPosition()
 
-    # ------------------------------------------------------------------ eq. 1-4
     def p(self, x_mm: Array) -> Array:
         return profile_wave(x_mm, self.wavelength_mm, self.profile, self.ridge_fraction,
                             self.edge_mm)
-
-    def force_v(self, x_mm: Array) -> Array:
-        """F_v(x) = A p(x) (eq. 1), N."""
-        return self.A_n * self.p(x_mm)
-
-    def voltage_sq(self, x_mm: Array) -> Array:
-        """V_e^2 (eq. 2): B^2 cos^2(pi x / lambda) = B^2 (1 + p(x + lambda/4)) / 2."""
-        x = np.asarray(x_mm, float)
-        if self.profile == "sine":
-            return (self.B_v * np.cos(2 * np.pi * x / (2 * self.wavelength_mm))) ** 2
-        return self.B_v ** 2 * 0.5 * (1.0 + self.p(x + self.wavelength_mm / 4))
 
     def voltage(self, x_mm: Array) -> Array:
         """V_e (eq. 2), V; for the rectangle the non-negative root of V_e^2."""
@@ -149,28 +124,29 @@ class GratingFamily(FamilyBase):
             return self.B_v * np.cos(2 * np.pi * x / (2 * self.wavelength_mm))
         return np.sqrt(np.maximum(self.voltage_sq(x), 0.0))
 
+    def voltage_sq(self, x_mm: Array) -> Array:
+        """V_e^2 (eq. 2): B^2 cos^2(pi x / lambda) = B^2 (1 + p(x + lambda/4)) / 2."""
+        if self.profile == "sine":
+            return self.voltage(x_mm) ** 2
+        return self.B_v ** 2 * 0.5 * (1.0 + self.p(np.asarray(x_mm) + self.wavelength_mm / 4))
+
     def force_e(self, x_mm: Array) -> Array:
         """F_e = mu (W + k V_e^2) (eq. 3), N."""
         return self.mu * (self.load_n + self.k_n_per_v2 * self.voltage_sq(x_mm))
 
-    def tension_of(self, fe: Array) -> Array:
-        mean = self.mu * self.load_n + self.Fe_mod_n
-        return np.clip(1.0 + self.tension_gain * (fe - mean) / (self.mu * self.load_n),
-                       0.5, 1.5)
-
-    # ------------------------------------------------------------------ interface
     def render(self, finger: FingerBlock, channel: str) -> Array:
         self.check_channel(channel)
         c = finger.contact
         x = np.where(c, finger.x_mm, 0.0)
-        if channel == "vibration":
-            a10 = self.vib_levels_n[1]
-            return self.vibration_gain_m_s2 * self.force_v(x) / a10 * c
+        if channel == "vibration":  # F_v = A p(x) (eq. 1), over A_10
+            return self.vibration_gain_m_s2 * (self.A_n * self.p(x)) / self.vib_levels_n[1] * c
         if channel == "force":
-            return self.force_v(x) * c
+            return self.A_n * self.p(x) * c
         if channel == "audio":
             return self.voltage(x) * c
-        return np.where(c, self.tension_of(self.force_e(x)), 1.0)
+        mean = self.mu * self.load_n + self.Fe_mod_n
+        ten = 1.0 + self.tension_gain * (self.force_e(x) - mean) / (self.mu * self.load_n)
+        return np.where(c, np.clip(ten, 0.5, 1.5), 1.0)
 
     def tick(self, t_s: float, contact: bool, x_mm: float, y_mm: float,
              speed_mm_s: float, force_n: float) -> tuple[float, ...]:
@@ -194,20 +170,16 @@ class GratingFamily(FamilyBase):
         self._pos.reset()
 
 
-# ------------------------------------------------------------------ fit and file
 def estimate_wavelength(scans: list, band_mm: tuple[float, float] = (0.3, 10.0),
                         dx_mm: float = 0.02, fmax_per_mm: float = 5.0) -> float:
-    """The spatial period of a grating from scans: the DFT321 signal resampled on the
-    position, its spatial power spectrum (averaged over scans), and the period whose
-    lines k / lambda below ``fmax_per_mm`` stand highest above the median on average
-    (a harmonic sum: the rectangle's lines, weighted by the tip's d^2/dt^2, need not
-    have the fundamental strongest); then the longest multiple of it whose in-between
-    lines also stand 10 dB out."""
+    """A grating's period from the scans' spatial power spectrum (DFT321 on the position,
+    averaged over scans): the period whose lines k / lambda < ``fmax_per_mm`` stand highest
+    above the median in sum (the rectangle's fundamental need not be its strongest line),
+    then divided by m while the lines it adds stand 10 dB out."""
     logs = []
     for sc in scans:
         x = getattr(sc, "x_mm", None)
-        if x is None:
-            x = np.cumsum(sc.speed_mm_s) / sc.fs_hz
+        x = np.cumsum(sc.speed_mm_s) / sc.fs_hz if x is None else x
         a = preprocess(sc.acc, sc.fs_hz, 10.0)
         keep = sc.speed_mm_s > 0.5 * np.median(sc.speed_mm_s)
         xs, order = x[keep], np.argsort(x[keep], kind="stable")
@@ -302,8 +274,7 @@ def parse_grating(data: dict[str, Any], where: str) -> GratingFamily:
     if tuple(ratio) not in RATIOS:
         raise UserError(f"{where}: key 'ratio' must be [v, f] with v + f = 10, got {ratio}")
     levels = require(data, "levels", where, dict)
-    es = data.get("electrostatic", {})
-    pad = data.get("fydpad", {})
+    es, pad = data.get("electrostatic", {}), data.get("fydpad", {})
     rf = float(data.get("ridge_fraction", 0.9))
     if not 0 < rf < 1:
         raise UserError(f"{where}: key 'ridge_fraction' must be in (0, 1)")

@@ -1,11 +1,10 @@
-"""Analysis for the LPC family: linear prediction (paper eq. 4: autocorrelation +
-Levinson-Durbin, stability), all-pole fits to a log spectrum, and speed segmentation
-(paper III-B: runs whose speed stays near a target speed).
+"""Linear prediction for the LPC family (Bianchi 2015 eq. 4: autocorrelation method,
+Levinson-Durbin, stability), all-pole fits to a log spectrum, and the runs of a mask
+(III-B: where a scan's speed stays near a target speed).
 
-Conventions. The paper writes the predictor as ``a_hat(k) = h^T a(k-1)`` (eq. 4) and
-synthesis as ``a(k) = e(k) + h^T a(k-1)`` (eq. 5). In scipy.signal terms that is the
-all-pole filter ``b = [1]``, ``A = [1, -h_1, ..., -h_p]``; this module returns ``A``
-(the "polynomial", leading 1) and ``h = -A[1:]`` converts between the two.
+The paper's predictor ``a(k) = e(k) + h^T [a(k-1) .. a(k-p)]`` (eq. 5) is the all-pole
+filter ``1 / A`` with ``A = [1, -h_1, ..., -h_p]`` (scipy.signal's denominator): this
+module works on ``A``, the "polynomial", and ``h = -A[1:]``.
 """
 
 from __future__ import annotations
@@ -25,24 +24,18 @@ DEFAULT_TOLERANCE_MM_S = 5.0
 def autocorrelation(x: ArrayLike, maxlag: int) -> Array:
     """Biased autocorrelation r[0..maxlag] (sum over the segment, not divided by n)."""
     x = np.asarray(x, float)
-    n = x.size
     # n + maxlag, not 2n - 1: a segment shorter than maxlag would otherwise read its
     # negative lags, wrapped round, as lags above n (no longer positive definite).
-    nfft = 1 << int(np.ceil(np.log2(max(n + maxlag, 2))))
+    nfft = 1 << int(np.ceil(np.log2(max(x.size + maxlag, 2))))
     spec = np.fft.rfft(x, nfft)
     r = np.fft.irfft(spec.real**2 + spec.imag**2, nfft)[: maxlag + 1]
-    if r.size < maxlag + 1:
-        r = np.concatenate([r, np.zeros(maxlag + 1 - r.size)])
-    return r
+    return np.concatenate([r, np.zeros(maxlag + 1 - r.size)]) if r.size < maxlag + 1 else r
 
 
-def levinson(r: ArrayLike, order: int) -> tuple[Array, float, Array]:
-    """Levinson-Durbin: polynomial A (leading 1), prediction-error power, reflection coefs.
-
-    ``r`` is the autocorrelation normalised so r[0] is the signal power; the returned
-    error power is then the residual variance sigma^2 of eq. 5. A positive-definite
-    ``r`` (any biased estimate) gives |k_i| < 1, hence a stable 1/A.
-    """
+def levinson(r: ArrayLike, order: int) -> tuple[Array, float]:
+    """Levinson-Durbin on the autocorrelation ``r`` (r[0] the signal power): A and the
+    prediction-error power sigma^2 of eq. 5. A positive-definite ``r`` (any biased
+    estimate) gives reflection coefficients |k_i| < 1, hence a stable 1/A."""
     r = np.asarray(r, float)
     if r.size < order + 1:
         raise ValueError(f"autocorrelation has {r.size} lags, order {order} needs {order + 1}")
@@ -50,28 +43,22 @@ def levinson(r: ArrayLike, order: int) -> tuple[Array, float, Array]:
         raise ValueError("signal has no power (r[0] <= 0)")
     a = np.zeros(order + 1)
     a[0] = 1.0
-    k = np.zeros(order)
     err = float(r[0])
     for m in range(1, order + 1):
-        acc = r[m] + np.dot(a[1:m], r[m - 1:0:-1])
-        km = -acc / err
-        k[m - 1] = km
+        km = -(r[m] + np.dot(a[1:m], r[m - 1:0:-1])) / err
         a[1:m] = a[1:m] + km * a[m - 1:0:-1]
         a[m] = km
         err *= 1.0 - km * km
         if err <= 0:  # numerically singular: the rest of the predictor adds nothing
             err = np.finfo(float).tiny
             break
-    return a, float(err), k
+    return a, float(err)
 
 
 def lpc_autocorrelation(segments: Sequence[ArrayLike], order: int, floor: float = 1e-9
                         ) -> tuple[Array, float]:
-    """LPC over several segments: their autocorrelations summed (no seams), then Levinson.
-
-    Returns (A, sigma^2) with sigma^2 in the signal's units squared. A small white-noise
-    floor (``floor`` of r[0]) keeps the Toeplitz matrix well conditioned at order 200.
-    """
+    """(A, sigma^2) over several segments: their autocorrelations summed (no seams), then
+    Levinson. A white floor (``floor`` of r[0]) keeps it well conditioned at order 200."""
     total = np.zeros(order + 1)
     n = 0
     for seg in segments:
@@ -82,40 +69,20 @@ def lpc_autocorrelation(segments: Sequence[ArrayLike], order: int, floor: float 
         raise ValueError(f"{n} samples cannot fit an order-{order} model")
     r = total / n
     r[0] *= 1.0 + floor
-    a, err, _ = levinson(r, order)
-    return a, err
-
-
-def poly_to_reflection(a: ArrayLike) -> Array:
-    """Step-down recursion: reflection coefficients of A (nan-free; |k|>=1 means unstable)."""
-    a = np.asarray(a, float)
-    a = a / a[0]
-    p = a.size - 1
-    k = np.zeros(p)
-    cur = a[1:].copy()
-    for m in range(p, 0, -1):
-        km = cur[m - 1]
-        k[m - 1] = km
-        if abs(km) >= 1.0:
-            k[: m - 1] = np.nan  # undefined below an unstable stage; caller sees |k| >= 1
-            break
-        cur = (cur[: m - 1] - km * cur[m - 2::-1][: m - 1]) / (1.0 - km * km)
-    return k
-
-
-def reflection_to_poly(k: ArrayLike) -> Array:
-    """Step-up recursion: polynomial A from reflection coefficients."""
-    k = np.asarray(k, float)
-    a = np.array([1.0])
-    for km in k:
-        a = np.concatenate([a, [0.0]]) + km * np.concatenate([[0.0], a[::-1]])
-    return a
+    return levinson(r, order)
 
 
 def is_stable(a: ArrayLike) -> bool:
-    """True when every pole of 1/A lies strictly inside the unit circle (|k_i| < 1)."""
-    k = poly_to_reflection(a)
-    return bool(np.all(np.isfinite(k)) and np.all(np.abs(k) < 1.0))
+    """True when every pole of 1/A lies strictly inside the unit circle: every reflection
+    coefficient of the step-down recursion |k_i| < 1."""
+    a = np.asarray(a, float)
+    cur = a[1:] / a[0]
+    for m in range(cur.size, 0, -1):
+        km = cur[m - 1]
+        if not abs(km) < 1.0:  # nan too
+            return False
+        cur = (cur[: m - 1] - km * cur[m - 2::-1][: m - 1]) / (1.0 - km * km)
+    return True
 
 
 def h_from_poly(a: ArrayLike) -> Array:
@@ -139,12 +106,9 @@ def ar_psd(a: ArrayLike, sigma2: float, freqs_hz: ArrayLike, fs_hz: float) -> Ar
 
 def impulse_responses(polys: ArrayLike, gains: ArrayLike, n: int, nfft: int | None = None
                       ) -> Array:
-    """First ``n`` samples of each row's impulse response gain / A(z) (by inverse FFT).
-
-    The FFT grid aliases the response past ``nfft`` samples (default: 4n, at least
-    8192) onto its start; a texture model's response has lost all but 1e-4 of its
-    energy within ~2000 samples, so what wraps round is below double precision.
-    """
+    """First ``n`` samples of each row's impulse response gain / A(z), by inverse FFT
+    (default grid 4n, at least 8192: a texture model keeps under 1e-4 of its energy
+    past ~2000 samples, so what wraps round is below double precision)."""
     nfft = nfft or max(8192, 1 << int(np.ceil(np.log2(4 * n))))
     a = np.atleast_2d(np.asarray(polys, float))
     g = np.asarray(gains, float).reshape(-1, 1)
@@ -161,13 +125,11 @@ def energy_length(responses: ArrayLike, share: float = 1e-4) -> int:
 def ar_from_log_psd(log_p: Array, order: int) -> tuple[Array, float]:
     """All-pole fit (A, sigma^2) of order ``order`` to a log power spectrum on
     ``log_p.size`` frequencies 0..fs/2 (autocorrelation by inverse FFT)."""
-    n = 2 * (log_p.size - 1)
-    r = np.fft.irfft(np.exp(log_p), n)[: order + 1]
+    r = np.fft.irfft(np.exp(log_p), 2 * (log_p.size - 1))[: order + 1]
     r[0] *= 1.0 + 1e-9  # the white floor of lpc_autocorrelation: well conditioned at order 200
     a = np.concatenate([[1.0], sl.solve_toeplitz(r[:order], -r[1:order + 1])])
     if not is_stable(a):  # rounding at extreme dynamic range: the recursion keeps |k| < 1
-        a, err, _ = levinson(r, order)
-        return a, err
+        return levinson(r, order)
     return a, float(r[0] + np.dot(a[1:], r[1:order + 1]))
 
 
@@ -177,18 +139,3 @@ def runs(mask: ArrayLike, min_len: int = 1) -> list[tuple[int, int]]:
     edges = np.flatnonzero(np.diff(np.concatenate([[0], m, [0]])))
     return [(int(a), int(b)) for a, b in zip(edges[0::2], edges[1::2], strict=True)
             if b - a >= min_len]
-
-
-def segment_by_speed(
-    speed_mm_s: ArrayLike, fs_hz: float, targets_mm_s: ArrayLike = DEFAULT_SPEEDS_MM_S,
-    tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S, min_seconds: float = 0.25,
-) -> dict[float, list[tuple[int, int]]]:
-    """For each target speed, the runs where |speed - target| <= tolerance (paper: 5 mm/s).
-
-    Runs shorter than ``min_seconds`` are dropped: they carry too little of the surface
-    to estimate a spectrum.
-    """
-    v = np.asarray(speed_mm_s, float)
-    min_len = max(1, round(min_seconds * fs_hz))
-    return {float(s): runs(np.abs(v - s) <= tolerance_mm_s, min_len)
-            for s in np.asarray(targets_mm_s, float)}

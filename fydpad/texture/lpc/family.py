@@ -1,19 +1,17 @@
-"""The FYD-pad's LPC texture (Bianchi 2015 III-B, eq. 5) behind the family contract: an
-adapter around :mod:`fydpad.texture.lpc.model_file` (the model) and
-:class:`fydpad.texture.lpc.synthesis.TextureRenderer` (the render).
+"""The FYD-pad's LPC texture (Bianchi 2015 III-B, eq. 5) behind the family contract: the
+model file (:mod:`model_file`) rendered by :class:`synthesis.TextureRenderer`, and
+``fydpad texture fit`` through :mod:`select`.
 
-``render`` synthesizes along the block's speed after a 0.5 s warm-up at its first
-speed; ``tick`` renders one sample per station tick from the station's speed. An output
-limiter guards the motors: switching between very different per-speed filters can grow
-the filter's history even though each filter is stable, so a tick beyond
+``render`` synthesizes along the block's speed after a 0.5 s warm-up at its first speed;
+``tick`` renders one sample per station tick. Switching between very different per-speed
+filters can grow the filter's history though each filter is stable, so a tick beyond
 ``LIMIT_FACTOR`` times the largest RMS the model produces at its own speeds clears the
-filter (counted in ``counters()["limiter_resets"]``) and is clipped.
+filter (``counters()["limiter_resets"]``) and is clipped.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
@@ -22,13 +20,11 @@ from numpy.typing import NDArray
 from fydpad.errors import UserError
 from fydpad.texture.evaluation.evaluate import welch_psd
 from fydpad.texture.family import Array, FamilyBase, FingerBlock, Kind, RateMismatch
-from fydpad.texture.lpc.analysis import ar_psd, segment_by_speed
+from fydpad.texture.lpc.analysis import ar_psd
 from fydpad.texture.lpc.coverage import describe, model_gaps, speed_histogram
 from fydpad.texture.lpc.dft321 import preprocess
-from fydpad.texture.lpc.fit import fit_texture, lines_option, modelled_speed_range
+from fydpad.texture.lpc.fit import lines_option, modelled_speed_range
 from fydpad.texture.lpc.interpolation import METHODS, SpeedInterpolator
-from fydpad.texture.lpc.line_voice import LineVoice
-from fydpad.texture.lpc.lines import LineSpectrum
 from fydpad.texture.lpc.model_file import TextureModel, model_to_json, parse_model
 from fydpad.texture.lpc.select import fit_candidate, select_model, selection_table
 from fydpad.texture.lpc.synthesis import TextureRenderer
@@ -55,8 +51,7 @@ class LpcFamily(FamilyBase):
         self.channels = {"vibration": float(model.fs_hz)}
         self.highpass_hz = float(model.highpass_hz)
         #: method: interpolation between fitted speeds (the file's own unless set);
-        #: drive_filter: band-pass the
-        #: output through the model's drive band; seed: the excitation noise's.
+        #: drive_filter: band-pass through the model's drive band; seed: the noise's.
         self.parameters = {"method": model.interpolation, "drive_filter": False, "seed": None}
         self.limit = math.inf
         self.resets = 0
@@ -146,51 +141,46 @@ def _from_json(data: dict[str, Any], where: str) -> LpcFamily:
 
 def _fit(scans: list, **options: Any) -> dict[str, Any]:
     """As ``fydpad texture fit``: the form validated on the scans (select.py)."""
-    model, _ = select_model(scans, **options)
-    return model_to_json(model)
+    return model_to_json(select_model(scans, **options)[0])
 
 
-
-
-# ------------------------------------------------------------------ fydpad texture fit
 #: The ``fydpad texture fit`` options the LPC fit takes.
 FIT_OPTIONS = ("order", "speeds", "tolerance", "min_seconds", "highpass_hz", "surface",
-               "drive_band", "lines", "form", "wrap", "wrap_iterations")
+               "drive_band", "lines", "form", "wrap_iterations")
 
 
 def check_fit_options(opts: dict[str, Any], fs_hz: float) -> None:
     """The fit's filters and targets against the scans' rate: each option that would
     fail in the fit or be written into the model (failing on reading)."""
-    nyq = fs_hz / 2
-    where = f"the scans' Nyquist frequency {nyq:g} Hz"
+    where = f"the scans' Nyquist frequency {fs_hz / 2:g} Hz"
     if opts["order"] < 1:
         raise UserError("--order must be at least 1")
     if len(opts["drive_band"]) != 2:
         raise UserError("--drive-band needs LO,HI")
-    hp = opts["highpass_hz"]
-    if not (math.isfinite(hp) and 0 <= hp < nyq):
+    hp, (lo, hi) = opts["highpass_hz"], opts["drive_band"]
+    if not (math.isfinite(hp) and 0 <= hp < fs_hz / 2):
         raise UserError(f"--highpass-hz {hp:g}: must be >= 0 and below {where}")
-    lo, hi = opts["drive_band"]
-    if not (0 < lo < hi < nyq):
+    if not (0 < lo < hi < fs_hz / 2):
         raise UserError(f"--drive-band {lo:g},{hi:g}: need 0 < LO < HI < {where}")
     speeds = opts["speeds"]
     if not speeds or not all(math.isfinite(v) and v > 0 for v in speeds):
         raise UserError(f"--speeds {','.join(f'{v:g}' for v in speeds)}: every target "
                         "speed must be > 0 mm/s")
-    tol = opts["tolerance"]
-    if not (math.isfinite(tol) and tol >= 0):
-        raise UserError(f"--tolerance {tol:g}: must be >= 0 mm/s")
+    if not (math.isfinite(opts["tolerance"]) and opts["tolerance"] >= 0):
+        raise UserError(f"--tolerance {opts['tolerance']:g}: must be >= 0 mm/s")
 
 
 def fit_command(scan_paths: list[str], opts: dict[str, Any], out: str,
                 plot: str | None) -> tuple[dict[str, Any], list[str], list[str]]:
-    """``fydpad texture fit`` (kind lpc): the model, the lines describing it (form,
-    lines, speed coverage, each speed's fit), warnings about the scans as a whole, and
-    with ``plot`` the recorded against
-    the model spectra per speed (Bianchi 2015 Fig. 10)."""
+    """``fydpad texture fit`` (kind lpc): the form validation picks on the scans (``form``
+    "auto") or the one named, the lines describing it, warnings about the scans as a
+    whole, and with ``plot`` the recorded against the model spectra (Bianchi 2015 Fig. 10)."""
     if not scan_paths:
         raise UserError("fit: give at least one SCAN.csv")
-    scans = [read_scan_or_fail(p) for p in scan_paths]
+    try:
+        scans = [read_scan(p) for p in scan_paths]
+    except RecordingError as exc:
+        raise UserError(str(exc)) from None
     check_fit_options(opts, scans[0].fs_hz)
     labels = [sc.meta.get("surface") for sc in scans]
     notes = []
@@ -199,140 +189,63 @@ def fit_command(scan_paths: list[str], opts: dict[str, Any], out: str,
         notes.append(f"the scans are of {len(set(labels))} surfaces (# surface=: {counts}), "
                      f"pooled into one model labelled {labels[0]}; fit each surface on its "
                      "own, or name the mix with --surface")
-    if selects(opts):
-        data, out_lines = fit_selected(scans, opts, plot)
-        return data, out_lines, notes
-    wrap = opts.get("wrap", _no_wrap)
-    model, reports = fit_texture(
-        scans, order=opts["order"], speeds_mm_s=opts["speeds"],
-        tolerance_mm_s=opts["tolerance"], highpass_hz=opts["highpass_hz"],
-        min_seconds=opts["min_seconds"], surface=opts["surface"],
-        drive_band_hz=tuple(opts["drive_band"]), lines=lines_option(opts["lines"], "--lines"),
-        wrap=wrap, wrap_iterations=opts.get("wrap_iterations", _no_wrap))
-    g2 = 9.80665**2
-    out_lines = [f"surface {model.surface}, order {model.order}, {model.fs_hz:g} Hz, "
-                 "calibrated spectrum on its two-part base "
-                 f"({model.provenance['two_part_iterations']} iterations)"]
-    lines = model.provenance.get("lines")
-    if lines is not None:
-        out_lines.append(f"  lines: {lines['note']}" + (
-            "; the LPC models below are fitted on what they leave"
-            if model.lines is not None else ""))
-    gaps = model_gaps(model.provenance, out) or []
-    middles = ", ".join(f"{round(a + b) / 2:g}" for a, b in gaps)  # to 0.5 mm/s
-    out_lines.append(
-        f"  scanned speeds: {describe(model.provenance['speed_coverage_mm_s'])}"
-        + (f"; no scan between {describe(gaps)}: the model interpolates there (less "
-           "accurately: docs/texture.md, 'Speed coverage'); to close the gaps, scan "
-           f"strokes at {middles} mm/s" if gaps else ""))
-    for r in reports:
-        out_lines.append(
-            f"  {r.speed_mm_s:5.1f} mm/s: {r.n_samples} samples in {r.n_segments} runs, "
-            f"sigma2 {r.sigma2:.3g} (m/s^2)^2 = {r.sigma2 / g2:.3g} g^2, "
-            f"prediction gain {10 * math.log10(r.signal_var / r.sigma2):.1f} dB, stable")
-    if plot:
-        plot_fit(plot, model, scans, opts, gaps, out)
-    return model_to_json(model), out_lines, notes
-
-
-def plot_fit(path: str, model: TextureModel, scans: list[Scan], opts: dict[str, Any],
-             gaps: list, where: str) -> None:
-    """Recorded against model spectra per fitted speed, over the runs the fit used, and
-    the scans' speed coverage."""
-    lines = None
-    if model.lines is not None:  # the lines rendered along the scans' own speeds, once
-        voice = LineVoice(LineSpectrum.from_json(model.lines, where), model.fs_hz)
-        lines = np.concatenate([voice.block(sc.speed_mm_s) for sc in scans])
-    pre = [preprocess(sc.acc, sc.fs_hz, model.highpass_hz) for sc in scans]
-    panels = []
-    for k, s in enumerate(model.speeds_mm_s):
-        segs = []
-        for sc, x in zip(scans, pre, strict=True):
-            rs = segment_by_speed(sc.speed_mm_s, sc.fs_hz, [s], opts["tolerance"],
-                                  opts["min_seconds"])[float(s)]
-            mask = np.zeros(x.size, bool)
-            for a, b in rs:
-                mask[a:b] = True
-            segs.append((x, mask))
-        x = np.concatenate([a for a, _ in segs])
-        m = np.concatenate([b for _, b in segs])
-        fr, pr = welch_psd(x, model.fs_hz, m)
-        pm = ar_psd(model.poly(k), model.sigma2[k], fr, model.fs_hz)
-        if lines is not None:
-            pm = pm + welch_psd(lines, model.fs_hz, m)[1]
-        panels.append((f"{s:g} mm/s", fr, pr, pm))
-    edges, seconds = speed_histogram(
-        [sc.speed_mm_s for sc in scans], model.fs_hz,
-        modelled_speed_range(list(model.speeds_mm_s), model.tolerance_mm_s))
-    plot_spectra(path, panels, f"{model.surface}: recorded vs LPC model"
-                 + (" + lines" if lines is not None else ""),
-                 coverage=SpeedCoverage(edges, seconds, list(model.speeds_mm_s), gaps))
-
-
-def selects(opts: dict[str, Any]) -> bool:
-    """The validated choice or form paper; form calibrated takes the per-speed fit path
-    with its full report."""
-    return opts["form"] in ("auto", "paper")
-
-
-def fit_selected(scans: list[Scan], opts: dict[str, Any], plot: str | None
-                 ) -> tuple[dict[str, Any], list[str]]:
-    """The form validation picks on the scans (``form`` "auto"), or the one named."""
     kw = dict(order=opts["order"], tolerance_mm_s=opts["tolerance"],
               highpass_hz=opts["highpass_hz"], surface=opts["surface"],
-              drive_band_hz=tuple(opts["drive_band"]),
+              drive_band_hz=tuple(opts["drive_band"]), min_seconds=opts["min_seconds"],
               lines=lines_option(opts["lines"], "--lines"))
+    wrap = opts.get("wrap_iterations", lambda it: it)
     if opts["form"] == "auto":
-        model, sel = select_model(scans, speeds_mm_s=opts["speeds"], **kw,
-                                  wrap=opts.get("wrap_iterations", _no_wrap))
+        model, sel = select_model(scans, speeds_mm_s=opts["speeds"], wrap=wrap, **kw)
         table = selection_table(sel)
     else:
-        model = fit_candidate(opts["form"], scans, opts["speeds"], **kw)
+        model = fit_candidate(opts["form"], scans, opts["speeds"], wrap_iterations=wrap, **kw)
         table = [f"  form {opts['form']} as asked (--form): not validated"]
-    lines = [f"surface {model.surface}, order {model.order}, {model.fs_hz:g} Hz, "
-             f"form {model.provenance.get('form', 'calibrated')}, {len(model.speeds_mm_s)} "
-             f"models at {model.speeds_mm_s[0]:g}-{model.speeds_mm_s[-1]:g} mm/s, "
-             f"interpolation {model.interpolation}"]
-    found = model.provenance.get("lines")
-    if found is not None:
-        lines.append(f"  lines: {found['note']}" + (
+    prov = model.provenance
+    head = (f"surface {model.surface}, order {model.order}, {model.fs_hz:g} Hz, form "
+            f"{prov['form']}, {len(model.speeds_mm_s)} models at {model.speeds_mm_s[0]:g}-"
+            f"{model.speeds_mm_s[-1]:g} mm/s, interpolation {model.interpolation}")
+    if "two_part_iterations" in prov:
+        head += f", calibrated spectrum on its two-part base ({prov['two_part_iterations']} " \
+                "iterations)"
+    lines = [head]
+    if prov.get("lines") is not None:
+        lines.append(f"  lines: {prov['lines']['note']}" + (
             "; the LPC models are fitted on what they leave" if model.lines is not None
             else ""))
-    lines += table
+    gaps = model_gaps(prov, out) or []
+    if gaps:
+        middles = ", ".join(f"{round(a + b) / 2:g}" for a, b in gaps)  # to 0.5 mm/s
+        lines.append(f"  scanned speeds: {describe(prov['speed_coverage_mm_s'])}; no scan "
+                     f"between {describe(gaps)}: the model interpolates there (less "
+                     "accurately: docs/texture.md, 'Speed coverage'); to close the gaps, "
+                     f"scan strokes at {middles} mm/s")
     if plot:
-        plot_selected(plot, scans, model, opts)
-    return model_to_json(model), lines
+        plot_fit(plot, scans, model, opts, gaps)
+    return model_to_json(model), lines + table, notes
 
 
-def plot_selected(path: str, scans: list[Scan], model: TextureModel,
-                  opts: dict[str, Any]) -> None:
+def plot_fit(path: str, scans: list[Scan], model: TextureModel, opts: dict[str, Any],
+             gaps: list) -> None:
     """Recorded spectrum at each target speed (its samples within the tolerance) against
-    the model rendered there (the all-pole part; a periodic surface's lines apart)."""
+    the model rendered there (the all-pole part; a periodic surface's lines apart), and
+    the scans' speed coverage."""
     interp = SpeedInterpolator(model)
     x = np.concatenate([preprocess(sc.acc, sc.fs_hz, model.highpass_hz) for sc in scans])
     v = np.concatenate([sc.speed_mm_s for sc in scans])
     panels = []
     for s in opts["speeds"]:
-        mask = np.abs(v - s) <= opts["tolerance"]
         try:
-            f, pr = welch_psd(x, model.fs_hz, mask)
+            f, pr = welch_psd(x, model.fs_hz, np.abs(v - s) <= opts["tolerance"])
         except ValueError:
             continue  # too little near this speed for a spectrum
         a, s2 = interp(float(s))
         panels.append((f"{s:g} mm/s", f, pr, ar_psd(a, s2, f, model.fs_hz)))
+    fitted = list(model.speeds_mm_s)
+    edges, seconds = speed_histogram([sc.speed_mm_s for sc in scans], model.fs_hz,
+                                     modelled_speed_range(fitted, model.tolerance_mm_s))
     plot_spectra(path, panels, f"{model.surface}: recorded vs model "
-                 f"({model.provenance.get('form', 'calibrated')}, {model.interpolation})")
-
-
-def read_scan_or_fail(path: str) -> Scan:
-    try:
-        return read_scan(path)
-    except RecordingError as exc:
-        raise UserError(str(exc)) from None
-
-
-def _no_wrap(it: Iterable) -> Iterable:
-    return it
+                 f"({model.provenance['form']}, {model.interpolation})",
+                 coverage=SpeedCoverage(edges, seconds, fitted, gaps))
 
 
 KIND = Kind("lpc", _from_json, _fit,

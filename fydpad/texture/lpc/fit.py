@@ -1,4 +1,5 @@
-"""Fitting a speed-indexed LPC texture model from scans (paper Fig. 8)."""
+"""Fitting the LPC family's two forms from scans (Bianchi 2015 Fig. 8): the paper's
+per-speed LPC (:func:`fit_paper`) and the calibrated spectrum (:func:`fit_texture`)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,6 @@ import datetime as _dt
 import math
 import warnings
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -18,9 +18,8 @@ from fydpad.texture.lpc.analysis import (
     h_from_poly,
     is_stable,
     lpc_autocorrelation,
-    segment_by_speed,
+    runs,
 )
-from fydpad.texture.lpc.analysis import runs as segment_runs
 from fydpad.texture.lpc.coverage import gaps_within, scanned_spans
 from fydpad.texture.lpc.dft321 import preprocess
 from fydpad.texture.lpc.lines import LineFit, fit_lines
@@ -29,18 +28,33 @@ from fydpad.texture.lpc.spectrum import ITERATIONS, PREWHITEN_ORDER, fit_calibra
 from fydpad.texture.scan_io import Scan
 
 Array = NDArray[np.float64]
+#: The plain per-speed fit's grid step: the renderer takes the nearest grid speed, so a
+#: speed is never more than half a step from a model fitted around it.
+PAPER_GRID_STEP_MM_S = 1.0
+#: Where fewer samples lie within the window of a speed, the nearest this many seconds.
+PAPER_MIN_SECONDS = 2.0
 
 
-@dataclass
-class FitReport:
-    """What each speed's fit used and produced."""
+def _prepare(scans: list[Scan], highpass_hz: float) -> tuple[float, list[tuple[Array, Array]]]:
+    """The scans' rate and each scan's modelling signal (high-pass, DFT321) and speed."""
+    if not scans:
+        raise UserError("no scans to fit")
+    fs = scans[0].fs_hz
+    out = []
+    for scan in scans:
+        if abs(scan.fs_hz - fs) > 1e-6 * fs:
+            raise UserError(f"{scan.path}: column 't_s': sample rate {scan.fs_hz:g} Hz differs "
+                            f"from the first scan's {fs:g} Hz")
+        out.append((preprocess(scan.acc, fs, highpass_hz), np.asarray(scan.speed_mm_s, float)))
+    return fs, out
 
-    speed_mm_s: float
-    n_samples: int
-    n_segments: int
-    sigma2: float
-    signal_var: float
-    stable: bool
+
+def _where(scans: list[Scan]) -> str:
+    return scans[0].path if len(scans) == 1 else "scans"
+
+
+def _created() -> str:
+    return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
 
 
 def fit_texture(
@@ -49,102 +63,97 @@ def fit_texture(
     min_seconds: float = 0.25, surface: str | None = None,
     lines: str | float | None = "auto",
     drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
-    wrap: Callable[[Iterable], Iterable] = lambda it: it,
     wrap_iterations: Callable[[Iterable], Iterable] = lambda it: it,
-) -> tuple[TextureModel, list[FitReport]]:
+) -> TextureModel:
     """The calibrated form (:mod:`spectrum`): the two-part spectrum S_two(f, v) fitted on
-    every 0.5 s chunk within the modelled speeds, times a correction C_i measured at each
-    target speed on the runs within ``tolerance_mm_s`` of it; each speed's (h, sigma^2)
-    is the all-pole fit of S there. Each scan is high-passed at ``highpass_hz`` and
-    reduced by DFT321 as a whole; a periodic surface's lines (:mod:`lines`) are fitted
-    first and the spectrum on what they leave. Needs two or more target speeds with
-    data. ``wrap`` wraps the scans, ``wrap_iterations`` the two-part fit's iterations.
-    """
+    every 0.5 s chunk within the modelled speeds, times a correction measured at each
+    target speed on the runs (of ``min_seconds`` or more) within ``tolerance_mm_s`` of
+    it; each speed's (h, sigma^2) is the all-pole fit of S there. A periodic surface's
+    lines (:mod:`lines`; ``lines`` "auto", "off"/None or a period in mm) are fitted first
+    and the spectrum on what they leave. Needs two or more target speeds with data.
+    ``wrap_iterations`` wraps the two-part fit's iterations (a progress bar)."""
     scans = list(scans)
-    if not scans:
-        raise UserError("no scans to fit")
-    fs = scans[0].fs_hz
-    prepared: list[tuple[Array, Array]] = []
-    for scan in wrap(scans):
-        if abs(scan.fs_hz - fs) > 1e-6 * fs:
-            raise UserError(f"{scan.path}: column 't_s': sample rate {scan.fs_hz:g} Hz differs "
-                            f"from the first scan's {fs:g} Hz")
-        prepared.append((preprocess(scan.acc, fs, highpass_hz), scan.speed_mm_s))
-    line_fit = _fit_lines(prepared, fs, speeds_mm_s, tolerance_mm_s, lines)
-    pooled: dict[float, list[Array]] = {float(s): [] for s in speeds_mm_s}
+    fs, prepared = _prepare(scans, highpass_hz)
+    period = lines_option(lines)
+    signals = [x for x, _ in prepared]
+    if period is None or period == "off":
+        line_fit = LineFit.none(signals, "not fitted (lines off)")
+    else:
+        line_fit = fit_lines(signals, [v for _, v in prepared], fs,
+                             modelled_speed_range(speeds_mm_s, tolerance_mm_s),
+                             period_mm=None if period == "auto" else float(period))
+    by: dict[float, list[tuple[Array, Array]]] = {float(s): [] for s in speeds_mm_s}
     whole: list[tuple[Array, Array]] = []
-    speeds_of: dict[float, list[Array]] = {float(s): [] for s in speeds_mm_s}
+    min_len = max(1, round(min_seconds * fs))  # shorter: too little for a spectrum
     for i, (x, v) in enumerate(prepared):
         pieces = [(0, x.size)]
         if line_fit.spectrum is not None:
             # What the lines leave, where they could be taken out (see lines.fit_lines).
             x = line_fit.residuals[i]
-            pieces = segment_runs(line_fit.keep[i], 1)
+            pieces = runs(line_fit.keep[i], 1)
         for a, b in pieces:
             whole.append((x[a:b], v[a:b]))
-            for s, rs in segment_by_speed(v[a:b], fs, speeds_mm_s, tolerance_mm_s,
-                                          min_seconds).items():
-                pooled[s].extend(x[a + r0:a + r1] for r0, r1 in rs)
-                speeds_of[s].extend(v[a + r0:a + r1] for r0, r1 in rs)
-    got_speeds, reports = [], []
+            for s, segs in by.items():
+                segs.extend((x[a + r0:a + r1], v[a + r0:a + r1])
+                            for r0, r1 in runs(np.abs(v[a:b] - s) <= tolerance_mm_s, min_len))
+    counts: dict[float, int] = {}
     short: list[str] = []  # speeds with data, too little for the order
-    for s, segs in pooled.items():
-        n = sum(seg.size for seg in segs)
+    for s, segs in by.items():
+        n = sum(x.size for x, _ in segs)
         if n == 0:
             warnings.warn(f"no scan has {min_seconds:g} s within {tolerance_mm_s:g} mm/s of "
                           f"{s:g} mm/s: no model at that speed", stacklevel=2)
-            continue
-        if n < 4 * order:
+        elif n < 4 * order:
             short.append(f"only {n} samples near {s:g} mm/s for an order-{order} model "
                          f"(need at least {4 * order}); record longer or lower --order")
-            continue
-        got_speeds.append(s)
-        sv = float(np.mean(np.concatenate(segs) ** 2))
-        reports.append(FitReport(s, n, len(segs), 0.0, sv, True))
-    if not got_speeds and short:
-        raise UserError(f"{scans[0].path if len(scans) == 1 else 'scans'}: {short[0]}")
+        else:
+            counts[s] = n
+    if not counts and short:
+        raise UserError(f"{_where(scans)}: {short[0]}")
     for msg in short:
         warnings.warn(f"{msg}: no model at that speed", stacklevel=2)
-    if len(got_speeds) < 2:
-        raise UserError(f"{scans[0].path if len(scans) == 1 else 'scans'}: the calibrated "
-                        f"form needs two or more target speeds with data, these have "
-                        f"{len(got_speeds)} (column 'speed_mm_s'); fit with --form paper")
-    spectral = _fit_spectrum(whole, pooled, speeds_of, got_speeds, fs, order, tolerance_mm_s,
-                             wrap_iterations)
-    hs, sig = spectral.hs, spectral.sigma2
-    reports = [replace(r, sigma2=float(s2)) for r, s2 in zip(reports, sig, strict=True)]
+    got = list(counts)
+    if len(got) < 2:
+        raise UserError(f"{_where(scans)}: the calibrated form needs two or more target "
+                        f"speeds with data, these have {len(got)} (column 'speed_mm_s'); "
+                        "fit with --form paper")
+    lo, hi = modelled_speed_range(got, tolerance_mm_s)
+    try:
+        two = fit_two_part([w[0] for w in whole], [w[1] for w in whole], fs, (lo, hi),
+                           ITERATIONS, wrap=wrap_iterations)
+        spec = fit_calibrated({s: by[s] for s in got}, fs, two)
+    except ValueError as exc:
+        raise UserError(f"calibrated spectrum: {exc}") from None
+    polys = [spec.ar(s, order, fs) for s in got]
+    if not all(is_stable(a) for a, _ in polys):
+        raise UserError("spectral model: an all-pole fit of S(f, v) is unstable")
+    # Where the strokes went, and where the model only interpolates (coverage.py).
+    spans = scanned_spans([v for _, v in prepared], fs, (lo, hi))
     model = TextureModel(
-        surface=surface or scans[0].surface, fs_hz=fs, speeds_mm_s=np.asarray(got_speeds),
-        h=np.vstack(hs), sigma2=np.asarray(sig), highpass_hz=highpass_hz,
+        surface=surface or scans[0].surface, fs_hz=fs, speeds_mm_s=np.asarray(got),
+        h=np.vstack([h_from_poly(a) for a, _ in polys]),
+        sigma2=np.asarray([s2 for _, s2 in polys]), highpass_hz=highpass_hz,
         fit_band_hz=(highpass_hz, fs / 2), drive_band_hz=drive_band_hz,
         tolerance_mm_s=tolerance_mm_s, interpolation="stretch",
         provenance={
             "scans": [s.path for s in scans],
-            # models[] are the all-pole fits of S at the fitted speeds (spectrum.py)
             "method": "two-stage all-pole fit of S(f, v)", "order": order,
-            "prewhiten_order": PREWHITEN_ORDER,
-            "tool": "fydpad texture fit",
-            "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-            "samples_per_speed": {f"{r.speed_mm_s:g}": r.n_samples for r in reports},
+            "prewhiten_order": PREWHITEN_ORDER, "tool": "fydpad texture fit",
+            "created": _created(), "samples_per_speed": {f"{s:g}": counts[s] for s in got},
+            "speed_coverage_mm_s": [list(sp) for sp in spans],
+            "interpolated_mm_s": [list(g) for g in gaps_within(spans, min(got), max(got))],
         },
+        two_part=two.to_json(), free_form=spec.to_json(),
     )
-    # Where the strokes the model was fitted on went, and where it only interpolates
-    # (coverage.py): the spectrum reads every chunk within the modelled speeds.
-    spans = scanned_spans([v for _, v in prepared], fs,
-                          modelled_speed_range(got_speeds, tolerance_mm_s))
-    model.provenance["speed_coverage_mm_s"] = [list(sp) for sp in spans]
-    model.provenance["interpolated_mm_s"] = [
-        list(g) for g in gaps_within(spans, min(got_speeds), max(got_speeds))]
     if lines not in (None, "off"):  # what the fit found, lines or not
         model.provenance["lines"] = {
             "period_mm": line_fit.period_mm, "share": round(line_fit.share, 4),
             "note": line_fit.note}
     if line_fit.spectrum is not None:
         model.lines = line_fit.spectrum.to_json()
-    model.two_part, model.free_form = spectral.two_part, spectral.free_form
     model.provenance["spectral_model"] = "free-form"
     model.provenance["two_part_iterations"] = ITERATIONS
-    return model, reports
+    return model
 
 
 def lines_option(lines: str | float | None, name: str = "lines") -> str | float | None:
@@ -161,62 +170,10 @@ def lines_option(lines: str | float | None, name: str = "lines") -> str | float 
     return period
 
 
-def _fit_lines(prepared: list[tuple[Array, Array]], fs: float, speeds_mm_s: Sequence[float],
-               tolerance_mm_s: float, lines: str | float | None) -> LineFit:
-    """fit_texture's line spectrum: ``"auto"`` finds the period, a number is the period
-    in mm, None or ``"off"`` fits none."""
-    signals = [x for x, _ in prepared]
-    lines = lines_option(lines)
-    if lines is None or lines == "off":
-        return LineFit.none(signals, "not fitted (lines off)")
-    period = None if lines == "auto" else float(lines)
-    return fit_lines(signals, [v for _, v in prepared], fs,
-                     modelled_speed_range(speeds_mm_s, tolerance_mm_s), period_mm=period)
-
-
 def modelled_speed_range(speeds_mm_s: Sequence[float], tolerance_mm_s: float
                          ) -> tuple[float, float]:
     """The speeds a fit over ``speeds_mm_s`` reads: each within the tolerance, above 0.5."""
     return max(min(speeds_mm_s) - tolerance_mm_s, 0.5), max(speeds_mm_s) + tolerance_mm_s
-
-
-@dataclass
-class _Spectrum:
-    """The calibrated spectrum's all-pole fits at the fitted speeds and its file blocks."""
-
-    hs: list[Array]
-    sigma2: list[float]
-    two_part: dict
-    free_form: dict
-
-
-def _fit_spectrum(
-    whole: list[tuple[Array, Array]], pooled: dict[float, list[Array]],
-    speeds_of: dict[float, list[Array]], got_speeds: list[float], fs: float, order: int,
-    tolerance_mm_s: float, wrap_iterations: Callable[[Iterable], Iterable],
-) -> _Spectrum:
-    """The two-part base S_two on every chunk, its calibration at each fitted speed, and
-    the all-pole fits of the result; UserError where the scans cannot give it."""
-    lo, hi = modelled_speed_range(got_speeds, tolerance_mm_s)
-    try:
-        two = fit_two_part([w[0] for w in whole], [w[1] for w in whole], fs, (lo, hi),
-                           ITERATIONS, wrap=wrap_iterations)
-        by = {v: list(zip(pooled[v], speeds_of[v], strict=True)) for v in got_speeds}
-        spec = fit_calibrated(by, fs, two)
-    except ValueError as exc:
-        raise UserError(f"calibrated spectrum: {exc}") from None
-    polys = [spec.ar(s, order, fs) for s in got_speeds]
-    if not all(is_stable(a) for a, _ in polys):
-        raise UserError("spectral model: an all-pole fit of S(f, v) is unstable")
-    return _Spectrum([h_from_poly(a) for a, _ in polys], [s2 for _, s2 in polys],
-                     two.to_json(), spec.to_json())
-
-
-#: The plain per-speed fit's grid step: the renderer takes the nearest grid speed, so a
-#: speed is never more than half a step from a model fitted around it.
-PAPER_GRID_STEP_MM_S = 1.0
-#: Where fewer samples lie within the window of a speed, the nearest this many seconds.
-PAPER_MIN_SECONDS = 2.0
 
 
 def fit_paper(
@@ -224,35 +181,23 @@ def fit_paper(
     highpass_hz: float = 10.0, surface: str | None = None,
     drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
 ) -> TextureModel:
-    """The paper's method read plainly (Fig. 8, eq. 4): for each synthesis speed v, the
-    scans high-passed at ``highpass_hz`` and reduced by DFT321, then one LPC of ``order``
-    (autocorrelation method) on the samples whose speed is within ``window_mm_s`` of v,
-    or the ``PAPER_MIN_SECONDS`` of samples nearest to v in speed where fewer are.
-
-    No coefficients are interpolated: the model holds one such fit every
-    ``PAPER_GRID_STEP_MM_S`` over the scanned speeds (1st-99th percentile of the moving
-    samples) and the renderer plays the nearest (``interpolation "nearest"``), i.e. a
-    per-speed refit to within half a step.
-    """
+    """The paper's method read plainly (Fig. 8, eq. 4): for each synthesis speed v, one
+    LPC of ``order`` (autocorrelation method) on the modelling signal's samples whose
+    speed is within ``window_mm_s`` of v, or the ``PAPER_MIN_SECONDS`` of samples nearest
+    to v where fewer are. One such fit every ``PAPER_GRID_STEP_MM_S`` over the scanned
+    speeds (1st-99th percentile of the moving samples), played by the nearest
+    (``interpolation "nearest"``): a per-speed refit to within half a step."""
     scans = list(scans)
-    if not scans:
-        raise UserError("no scans to fit")
-    fs = scans[0].fs_hz
-    xs, vs = [], []
-    for scan in scans:
-        if abs(scan.fs_hz - fs) > 1e-6 * fs:
-            raise UserError(f"{scan.path}: column 't_s': sample rate {scan.fs_hz:g} Hz differs "
-                            f"from the first scan's {fs:g} Hz")
-        xs.append(preprocess(scan.acc, fs, highpass_hz))
-        vs.append(np.asarray(scan.speed_mm_s, float))
+    fs, prepared = _prepare(scans, highpass_hz)
+    vs = [v for _, v in prepared]
     v_all = np.concatenate(vs)
     moving = v_all[v_all > 1.0]
-    step_mm_s, min_seconds = PAPER_GRID_STEP_MM_S, PAPER_MIN_SECONDS
-    need = round(min_seconds * fs)
+    step_mm_s = PAPER_GRID_STEP_MM_S
+    need = round(PAPER_MIN_SECONDS * fs)
     if moving.size < max(need, 4 * order):
-        raise UserError(f"{scans[0].path if len(scans) == 1 else 'scans'}: only "
-                        f"{moving.size} moving samples (speed > 1 mm/s) for an order-{order} "
-                        f"model (need {max(need, 4 * order)}); record longer or lower --order")
+        raise UserError(f"{_where(scans)}: only {moving.size} moving samples (speed > 1 mm/s) "
+                        f"for an order-{order} model (need {max(need, 4 * order)}); record "
+                        "longer or lower --order")
     lo, hi = np.percentile(moving, [1, 99])
     lo = max(step_mm_s * math.floor(lo / step_mm_s), step_mm_s)
     grid = lo + step_mm_s * np.arange(math.floor((hi - lo) / step_mm_s + 1e-9) + 1)
@@ -262,9 +207,7 @@ def fit_paper(
         limit = window_mm_s
         if np.count_nonzero(dist <= limit) < need:
             limit = float(np.partition(dist, need - 1)[need - 1])
-        segs = []
-        for x, sv in zip(xs, vs, strict=True):
-            segs.extend(x[a:b] for a, b in segment_runs(np.abs(sv - v) <= limit, 1))
+        segs = [x[a:b] for x, sv in prepared for a, b in runs(np.abs(sv - v) <= limit, 1)]
         for floor in (1e-9, 1e-7, 1e-5, 1e-3):
             # A positive-definite autocorrelation gives a stable filter; at order 200 over
             # a 60 dB spectrum rounding can break it: a white floor this far down restores it.
@@ -276,19 +219,16 @@ def fit_paper(
         hs.append(h_from_poly(a))
         sig.append(s2)
         counts.append(int(sum(s.size for s in segs)))
-    model = TextureModel(
+    spans = scanned_spans(vs, fs, (float(grid[0]) - window_mm_s, float(grid[-1]) + window_mm_s))
+    return TextureModel(
         surface=surface or scans[0].surface, fs_hz=fs, speeds_mm_s=grid, h=np.vstack(hs),
         sigma2=np.asarray(sig), highpass_hz=highpass_hz, fit_band_hz=(highpass_hz, fs / 2),
         drive_band_hz=drive_band_hz, tolerance_mm_s=step_mm_s / 2, interpolation="nearest",
         provenance={
             "scans": [s.path for s in scans], "method": "autocorrelation", "order": order,
-            "form": "paper", "window_mm_s": window_mm_s, "min_seconds": min_seconds,
-            "tool": "fydpad texture fit",
-            "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+            "form": "paper", "window_mm_s": window_mm_s, "min_seconds": PAPER_MIN_SECONDS,
+            "tool": "fydpad texture fit", "created": _created(),
             "samples_per_speed": {f"{v:g}": n for v, n in zip(grid, counts, strict=True)},
+            "speed_coverage_mm_s": [list(sp) for sp in spans], "interpolated_mm_s": [],
         },
     )
-    spans = scanned_spans(vs, fs, (float(grid[0]) - window_mm_s, float(grid[-1]) + window_mm_s))
-    model.provenance["speed_coverage_mm_s"] = [list(sp) for sp in spans]
-    model.provenance["interpolated_mm_s"] = []
-    return model

@@ -1,8 +1,7 @@
-"""The texture model file: a documented JSON (docs/texture_model_format.md)."""
+"""The LPC texture model file: strict JSON (docs/texture_model_format.md)."""
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -12,17 +11,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError, read_json
+from fydpad.texture.family import FORMAT, save_model_json
 from fydpad.texture.lpc.analysis import is_stable, poly_from_h
 from fydpad.texture.lpc.coverage import check_provenance
 from fydpad.texture.lpc.lines import LineSpectrum
 
-FORMAT = "fydpad-texture-model"
-#: Written when the model has a ``lines`` block (its residual models[] alone would render a
-#: periodic surface without its lines: an older reader must refuse it, not play that).
+#: With a ``lines`` block (models[] alone would render a periodic surface without its
+#: lines: an older reader must refuse it); ``PLAIN_VERSION`` without, read by every reader.
 FORMAT_VERSION = 2
-#: Written without one: every reader since the first reads it.
 PLAIN_VERSION = 1
 READ_VERSIONS = (1, 2)
+#: Interpolations a file may name (interpolation.METHODS).
+INTERPOLATIONS = ("nearest", "stretch")
+REFIT = "refit the model with 'fydpad texture fit SCAN.csv ... --out MODEL.json'"
 Array = NDArray[np.float64]
 
 
@@ -41,15 +42,14 @@ class TextureModel:
     gain: float = 1.0
     tolerance_mm_s: float = 5.0
     provenance: dict[str, Any] = field(default_factory=dict)
-    #: The calibrated form's spectrum: its two-part base (spectrum.TwoPartSpectrum.to_json())
-    #: and its calibration (spectrum.CalibratedSpectrum.to_json()).
+    #: The calibrated form's two-part base and calibration (spectrum.py's to_json()).
     two_part: dict[str, Any] | None = None
     free_form: dict[str, Any] | None = None
-    #: lines.LineSpectrum.to_json(): a periodic surface's harmonics, rendered beside the
-    #: process of models[] (which is then fitted on what the lines leave).
+    #: A periodic surface's harmonics (lines.LineSpectrum.to_json()), rendered beside
+    #: the process of models[] (then fitted on what the lines leave).
     lines: dict[str, Any] | None = None
-    #: How the renderer goes between ``models[]`` (interpolation.METHODS): "nearest" for
-    #: the paper's per-speed fits on a speed grid, "stretch" for the calibrated spectrum.
+    #: How the renderer goes between ``models[]``: "nearest" (the paper's per-speed fits
+    #: on a speed grid) or "stretch" (the calibrated spectrum).
     interpolation: str = "nearest"
     #: What ``fydpad texture fit`` validated: the winner and every candidate's figures.
     selection: dict[str, Any] | None = None
@@ -64,17 +64,15 @@ class TextureModel:
 
 
 def model_to_json(model: TextureModel) -> dict[str, Any]:
+    optional = {"two_part": model.two_part, "free_form": model.free_form,
+                "lines": model.lines, "selection": model.selection}
     return {
         "format": FORMAT,
         "format_version": PLAIN_VERSION if model.lines is None else FORMAT_VERSION,
-        "surface": model.surface,
-        "sample_rate_hz": model.fs_hz,
-        "order": model.order,
-        "highpass_hz": model.highpass_hz,
-        "fit_band_hz": list(model.fit_band_hz),
+        "surface": model.surface, "sample_rate_hz": model.fs_hz, "order": model.order,
+        "highpass_hz": model.highpass_hz, "fit_band_hz": list(model.fit_band_hz),
         "drive_band_hz": None if model.drive_band_hz is None else list(model.drive_band_hz),
-        "gain": model.gain,
-        "speed_tolerance_mm_s": model.tolerance_mm_s,
+        "gain": model.gain, "speed_tolerance_mm_s": model.tolerance_mm_s,
         "interpolation": model.interpolation,
         "coefficient_convention": "a(k) = e(k) + sum_i h[i] * a(k-1-i), e ~ N(0, sigma2)",
         "units": {"sigma2": "(m/s^2)^2", "speed_mm_s": "mm/s"},
@@ -83,18 +81,79 @@ def model_to_json(model: TextureModel) -> dict[str, Any]:
             for s, v, h in zip(model.speeds_mm_s, model.sigma2, model.h, strict=True)
         ],
         "provenance": model.provenance,
-        **({} if model.two_part is None else {"two_part": model.two_part}),
-        **({} if model.free_form is None else {"free_form": model.free_form}),
-        **({} if model.lines is None else {"lines": model.lines}),
-        **({} if model.selection is None else {"selection": model.selection}),
+        **{k: v for k, v in optional.items() if v is not None},
     }
 
 
 def save_model(model: TextureModel, path: str | Path) -> Path:
-    path = Path(path)
-    text = json.dumps(model_to_json(model), indent=1, allow_nan=False)  # strict JSON
-    path.write_text(text + "\n", encoding="utf-8")
-    return path
+    """Strict JSON: a non-finite number is a UserError naming the file."""
+    return save_model_json(model_to_json(model), path)
+
+
+def load_model(path: str | Path) -> TextureModel:
+    return parse_model(read_json(Path(path), "JSON model"), str(path))
+
+
+def parse_model(data: Any, where: str = "model") -> TextureModel:
+    """Check and convert a parsed JSON model: every value the renderer uses, so a bad
+    file fails on reading in one line naming the file and the key."""
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise UserError(f"{where}: not a fydpad texture model (key 'format' must be '{FORMAT}')")
+    version = data.get("format_version")
+    if isinstance(version, bool) or version not in READ_VERSIONS:
+        raise UserError(
+            f"{where}: key 'format_version' is {version!r}; this fydpad reads versions "
+            f"{', '.join(map(str, READ_VERSIONS))} (refit the model with 'fydpad texture fit')"
+        )
+    fs, head = _header(data, where)
+    _removed_form(data, where)
+    models = _get(data, "models", where)
+    if not isinstance(models, list) or not models:
+        raise UserError(f"{where}: key 'models' must be a non-empty list")
+    speeds, sig, hs = [], [], []
+    for i, m in enumerate(models):
+        w = f"{where}: models[{i}]"
+        try:
+            v, s2, h = (float(_get(m, "speed_mm_s", w)), float(_get(m, "sigma2", w)),
+                        np.asarray(_get(m, "h", w), float))
+        except (TypeError, ValueError) as exc:
+            raise UserError(f"{w}: {exc}") from None
+        if not (math.isfinite(v) and v > 0):
+            raise UserError(f"{w}: key 'speed_mm_s' must be a finite speed > 0 mm/s, not {v:g}")
+        if not (math.isfinite(s2) and s2 > 0):  # 0: a singular spectrum to interpolate
+            raise UserError(f"{w}: key 'sigma2' must be a finite variance > 0, not {s2:g}")
+        if h.ndim != 1 or h.size == 0 or not np.isfinite(h).all():
+            raise UserError(f"{w}: key 'h' must be a non-empty list of finite numbers")
+        if hs and h.size != hs[0].size:
+            raise UserError(f"{w}: key 'h' has {h.size} coefficients, models[0] has "
+                            f"{hs[0].size}")
+        if not is_stable(poly_from_h(h)):
+            raise UserError(f"{w}: key 'h' is an unstable filter")
+        speeds.append(v)
+        sig.append(s2)
+        hs.append(h)
+    o = data.get("order", hs[0].size)
+    if isinstance(o, bool) or not isinstance(o, (int, float)) or o != hs[0].size:
+        raise UserError(f"{where}: key 'order' is {_short(o)}, but models[].h have "
+                        f"{hs[0].size} coefficients")
+    order = np.argsort(speeds)
+    if np.any(np.diff(np.asarray(speeds)[order]) <= 0):
+        raise UserError(f"{where}: key 'models' has two models at the same speed")
+    two_part = _two_part(data.get("two_part"), where)
+    free_form = _free_form(data.get("free_form"), data.get("two_part"), where)
+    selection, lines = data.get("selection"), data.get("lines")
+    if lines is not None:  # a line spectrum (lines.py): only in a version-2 file
+        if version < FORMAT_VERSION:
+            raise UserError(f"{where}: key 'lines' needs 'format_version' {FORMAT_VERSION}, "
+                            f"the file says {version}")
+        LineSpectrum.from_json(lines, where)
+    if selection is not None and not isinstance(selection, dict):
+        raise UserError(f"{where}: key 'selection' must be an object, not {_short(selection)}")
+    return TextureModel(
+        surface=str(data.get("surface", "")), fs_hz=fs, speeds_mm_s=np.asarray(speeds)[order],
+        h=np.vstack(hs)[order], sigma2=np.asarray(sig)[order], **head, two_part=two_part,
+        free_form=free_form, lines=None if lines is None else dict(lines), selection=selection,
+    )
 
 
 def _get(d: dict[str, Any], key: str, where: str) -> Any:
@@ -103,8 +162,12 @@ def _get(d: dict[str, Any], key: str, where: str) -> Any:
     return d[key]
 
 
-# -- header and entry checks: every value the renderer uses, named by its key, so a bad
-# file fails on reading in one line, not in the render loop after the station started.
+def _short(v: Any) -> str:
+    """A value for a one-line message (a long list cut)."""
+    r = repr(v)
+    return r if len(r) <= 40 else r[:37] + "..."
+
+
 def _number(data: dict[str, Any], key: str, where: str, default: float | None, *,
             minimum: float, above: bool = False) -> float:
     """``data[key]`` (``default`` when absent; required when None) as a finite number
@@ -147,34 +210,25 @@ def _header(data: dict[str, Any], where: str) -> tuple[float, dict[str, Any]]:
         raise UserError(f"{where}: key 'provenance' must be an object, not "
                         f"{_short(provenance)}")
     check_provenance(provenance, where)
-    return fs, {
+    interpolation = data.get("interpolation", "stretch")  # absent: the spectral default
+    head = {
         "highpass_hz": hp,
         "fit_band_hz": _band(data, "fit_band_hz", where, (hp, fs / 2), fs, False),
         "drive_band_hz": (None if drive is None
                           else _band(data, "drive_band_hz", where, drive, fs, True)),
         "gain": _number(data, "gain", where, 1.0, minimum=0.0),
         "tolerance_mm_s": _number(data, "speed_tolerance_mm_s", where, 5.0, minimum=0.0),
-        "provenance": dict(provenance),
-        "interpolation": _interpolation(data, where),
+        "provenance": dict(provenance), "interpolation": str(interpolation),
     }
-
-
-#: Interpolations a file may name.
-INTERPOLATIONS = ("nearest", "stretch")
-REFIT = "refit the model with 'fydpad texture fit SCAN.csv ... --out MODEL.json'"
-
-
-def _interpolation(data: dict[str, Any], where: str) -> str:
-    v = data.get("interpolation", "stretch")  # files without the key: the spectral default
-    if v not in INTERPOLATIONS:
-        raise UserError(f"{where}: key 'interpolation' {_short(v)} is not rendered by this "
-                        f"fydpad; {REFIT}")
-    return str(v)
+    if interpolation not in INTERPOLATIONS:
+        raise UserError(f"{where}: key 'interpolation' {_short(interpolation)} is not "
+                        f"rendered by this fydpad; {REFIT}")
+    return fs, head
 
 
 def _removed_form(data: dict[str, Any], where: str) -> None:
     """One line naming a form this fydpad no longer fits or renders, and asking to refit."""
-    ff, prov = data.get("free_form"), data.get("provenance", {})
+    ff, prov, two = data.get("free_form"), data.get("provenance", {}), data.get("two_part")
     form = None
     if isinstance(ff, dict) and ff.get("form") != "calibrated":
         form = f"free_form.form {_short(ff.get('form'))}"
@@ -182,113 +236,26 @@ def _removed_form(data: dict[str, Any], where: str) -> None:
         form = "free_form.taper_mm_s null (log-linear calibration)"
     elif isinstance(prov, dict) and "speed_normalised" in prov:
         form = "the speed-normalised form (provenance 'speed_normalised')"
-    elif ff is None and data.get("two_part") is not None:
+    elif ff is None and two is not None:
         form = "the two-part form (key 'two_part' without 'free_form')"
     elif ff is None and data.get("interpolation", "stretch") == "stretch":
         form = "the pooled form (interpolation 'stretch' without key 'free_form')"
-    elif isinstance(data.get("two_part"), dict) and "fixed_floor" not in data["two_part"]:
+    elif isinstance(two, dict) and "fixed_floor" not in two:
         form = "a two-part base without 'fixed_floor'"
     if form is not None:
         raise UserError(f"{where}: {form} is a form this fydpad no longer renders; {REFIT}")
 
 
-def _check_entry(speed_mm_s: float, sigma2: float, h: Array, where: str) -> None:
-    """One ``models[i]``: a positive speed, a positive residual variance (sigma2 = 0 is
-    a singular spectrum for the interpolation), a non-empty finite ``h``."""
-    if not (math.isfinite(speed_mm_s) and speed_mm_s > 0):
-        raise UserError(f"{where}: key 'speed_mm_s' must be a finite speed > 0 mm/s, "
-                        f"not {speed_mm_s:g}")
-    if not (math.isfinite(sigma2) and sigma2 > 0):
-        raise UserError(f"{where}: key 'sigma2' must be a finite variance > 0, not {sigma2:g}")
-    if h.ndim != 1 or h.size == 0 or not np.isfinite(h).all():
-        raise UserError(f"{where}: key 'h' must be a non-empty list of finite numbers")
-
-
-def _check_order(data: dict[str, Any], p: int, where: str) -> None:
-    """Key ``order``, when present, is the number of coefficients in every ``h``."""
-    o = data.get("order", p)
-    if isinstance(o, bool) or not isinstance(o, (int, float)) or o != p:
-        raise UserError(f"{where}: key 'order' is {_short(o)}, but models[].h have {p} "
-                        "coefficients")
-
-
-def _short(v: Any) -> str:
-    """A value for a one-line message (a long list cut)."""
-    r = repr(v)
-    return r if len(r) <= 40 else r[:37] + "..."
-
-
-def parse_model(data: Any, where: str = "model") -> TextureModel:
-    """Check and convert a parsed JSON model; errors name the file and the key."""
-    if not isinstance(data, dict) or data.get("format") != FORMAT:
-        raise UserError(f"{where}: not a fydpad texture model (key 'format' must be '{FORMAT}')")
-    version = data.get("format_version")
-    if isinstance(version, bool) or version not in READ_VERSIONS:
-        raise UserError(
-            f"{where}: key 'format_version' is {version!r}; this fydpad reads versions "
-            f"{', '.join(map(str, READ_VERSIONS))} (refit the model with 'fydpad texture fit')"
-        )
-    fs, head = _header(data, where)
-    _removed_form(data, where)
-    models = _get(data, "models", where)
-    if not isinstance(models, list) or not models:
-        raise UserError(f"{where}: key 'models' must be a non-empty list")
-    speeds, sig, hs = [], [], []
-    for i, m in enumerate(models):
-        w = f"{where}: models[{i}]"
-        try:
-            speeds.append(float(_get(m, "speed_mm_s", w)))
-            sig.append(float(_get(m, "sigma2", w)))
-            hs.append(np.asarray(_get(m, "h", w), float))
-        except (TypeError, ValueError) as exc:
-            raise UserError(f"{w}: {exc}") from None
-        _check_entry(speeds[-1], sig[-1], hs[-1], w)
-        if hs[-1].size != hs[0].size:
-            raise UserError(f"{w}: key 'h' has {hs[-1].size} coefficients, models[0] has "
-                            f"{hs[0].size}")
-        if not is_stable(poly_from_h(hs[-1])):
-            raise UserError(f"{w}: key 'h' is an unstable filter")
-    _check_order(data, hs[0].size, where)
-    order = np.argsort(speeds)
-    if np.any(np.diff(np.asarray(speeds)[order]) <= 0):
-        raise UserError(f"{where}: key 'models' has two models at the same speed")
-    return TextureModel(
-        surface=str(data.get("surface", "")),
-        fs_hz=fs,
-        speeds_mm_s=np.asarray(speeds)[order],
-        h=np.vstack(hs)[order],
-        sigma2=np.asarray(sig)[order],
-        **head,
-        two_part=_two_part(data.get("two_part"), where),
-        free_form=_free_form(data.get("free_form"), data.get("two_part"), where),
-        lines=_lines(data.get("lines"), version, where),
-        selection=_selection(data.get("selection"), where),
-    )
-
-
-def _selection(d: Any, where: str) -> dict[str, Any] | None:
-    if d is not None and not isinstance(d, dict):
-        raise UserError(f"{where}: key 'selection' must be an object, not {_short(d)}")
-    return d
-
-
-def _lines(d: Any, version: Any, where: str) -> dict[str, Any] | None:
-    """The optional line spectrum (lines.py), checked; only in a version-2 file."""
-    if d is None:
-        return None
-    if version < FORMAT_VERSION:
-        raise UserError(f"{where}: key 'lines' needs 'format_version' {FORMAT_VERSION}, "
-                        f"the file says {version}")
-    LineSpectrum.from_json(d, where)
-    return dict(d)
-
-
+#: The two-part base's factors, each on the grid named first in its group.
+_TWO_PART = {"f_hz": ("tool", "floor", "fixed_floor"), "k_per_mm": ("surface",),
+             "v_mm_s": ("g", "n")}
 _TWO_PART_KEYS = ("f_hz", "k_per_mm", "tool", "surface", "floor", "v_mm_s", "g", "n",
                   "fixed_floor")
 
 
 def _two_part(d: Any, where: str) -> dict[str, Any] | None:
-    """Check the calibrated form's two-part base: every factor a finite, nonnegative list."""
+    """The calibrated form's two-part base: every factor a finite, nonnegative list on
+    its grid."""
     if d is None:
         return None
     if not isinstance(d, dict):
@@ -301,8 +268,7 @@ def _two_part(d: Any, where: str) -> dict[str, Any] | None:
         if a.ndim != 1 or a.size < 2 or not np.isfinite(a).all() or (a < 0).any():
             raise UserError(f"{where}: two_part.{k} must be a list of at least 2 finite, "
                             "nonnegative numbers")
-    for grid, vals in (("f_hz", ("tool", "floor", "fixed_floor")), ("k_per_mm", ("surface",)),
-                       ("v_mm_s", ("g", "n"))):
+    for grid, vals in _TWO_PART.items():
         for k in vals:
             if len(d[k]) != len(d[grid]):
                 raise UserError(f"{where}: two_part.{k} has {len(d[k])} values, "
@@ -311,9 +277,9 @@ def _two_part(d: Any, where: str) -> dict[str, Any] | None:
 
 
 def _free_form(d: Any, two_part: Any, where: str) -> dict[str, Any] | None:
-    """Check the calibrated spectrum (spectrum.py): ascending ``f_hz`` and ``v_mm_s``, a
-    finite ``log_c`` of one row per speed and one column per ``two_part.f_hz``, a taper
-    > 0, and the ``two_part`` block it builds on."""
+    """The calibrated spectrum (spectrum.py): ascending ``f_hz`` and ``v_mm_s``, a finite
+    ``log_c`` of one row per speed and one column per ``two_part.f_hz``, a taper > 0, and
+    the ``two_part`` block it builds on."""
     if d is None:
         return None
     w = f"{where}: free_form"
@@ -342,9 +308,3 @@ def _free_form(d: Any, two_part: Any, where: str) -> dict[str, Any] | None:
         raise UserError(f"{w}.log_c has {t.shape[1]} columns, two_part.f_hz "
                         f"{len(two_part['f_hz'])}")
     return dict(d)
-
-
-def load_model(path: str | Path) -> TextureModel:
-    path = Path(path)
-    data = read_json(path, "JSON model")
-    return parse_model(data, str(path))

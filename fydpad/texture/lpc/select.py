@@ -1,29 +1,16 @@
-"""Choosing the LPC model form on the user's own scans by held-out validation.
-
-Folds (one 30 s stroke with four plateaus is enough):
-
-- *time blocks*: each speed plateau (the longest run within the tolerance of a target
-  speed) is cut into ``BLOCKS`` equal blocks; fold k holds out block k of every plateau;
-- *between plateaus*: each inner plateau (neither the slowest nor the fastest) is held
-  out whole, with every sample within the tolerance of its speed, so the speeds between
-  the remaining plateaus are judged as a user's finger meets them.
-
-Every candidate is fitted on the rest of each fold and scored on each held-out block by
-the log-spectral distance of :func:`evaluate.compare` (its synthesis along the block's
-own speed trace against the block's DFT321 signal, 4 Hz bins over 20-500 Hz). The
-score is the mean over the time blocks and the between blocks, half each; the noise is
-the standard error of that mean of the paired difference to the best candidate. The
-winner is the simplest candidate (:data:`CANDIDATES` order) within that noise of the
-best, refitted on all the scans.
-Where the scans cannot be validated (fewer than two plateaus of ``MIN_PLATEAU_S``) the
-plain paper method is fitted, and the reason recorded.
-"""
+"""Choosing the LPC model form on the user's own scans by held-out validation
+(docs/texture.md, "How fit chooses"): time blocks of each speed plateau and whole inner
+plateaus held out in turn; each candidate fitted on the rest is scored by the
+log-spectral distance of its synthesis along each held-out block's own speed (the time
+blocks and the between blocks half each); the simplest candidate within the noise of the
+best is refitted on all the scans."""
 
 from __future__ import annotations
 
 import warnings
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,7 +23,6 @@ from fydpad.texture.lpc.model_file import TextureModel
 from fydpad.texture.lpc.synthesis import TextureRenderer
 from fydpad.texture.scan_io import Scan
 
-Array = NDArray[np.float64]
 #: Simplest first: a tie within the noise goes to the earlier one.
 CANDIDATES = ("paper", "calibrated")
 BLOCKS = 2
@@ -54,11 +40,11 @@ class CandidateScore:
     between_lsd_db: list[float]  # inner plateaus held out whole
 
     @property
-    def scores(self) -> Array:
+    def scores(self) -> NDArray[np.float64]:
         return np.asarray(self.block_lsd_db + self.between_lsd_db)
 
     @property
-    def weights(self) -> Array:
+    def weights(self) -> NDArray[np.float64]:
         """Each block's weight in the score: the time blocks and the between-plateau
         blocks count half each (a finger meets the speeds between the plateaus as often as
         the plateaus'; by count the between blocks were 2 of 10)."""
@@ -104,24 +90,23 @@ def fit_candidate(name: str, scans: Sequence[Scan], speeds_mm_s: Sequence[float]
                   order: int = 200, tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S,
                   highpass_hz: float = 10.0, surface: str | None = None,
                   drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
-                  lines: str | float | None = "auto",
+                  lines: str | float | None = "auto", min_seconds: float = 0.25,
                   wrap_iterations: Callable[[Iterable], Iterable] = lambda it: it,
                   ) -> TextureModel:
-    """One candidate form fitted on ``scans`` (``lines``: the calibrated form's periodic
-    lines, :func:`fit.fit_texture`)."""
+    """One candidate form fitted on ``scans`` (``lines``, ``min_seconds``: the calibrated
+    form's, :func:`fit.fit_texture`)."""
     if name == "paper":
         return fit_paper(scans, order=order, window_mm_s=tolerance_mm_s,
                          highpass_hz=highpass_hz, surface=surface, drive_band_hz=drive_band_hz)
-    if name == "calibrated":
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # speeds a fold lacks: said by the final fit
-            model, _ = fit_texture(scans, order=order, speeds_mm_s=speeds_mm_s,
-                                   tolerance_mm_s=tolerance_mm_s, highpass_hz=highpass_hz,
-                                   surface=surface, drive_band_hz=drive_band_hz,
-                                   lines=lines, wrap_iterations=wrap_iterations)
-        model.provenance["form"] = name
-        return model
-    raise ValueError(f"unknown candidate {name!r}; one of {CANDIDATES}")
+    if name != "calibrated":
+        raise ValueError(f"unknown candidate {name!r}; one of {CANDIDATES}")
+    model = fit_texture(scans, order=order, speeds_mm_s=speeds_mm_s,
+                        tolerance_mm_s=tolerance_mm_s, highpass_hz=highpass_hz,
+                        min_seconds=min_seconds, surface=surface,
+                        drive_band_hz=drive_band_hz, lines=lines,
+                        wrap_iterations=wrap_iterations)
+    model.provenance["form"] = name
+    return model
 
 
 def plateaus(scans: Sequence[Scan], speeds_mm_s: Sequence[float], tolerance_mm_s: float
@@ -150,45 +135,39 @@ def _piece(scan: Scan, a: int, b: int, tag: str) -> Scan:
 
 def _without(scans: Sequence[Scan], drop: list[NDArray[np.bool_]]) -> list[Scan]:
     """The scans cut into the pieces outside ``drop`` (one mask per scan)."""
-    out = []
-    for sc, d in zip(scans, drop, strict=True):
-        for a, b in runs(~d, round(MIN_PIECE_S * sc.fs_hz)):
-            out.append(_piece(sc, a, b, f"{a}:{b}"))
-    return out
+    return [_piece(sc, a, b, f"{a}:{b}") for sc, d in zip(scans, drop, strict=True)
+            for a, b in runs(~d, round(MIN_PIECE_S * sc.fs_hz))]
 
 
 def held_out_lsd_db(model: TextureModel, blocks: Sequence[Scan], seed: int = 0
                     ) -> list[float]:
     """Each block's LSD: the model synthesized along the block's speed trace (one
     renderer, reseeded per block) against the block's DFT321 signal."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # a block beyond a fold's fitted speeds is clamped
-        r = TextureRenderer(model, ramp_s=1e-6, step_mm_s=SCORE_STEP_MM_S)
-        out = []
-        for blk in blocks:
-            r.reset()
-            r.reseed(seed)
-            r.warmup(float(blk.speed_mm_s[0]), 0.5)
-            syn = r.block(blk.speed_mm_s, True)
-            c, *_ = compare(preprocess(blk.acc, blk.fs_hz, model.highpass_hz), syn, blk.fs_hz)
-            out.append(c.lsd_db)
+    r = TextureRenderer(model, ramp_s=1e-6, step_mm_s=SCORE_STEP_MM_S)
+    out = []
+    for blk in blocks:
+        r.reset()
+        r.reseed(seed)
+        r.warmup(float(blk.speed_mm_s[0]), 0.5)
+        syn = r.block(blk.speed_mm_s, True)
+        c, *_ = compare(preprocess(blk.acc, blk.fs_hz, model.highpass_hz), syn, blk.fs_hz)
+        out.append(c.lsd_db)
     return out
 
 
 def select_model(
     scans: Sequence[Scan], *, speeds_mm_s: Sequence[float] = DEFAULT_SPEEDS_MM_S,
-    tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S, order: int = 200,
-    highpass_hz: float = 10.0, surface: str | None = None,
-    drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
-    candidates: Sequence[str] = CANDIDATES, seed: int = 0, lines: str | float | None = "auto",
-    wrap: Callable[[Iterable], Iterable] = lambda it: it,
+    tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S, candidates: Sequence[str] = CANDIDATES,
+    seed: int = 0, wrap: Callable[[Iterable], Iterable] = lambda it: it, **fit_options: Any,
 ) -> tuple[TextureModel, Selection]:
     """The validated winner refitted on all ``scans`` and the validation (module doc).
-    ``wrap`` wraps the list of (fold, candidate) fits (a progress bar)."""
+    ``fit_options`` go to :func:`fit_candidate`; ``wrap`` wraps the list of (fold,
+    candidate) fits (a progress bar)."""
     scans = list(scans)
-    kw = dict(order=order, tolerance_mm_s=tolerance_mm_s, highpass_hz=highpass_hz,
-              surface=surface or scans[0].surface, drive_band_hz=drive_band_hz, lines=lines)
+    kw = {"tolerance_mm_s": tolerance_mm_s, **fit_options,
+          "surface": fit_options.get("surface") or scans[0].surface}
     found = plateaus(scans, speeds_mm_s, tolerance_mm_s)
+    targets = [s for s, *_ in found]
     if len(found) < 2:
         reason = (f"{len(found)} speed plateau(s) of at least {MIN_PLATEAU_S:g} s within "
                   f"{tolerance_mm_s:g} mm/s of {', '.join(f'{v:g}' for v in speeds_mm_s)} "
@@ -202,21 +181,20 @@ def select_model(
         drop = [np.zeros(sc.speed_mm_s.size, bool) for sc in scans]
         held = []
         for _, i, a, b in found:
-            lo = a + (b - a) * k // BLOCKS
-            hi = a + (b - a) * (k + 1) // BLOCKS
+            lo, hi = a + (b - a) * k // BLOCKS, a + (b - a) * (k + 1) // BLOCKS
             drop[i][lo:hi] = True
             held.append(_piece(scans[i], lo, hi, f"block{k}"))
-        folds.append(("block", _without(scans, drop), [s for s, *_ in found], held))
-    for j in range(1, len(found) - 1):
-        s, i, a, b = found[j]
+        folds.append(("block", _without(scans, drop), targets, held))
+    for s, i, a, b in found[1:-1]:
         drop = [np.abs(sc.speed_mm_s - s) <= tolerance_mm_s for sc in scans]
-        folds.append(("between", _without(scans, drop),
-                      [v for v, *_ in found if v != s], [_piece(scans[i], a, b, f"{s:g}")]))
+        folds.append(("between", _without(scans, drop), [v for v in targets if v != s],
+                      [_piece(scans[i], a, b, f"{s:g}")]))
     scores = {c: CandidateScore(c, [], []) for c in candidates}
-    jobs = [(f, c) for f in folds for c in candidates]
-    for (kind, train, speeds, held), c in wrap(jobs):
-        model = fit_candidate(c, train, speeds, **kw)
-        got = held_out_lsd_db(model, held, seed)
+    for (kind, train, speeds, held), c in wrap([(f, c) for f in folds for c in candidates]):
+        with warnings.catch_warnings():
+            # speeds a fold lacks, blocks beyond its speeds (clamped): the final fit says
+            warnings.simplefilter("ignore")
+            got = held_out_lsd_db(fit_candidate(c, train, speeds, **kw), held, seed)
         (scores[c].block_lsd_db if kind == "block" else scores[c].between_lsd_db).extend(got)
     table = [scores[c] for c in candidates]
     best = min(table, key=lambda t: t.mean_lsd_db)
@@ -228,8 +206,8 @@ def select_model(
     winner = next(t for t in table if t.mean_lsd_db - best.mean_lsd_db <= noise[t.name])
     reason = (f"lowest held-out LSD within the noise, simplest first "
               f"({len(folds)} folds, {best.scores.size} held-out blocks)")
-    model = fit_candidate(winner.name, scans, [s for s, *_ in found], **kw)
-    sel = Selection(winner.name, True, reason, table, noise, [s for s, *_ in found])
+    model = fit_candidate(winner.name, scans, targets, **kw)
+    sel = Selection(winner.name, True, reason, table, noise, targets)
     model.selection = sel.to_json()
     return model, sel
 

@@ -1,27 +1,19 @@
 """The neural-network texture model of Lin 2016 (section 3.2, Tables 3.1-3.4).
 
-A 3-10-1 network maps the finger's velocity and force change to the normal
-acceleration of the texture:
+A 3-10-1 network maps the finger's velocity and force change to the normal acceleration:
 
     net_j = logsig(sum_i w_in[j, i] u_i + b_in[j])        (eq. 4, 6; 10 hidden units)
     a_z   = sum_j w_out[j] net_j + b_out                    (eq. 5, 7; purelin)
 
-with inputs u = scale((v_x, v_y, Δf)) and output a_z unscaled (see ``Scaling``).
-
-Δf, which the thesis never defines (it only says the recorder outputs "delta force"),
-is here the normal force minus its causal exponential moving mean with time constant
-``DF_TAU_S`` = 50 ms: the force's fluctuation around the hand's slowly varying push
-(a first-order high-pass at 1 / (2 pi tau) = 3.2 Hz). A first difference at 1 kHz
-would be mostly the force sensor's quantisation noise.
-
-v_x, v_y: the finger speed along the direction of its last position change (positions
-arrive at camera rate and are held between frames, so differencing them at 1 kHz
-would give spikes; the speed is already low-passed).
+with u = scale((v_x, v_y, Δf)) and a_z unscaled (``Scaling``). Δf, which the thesis does
+not define, is the force minus its causal moving mean over ``DF_TAU_S`` = 50 ms (a
+first-order high-pass at 3.2 Hz; a 1 kHz difference would be mostly sensor noise).
+(v_x, v_y) is the speed along the direction of the last position change (positions
+arrive at camera rate, held between frames).
 """
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,10 +23,10 @@ import numpy as np
 import scipy.signal as ss
 from numpy.typing import ArrayLike, NDArray
 
-from fydpad.errors import UserError, read_json
+from fydpad.errors import UserError
+from fydpad.texture.family import FORMAT, read_model_json, require_version, save_model_json
 
 Array = NDArray[np.float64]
-FORMAT = "fydpad-texture-model"
 KIND = "mlp"
 FORMAT_VERSION = 1
 BAND_HZ = (5.0, 500.0)  # thesis 3.2: hand jitter below 5 Hz, insensitivity above 500 Hz
@@ -43,7 +35,6 @@ INPUTS = ("vx_mm_s", "vy_mm_s", "df_n")
 THESIS_MODEL = Path(__file__).resolve().parents[2] / "data" / "thesis_mlp.json"
 
 
-# ------------------------------------------------------------------ features
 def bandpass_fft(x: ArrayLike, fs_hz: float, band_hz: tuple[float, float] = BAND_HZ) -> Array:
     """Thesis 3.2: DFT, zero every bin outside ``band_hz`` (inclusive), inverse DFT."""
     x = np.asarray(x, float)
@@ -55,47 +46,40 @@ def bandpass_fft(x: ArrayLike, fs_hz: float, band_hz: tuple[float, float] = BAND
 
 def delta_force(force_n: ArrayLike, fs_hz: float, tau_s: float = DF_TAU_S,
                 mean_n: float | None = None) -> tuple[Array, float]:
-    """Δf(k) = f(k) - m(k-1), m(k) = m(k-1) + alpha Δf(k), alpha = 1 - exp(-1/(tau fs)).
-
-    ``mean_n`` is the moving mean carried from the previous block (None: start at the
-    first force, so a block starts without a step). Returns (Δf, the new mean).
-    """
+    """Δf(k) = f(k) - m(k-1), m(k) = m(k-1) + alpha Δf(k), alpha = 1 - exp(-1/(tau fs));
+    ``mean_n`` carried from the previous block (None: the first force). -> (Δf, mean)."""
     f = np.asarray(force_n, float)
     if f.size == 0:
         return f.copy(), (0.0 if mean_n is None else float(mean_n))
     alpha = 1.0 - math.exp(-1.0 / (tau_s * fs_hz))
     m0 = float(f[0]) if mean_n is None else float(mean_n)
     m, _ = ss.lfilter([alpha], [1.0, alpha - 1.0], f, zi=[(1.0 - alpha) * m0])
-    prev = np.concatenate([[m0], m[:-1]])
-    return f - prev, float(m[-1])
+    return f - np.concatenate([[m0], m[:-1]]), float(m[-1])
 
 
 def velocity_xy(x_mm: ArrayLike, y_mm: ArrayLike, speed_mm_s: ArrayLike,
                 last: tuple[float, float, float] = (math.nan, math.nan, 0.0)
                 ) -> tuple[Array, Array, tuple[float, float, float]]:
-    """(v_x, v_y) = speed * (cos, sin) of the direction of the last position change.
-
-    ``last`` = (x, y, direction in rad) carried from the previous block; the direction
-    is 0 (+x) until the finger first moves. Returns (v_x, v_y, new ``last``).
-    """
-    x = np.asarray(x_mm, float)
-    y = np.asarray(y_mm, float)
-    v = np.asarray(speed_mm_s, float)
+    """(v_x, v_y) = speed (cos, sin) of the last position change's direction; ``last`` =
+    (x, y, direction) carried from the previous block (0 rad until the finger moves)."""
+    x, y, v = np.asarray(x_mm, float), np.asarray(y_mm, float), np.asarray(speed_mm_s, float)
     if x.size == 0:
         return x.copy(), x.copy(), last
-    px = np.concatenate([[last[0]], x[:-1]])
-    py = np.concatenate([[last[1]], y[:-1]])
-    dx, dy = x - px, y - py
+    dx = x - np.concatenate([[last[0]], x[:-1]])
+    dy = y - np.concatenate([[last[1]], y[:-1]])
     moved = np.isfinite(dx) & np.isfinite(dy) & ((dx != 0) | (dy != 0))
     ang = np.where(moved, np.arctan2(dy, dx), np.nan)
-    # forward-fill the direction of the last move
-    idx = np.where(moved, np.arange(x.size), -1)
+    idx = np.where(moved, np.arange(x.size), -1)  # forward-fill the last move's direction
     np.maximum.accumulate(idx, out=idx)
     theta = np.where(idx >= 0, ang[np.maximum(idx, 0)], last[2])
     return v * np.cos(theta), v * np.sin(theta), (float(x[-1]), float(y[-1]), float(theta[-1]))
 
 
-# ------------------------------------------------------------------ network
+def logsig(z: Array) -> Array:
+    """1 / (1 + exp(-z)) without overflow warnings (thesis eq. 4)."""
+    return 0.5 * (1.0 + np.tanh(0.5 * z))
+
+
 @dataclass
 class MlpNet:
     """Weights of an n_in-H-1 network (logsig hidden, purelin output), network units."""
@@ -105,30 +89,16 @@ class MlpNet:
     w_out: Array  # (H,)
     b_out: float
 
-    @property
-    def hidden(self) -> int:
-        return int(self.w_in.shape[0])
-
     def forward(self, u: ArrayLike) -> Array:
         """Outputs for inputs ``u`` of shape (n, n_in): eq. 4-7."""
-        u = np.asarray(u, float)
-        z = u @ self.w_in.T + self.b_in
-        return logsig(z) @ self.w_out + self.b_out
-
-
-def logsig(z: Array) -> Array:
-    """1 / (1 + exp(-z)) without overflow warnings (thesis eq. 4)."""
-    return 0.5 * (1.0 + np.tanh(0.5 * z))
+        return logsig(np.asarray(u, float) @ self.w_in.T + self.b_in) @ self.w_out + self.b_out
 
 
 @dataclass
 class Scaling:
-    """u = (x - in_offset) * in_scale; y = out_offset + out_scale * net(u).
-
-    Trained here with MATLAB's default (``mapminmax``: each input and the target mapped
-    to [-1, 1] by their training min and max); the thesis names MATLAB's functions
-    (logsig, purelin) but does not state its scaling.
-    """
+    """u = (x - in_offset) * in_scale; y = out_offset + out_scale * net(u). Trained with
+    MATLAB's default ``mapminmax`` (each input and the target to [-1, 1] by their training
+    min and max); the thesis does not state its scaling."""
 
     in_offset: Array
     in_scale: Array
@@ -165,35 +135,20 @@ class MlpModel:
     surface: str = ""
     provenance: dict[str, Any] = field(default_factory=dict)
 
-    def predict(self, vx_mm_s: ArrayLike, vy_mm_s: ArrayLike, df_n: ArrayLike) -> Array:
-        """Normal acceleration in m/s^2 for per-sample inputs."""
-        x = np.column_stack([np.ravel(vx_mm_s), np.ravel(vy_mm_s), np.ravel(df_n)])
-        return self.scaling.out_offset + self.scaling.out_scale * self.net.forward(
-            self.scaling.inputs(x))
 
-
-# ------------------------------------------------------------------ model file
 def model_to_json(model: MlpModel) -> dict[str, Any]:
-    s = model.scaling
+    s, net = model.scaling, model.net
     return {
-        "format": FORMAT,
-        "kind": KIND,
-        "format_version": FORMAT_VERSION,
-        "surface": model.surface,
-        "sample_rate_hz": model.fs_hz,
-        "inputs": list(INPUTS),
+        "format": FORMAT, "kind": KIND, "format_version": FORMAT_VERSION,
+        "surface": model.surface, "sample_rate_hz": model.fs_hz, "inputs": list(INPUTS),
         "output": f"{model.target}_m_s2",
-        "hidden_activation": "logsig",
-        "output_activation": "purelin",
+        "hidden_activation": "logsig", "output_activation": "purelin",
         "band_hz": list(model.band_hz),
         "delta_force": {"definition": "force_n minus its causal exponential moving mean",
                         "tau_s": model.df_tau_s},
-        "weights": {
-            "input": [[float(w) for w in row] for row in model.net.w_in],
-            "input_bias": [float(b) for b in model.net.b_in],
-            "output": [float(w) for w in model.net.w_out],
-            "output_bias": float(model.net.b_out),
-        },
+        "weights": {"input": [[float(w) for w in row] for row in net.w_in],
+                    "input_bias": [float(b) for b in net.b_in],
+                    "output": [float(w) for w in net.w_out], "output_bias": float(net.b_out)},
         "scaling": {
             "method": s.method, "known": s.known,
             "input_offset": [float(v) for v in s.in_offset],
@@ -207,9 +162,7 @@ def model_to_json(model: MlpModel) -> dict[str, Any]:
 
 
 def save_mlp(model: MlpModel, path: str | Path) -> Path:
-    path = Path(path)
-    path.write_text(json.dumps(model_to_json(model), indent=1) + "\n", encoding="utf-8")
-    return path
+    return save_model_json(model_to_json(model), path)
 
 
 def _key(d: Any, key: str, where: str) -> Any:
@@ -219,9 +172,8 @@ def _key(d: Any, key: str, where: str) -> Any:
 
 
 def _vector(d: Any, key: str, where: str, shape: tuple[int, ...]) -> Array:
-    raw = _key(d, key, where)
     try:
-        a = np.asarray(raw, float)
+        a = np.asarray(_key(d, key, where), float)
     except (TypeError, ValueError):
         raise UserError(f"{where}: key '{key}' must be numbers") from None
     if a.shape != shape:
@@ -231,29 +183,20 @@ def _vector(d: Any, key: str, where: str, shape: tuple[int, ...]) -> Array:
     return a
 
 
-def parse_mlp(data: Any, where: str = "model") -> MlpModel:
-    """Check and convert a parsed JSON network; errors name the file and the key."""
-    if not isinstance(data, dict) or data.get("format") != FORMAT:
-        raise UserError(f"{where}: not a fydpad texture model (key 'format' must be '{FORMAT}')")
-    if data.get("kind") != KIND:
-        raise UserError(f"{where}: key 'kind' is {data.get('kind')!r}, expected '{KIND}'")
-    if data.get("format_version") != FORMAT_VERSION:
-        raise UserError(f"{where}: key 'format_version' is {data.get('format_version')!r}; "
-                        f"this fydpad reads mlp version {FORMAT_VERSION} only")
+def parse_mlp(data: dict[str, Any], where: str = "model") -> MlpModel:
+    """Check and convert a parsed model file; errors name the file and the key."""
+    require_version(data, where, KIND, FORMAT_VERSION)
     if list(data.get("inputs", INPUTS)) != list(INPUTS):
         raise UserError(f"{where}: key 'inputs' must be {list(INPUTS)}")
-    w = _key(data, "weights", where)
-    rows = _key(w, "input", f"{where}: weights")
+    w, ww = _key(data, "weights", where), f"{where}: weights"
+    rows = _key(w, "input", ww)
     hidden = len(rows) if isinstance(rows, list) else 0
     if hidden < 1:
         raise UserError(f"{where}: key 'weights.input' must list one row per hidden unit")
-    ww = f"{where}: weights"
     net = MlpNet(_vector(w, "input", ww, (hidden, len(INPUTS))),
-                 _vector(w, "input_bias", ww, (hidden,)),
-                 _vector(w, "output", ww, (hidden,)),
+                 _vector(w, "input_bias", ww, (hidden,)), _vector(w, "output", ww, (hidden,)),
                  float(_vector(w, "output_bias", ww, ())))
-    sc = _key(data, "scaling", where)
-    sw = f"{where}: scaling"
+    sc, sw = _key(data, "scaling", where), f"{where}: scaling"
     scaling = Scaling(_vector(sc, "input_offset", sw, (len(INPUTS),)),
                       _vector(sc, "input_scale", sw, (len(INPUTS),)),
                       float(_vector(sc, "output_offset", sw, ())),
@@ -273,9 +216,7 @@ def parse_mlp(data: Any, where: str = "model") -> MlpModel:
 
 
 def load_mlp(path: str | Path) -> MlpModel:
-    path = Path(path)
-    data = read_json(path, "JSON model")
-    return parse_mlp(data, str(path))
+    return parse_mlp(read_model_json(path), str(path))
 
 
 def thesis_model() -> MlpModel:

@@ -1,16 +1,11 @@
 """The thesis network as a texture family (kind ``"mlp"``): render and 1 kHz tick.
 
-Per sample: (v_x, v_y, Δf) from the finger state (:mod:`.model`), the network's
-normal acceleration, a causal first-order DC blocker at the training band's lower edge
-(5 Hz: the network was trained on 5-500 Hz data, but its output at rest is a constant
-that would offset the motors' PWM), then gated to 0 without contact or below
-``still_mm_s``. ``render`` and ``tick`` run the same equations and share their state,
-so a block rendered sample by sample equals the block rendered at once.
-
-Channels: ``"vibration"`` (the FYD-pad motors' vibration term, 1 kHz) and ``"audio"``
-(the same signal for an external actuator's amplifier; :mod:`fydpad.channels.resample`
-brings it to the sound card's rate). The network is a deterministic function of the
-inputs: it renders only what velocity and force fluctuation determine (docs/texture_mlp.md).
+Per sample: (v_x, v_y, Δf) (:mod:`.model`), the network's normal acceleration, a causal
+first-order DC blocker at the training band's 5 Hz edge (the network's output at rest is a
+constant that would offset the motors' PWM), gated to 0 without contact or below
+``still_mm_s``. ``render`` and ``tick`` share their state: a block rendered sample by
+sample equals the block at once. Channels ``vibration`` (1 kHz) and ``audio`` (the same
+signal, for an external actuator).
 """
 
 from __future__ import annotations
@@ -45,26 +40,22 @@ class MlpTexture(FamilyBase):
     tick_channels = ("vibration",)
     needs = frozenset({"speed_mm_s", "x_mm", "y_mm", "force_change"})
 
-    def __init__(self, model: MlpModel, *, still_mm_s: float = 1.0, gain: float = 1.0):
+    def __init__(self, model: MlpModel, *, still_mm_s: float = 1.0):
         super().__init__()
-        self.model = model
-        self.surface = model.surface
+        self.model, self.surface = model, model.surface
         fs = float(model.fs_hz)
         self.channels = {"vibration": fs, "audio": fs}
         self.still_mm_s = float(still_mm_s)
-        self.gain = float(gain)
         self._alpha = 1.0 - math.exp(-1.0 / (model.df_tau_s * fs))
         self._r = math.exp(-2.0 * math.pi * model.band_hz[0] / fs)  # DC blocker pole
         # Fold input scaling and logsig(z) = 0.5 + 0.5 tanh(z / 2) into the weights:
         # y = c + w2 . tanh(W x + b), four NumPy calls per tick, no temporaries.
         net, s = model.net, model.scaling
         w = 0.5 * net.w_in * s.in_scale
-        self._w = np.ascontiguousarray(w)
-        self._b = 0.5 * net.b_in - w @ s.in_offset
+        self._w, self._b = np.ascontiguousarray(w), 0.5 * net.b_in - w @ s.in_offset
         self._w2 = 0.5 * s.out_scale * net.w_out
         self._c = float(s.out_offset + s.out_scale * (net.b_out + 0.5 * net.w_out.sum()))
-        self._x = np.zeros(3)
-        self._z = np.zeros(net.hidden)
+        self._x, self._z = np.zeros(3), np.zeros(net.b_in.size)
         self.reset()
 
     def reset(self) -> None:
@@ -72,13 +63,11 @@ class MlpTexture(FamilyBase):
         self._last = (math.nan, math.nan, 0.0)
         self._cos, self._sin = 1.0, 0.0
         self._mean: float | None = None
-        self._hp_x = None  # previous raw output (None: first sample starts the blocker)
-        self._hp_y = 0.0
+        self._hp_x, self._hp_y = None, 0.0  # the blocker's last in/out (None: none yet)
         self._last_f = 0.0  # the last finite force: a missing reading holds it
 
-    # ------------------------------------------------------------------ offline
     def raw(self, vx: Array, vy: Array, df: Array) -> Array:
-        """The network's acceleration (m/s^2) for per-sample inputs (folded weights)."""
+        """The network's normal acceleration (m/s^2) for per-sample inputs (eq. 4-7)."""
         z = np.tanh(np.column_stack([vx, vy, df]) @ self._w.T + self._b)
         return self._c + z @ self._w2
 
@@ -104,12 +93,11 @@ class MlpTexture(FamilyBase):
         y, _ = ss.lfilter([1.0], [1.0, -self._r], d, zi=[self._r * self._hp_y])
         self._hp_x, self._hp_y = float(r[-1]), float(y[-1])
         on = finger.contact & (speed >= self.still_mm_s)
-        return np.where(on, self.gain * y, 0.0)
+        return np.where(on, y, 0.0)
 
     def _render_other_rate(self, finger: FingerBlock) -> Array:
-        """A finger stream at another rate (e.g. the audio card's): the network runs at
-        its own rate (its Δf and DC blocker are defined there), the output is brought to
-        the stream's rate by a polyphase filter (per block: offline use)."""
+        """Another rate (the sound card's): rendered at the network's own (Δf and the
+        blocker are defined there), then brought to it by a polyphase filter (offline)."""
         n = finger.t_s.size
         if n < 2:
             return np.zeros(n)
@@ -118,7 +106,6 @@ class MlpTexture(FamilyBase):
         out = ss.resample_poly(y, ratio.numerator, ratio.denominator)
         return np.pad(out[:n], (0, max(0, n - out.size)), mode="edge")
 
-    # ------------------------------------------------------------------ 1 kHz loop
     def tick(self, t_s: float, contact: bool, x_mm: float, y_mm: float,
              speed_mm_s: float, force_n: float) -> tuple[float]:
         if not math.isfinite(speed_mm_s):
@@ -136,11 +123,8 @@ class MlpTexture(FamilyBase):
         m = force_n if self._mean is None else self._mean
         df = force_n - m
         self._mean = m + self._alpha * df
-        x = self._x
-        x[0] = speed_mm_s * self._cos
-        x[1] = speed_mm_s * self._sin
-        x[2] = df
-        z = self._z
+        x, z = self._x, self._z
+        x[0], x[1], x[2] = speed_mm_s * self._cos, speed_mm_s * self._sin, df
         np.dot(self._w, x, out=z)
         np.add(z, self._b, out=z)
         np.tanh(z, out=z)
@@ -149,7 +133,7 @@ class MlpTexture(FamilyBase):
         y = r - prev + self._r * self._hp_y
         self._hp_x, self._hp_y = r, y
         on = contact and speed_mm_s >= self.still_mm_s
-        return (self.gain * y if on else 0.0,)
+        return (y if on else 0.0,)
 
 
 def _from_json(data: dict[str, Any], where: str) -> MlpTexture:

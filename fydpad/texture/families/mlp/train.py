@@ -1,28 +1,19 @@
 """Training the thesis' 3-10-1 texture network (Lin 2016, section 3.2, Fig. 3.18).
 
-Settings (``TrainConfig`` defaults are the thesis'): every weight and bias drawn
-uniformly in [-10, 10]; learning rate 0.9; back-propagation by steepest descent on the
-squared error; stop after 2000 epochs or when the training mean squared error (network
-units) falls below 1e-9. Fig. 3.18 modifies the weights after each sample and loops
-while training data remain, so the default update is per sample ("online", in time
-order, as MATLAB's ``adapt``); ``mode="batch"`` is the vectorised full-batch variant
-(MATLAB's ``traingd``), offered because it is ~20x faster per epoch, not the thesis'.
-
-"Over-fitting controls" are read as MATLAB's validation stop: after each epoch the
-validation error is computed; training stops when it has not improved for
-``max_fail`` = 6 epochs (MATLAB's default) and the best-validation weights are kept.
-
-Data (``fit_mlp``): per recording, the z acceleration is band-passed 5-500 Hz by FFT
-masking over the whole recording, then the recording is cut into contiguous thirds in
-time: first third training, second validation, last test (thesis 3.2). Inputs and
-target are scaled to [-1, 1] by the training third's min and max (``Scaling``).
+``TrainConfig`` defaults are the thesis': weights and biases uniform in [-10, 10];
+learning rate 0.9; steepest descent on the squared error, per sample in time order (Fig.
+3.18, MATLAB's ``adapt``; ``mode="batch"``: full-batch ``traingd``, ~20x faster per
+epoch); at most 2000 epochs or training MSE < 1e-9; "over-fitting controls" read as
+MATLAB's validation stop (6 epochs without improvement, the best weights kept). Data:
+each recording's z acceleration band-passed 5-500 Hz by FFT, cut into contiguous thirds
+(training, validation, test), scaled to [-1, 1] on the training third.
 """
 
 from __future__ import annotations
 
 import datetime as _dt
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -67,9 +58,6 @@ class TrainReport:
     train_mse: list[float]
     val_mse: list[float]
 
-    def to_json(self) -> dict:
-        return asdict(self)
-
 
 def init_net(n_in: int, cfg: TrainConfig) -> MlpNet:
     """All weights and biases uniform in [-init_range, init_range], from ``cfg.seed``."""
@@ -81,13 +69,8 @@ def init_net(n_in: int, cfg: TrainConfig) -> MlpNet:
 
 def _online_epoch(net: MlpNet, u: Array, t: Array, lr: float) -> None:
     """One pass of per-sample steepest descent on e^2 / 2, in place, in time order."""
-    w_in = net.w_in.tolist()
-    b_in = net.b_in.tolist()
-    w_out = net.w_out.tolist()
-    b_out = net.b_out
-    hid = range(len(b_in))
-    tanh = math.tanh
-    h = [0.0] * len(b_in)
+    w_in, b_in, w_out, b_out = net.w_in.tolist(), net.b_in.tolist(), net.w_out.tolist(), net.b_out
+    hid, tanh, h = range(len(b_in)), math.tanh, [0.0] * len(b_in)
     for (u0, u1, u2), tk in zip(u.tolist(), t.tolist(), strict=True):
         y = b_out
         for j in hid:
@@ -106,10 +89,7 @@ def _online_epoch(net: MlpNet, u: Array, t: Array, lr: float) -> None:
             w[1] += d * u1
             w[2] += d * u2
             b_in[j] += d
-    net.w_in[:] = w_in
-    net.b_in[:] = b_in
-    net.w_out[:] = w_out
-    net.b_out = b_out
+    net.w_in[:], net.b_in[:], net.w_out[:], net.b_out = w_in, b_in, w_out, b_out
 
 
 def _batch_epoch(net: MlpNet, u: Array, t: Array, lr: float) -> None:
@@ -125,13 +105,11 @@ def _batch_epoch(net: MlpNet, u: Array, t: Array, lr: float) -> None:
 
 
 def train(u_train: Array, t_train: Array, u_val: Array | None, t_val: Array | None,
-          cfg: TrainConfig = TrainConfig(),
-          progress: Callable[[int], None] | None = None) -> tuple[MlpNet, TrainReport]:
+          cfg: TrainConfig = TrainConfig()) -> tuple[MlpNet, TrainReport]:
     """Train on network-unit data (inputs (n, n_in), target (n,)); deterministic per seed."""
     if cfg.mode not in ("online", "batch"):
         raise ValueError(f"training mode must be 'online' or 'batch', not {cfg.mode!r}")
-    u_train = np.asarray(u_train, float)
-    t_train = np.asarray(t_train, float)
+    u_train, t_train = np.asarray(u_train, float), np.asarray(t_train, float)
     if u_train.shape[1] != 3 and cfg.mode == "online":
         raise ValueError("online training is written for 3 inputs (v_x, v_y, Δf)")
     net = init_net(u_train.shape[1], cfg)
@@ -141,24 +119,18 @@ def train(u_train: Array, t_train: Array, u_val: Array | None, t_val: Array | No
         return float(np.mean((t - net.forward(u)) ** 2))
 
     have_val = u_val is not None and t_val is not None and len(t_val) > 0
-    best = _copy(net)
-    best_val, best_epoch, fails = math.inf, 0, 0
+    best, best_val, best_epoch, fails = _copy(net), math.inf, 0, 0
     tr_hist: list[float] = []
     va_hist: list[float] = []
-    stop = "max_epochs"
-    epoch = 0
+    stop, epoch = "max_epochs", 0
     for epoch in range(1, cfg.max_epochs + 1):
         step(net, u_train, t_train, cfg.learning_rate)
-        if progress is not None:
-            progress(epoch)
         if not (np.isfinite(net.w_in).all() and np.isfinite(net.w_out).all()
                 and math.isfinite(net.b_out)):
             stop = "diverged"
             break
-        tr = mse(u_train, t_train)
-        tr_hist.append(tr)
-        va = mse(u_val, t_val) if have_val else tr
-        va_hist.append(va)
+        tr_hist.append(tr := mse(u_train, t_train))
+        va_hist.append(va := mse(u_val, t_val) if have_val else tr)
         if va < best_val:
             best, best_val, best_epoch, fails = _copy(net), va, epoch, 0
         else:
@@ -180,7 +152,6 @@ def _copy(net: MlpNet) -> MlpNet:
     return MlpNet(net.w_in.copy(), net.b_in.copy(), net.w_out.copy(), float(net.b_out))
 
 
-# ------------------------------------------------------------------ data from scans
 @dataclass
 class Features:
     """Per-sample inputs (n, 3) = (v_x, v_y, Δf) and the band-passed target (n,)."""
@@ -225,7 +196,7 @@ def split_features(feats: Sequence[Features]) -> tuple[Features, Features, Featu
 
 def fit_mlp(scans: Sequence[Scan], cfg: TrainConfig = TrainConfig(), *,
             band_hz: tuple[float, float] = BAND_HZ, df_tau_s: float = DF_TAU_S,
-            surface: str | None = None, progress: Callable[[int], None] | None = None
+            surface: str | None = None
             ) -> tuple[MlpModel, TrainReport, tuple[Features, Features, Features]]:
     """Fit on the scans' first thirds, validate on the second; also return the split."""
     scans = list(scans)
@@ -241,7 +212,7 @@ def fit_mlp(scans: Sequence[Scan], cfg: TrainConfig = TrainConfig(), *,
     tr, va, te = split_features([scan_features(s, band_hz, df_tau_s) for s in scans])
     scaling = Scaling.mapminmax(tr.x, tr.y)
     net, report = train(scaling.inputs(tr.x), scaling.target(tr.y),
-                        scaling.inputs(va.x), scaling.target(va.y), cfg, progress)
+                        scaling.inputs(va.x), scaling.target(va.y), cfg)
     model = MlpModel(net, scaling, fs, band_hz, df_tau_s, "az", surface or scans[0].surface,
                      {"scans": [s.path for s in scans], "tool": "fydpad texture fit --kind mlp",
                       "split": "contiguous thirds per scan: train, validation, test",

@@ -1,37 +1,14 @@
-"""HaTT texture models (:mod:`.toolkit`) as a texture family (kind ``"penn"``).
+"""HaTT model sets (:mod:`.toolkit`) as a texture family (kind ``"penn"``, Culbertson 2014).
 
-``fydpad run --texture penn:Models_Wood.xml`` (or any ``.xml`` path) renders a Penn
-Haptic Texture Toolkit model set: the toolkit's ARMA synthesis (``toolkit`` module
-docstring) at the model's rate (10 kHz for the recorded sets), the model interpolated
-over speed and force, brought to the output rate through an anti-alias low-pass.
-
-The (speed, force) plane over [0, maxSpeed] x [0, maxForce] is sampled on a grid
-(``grid`` points, 64 x 32 by default): at every grid point the Delaunay-barycentric
-interpolation of the LSFs, ``var`` and ``gain`` (``toolkit.barycentric_weights``) is
-turned into A(z), B(z) once, at load. Both paths take the nearest grid point's model,
-so ``render`` and ``tick`` run the same filters; the toolkit re-interpolates on every
-update instead (the grid step is maxSpeed/63 and maxForce/31: 0.3 % of the LSF range
-per step, documented in docs/texture.md).
-
-- ``tick`` (the station's 1 kHz loop): R = fs_model / rate model samples per tick
-  (10 for 10 kHz models) through the ARMA recursion and an elliptic low-pass (passband
-  0.45 x rate, stopband 0.55 x rate, 60 dB), the last one kept. The whole step is
-  linear in the state [y history, e history, low-pass state] and the R noise samples,
-  so it is one precomputed matrix per grid point: one ``np.dot`` a tick into views
-  made in ``prepare`` (the matrix rows and the noise block are indexed through lists of
-  views), no array allocation. The state is physical (past
-  outputs and excitations of the recursion), so a model change carries it as the
-  toolkit does, without a click.
-- ``render`` (offline): the same recursion by ``lfilter`` over runs of one grid point
-  (``zi`` rebuilt from the histories, state carried across blocks); to an output rate
-  that divides the model rate, the same low-pass (state carried) and every R-th sample;
-  to any other rate, ``resample_poly`` of the block.
-
-Speed is the station's one speed input (the centroid's, low-passed at 10 Hz every
-tick); force the tick's load-cell argument (a missing reading holds the last one;
-before any, the median model force). Silent without
-contact or below ``still_mm_s``, through a 5 ms one-pole ramp; above ``maxSpeed`` or
-``maxForce`` clamped (warned once), as the toolkit saturates.
+The (speed, force) plane is sampled on a grid (64 x 32 by default) where the barycentric
+interpolation of LSFs, ``var`` and ``gain`` becomes A(z), B(z) once, at load; ``render``
+and ``tick`` both take the nearest grid point's model (docs/texture.md). ``tick`` runs R =
+fs_model / rate samples of the ARMA recursion and an elliptic anti-alias low-pass as one
+precomputed matrix per grid point (linear in [y history, e history, low-pass state, R
+noises]), one ``np.dot`` a tick into views made in ``prepare``; ``render`` runs the same
+recursion by ``lfilter``, state carried across blocks and model changes. Silent without
+contact or below ``still_mm_s`` through a 5 ms ramp; beyond maxSpeed/maxForce clamped
+(warned once), as the toolkit saturates.
 """
 
 from __future__ import annotations
@@ -57,16 +34,14 @@ _TABLE_BYTES = 32 << 20
 
 
 def lsf_to_poly_rows(lsf: Array) -> Array:
-    """``fydpad.texture.lpc.lsf.lsf_to_poly`` for every row of ``lsf`` at once (k, p) ->
-    (k, p + 1): the product of the quadratic factors on an FFT grid."""
+    """``lpc.lsf.lsf_to_poly`` of every row (k, p) -> (k, p + 1), on an FFT grid."""
     lsf = np.sort(np.atleast_2d(np.asarray(lsf, float)), axis=1)
     k, order = lsf.shape
     if order == 0:
         return np.ones((k, 1))
     n = 1 << int(np.ceil(np.log2(order + 2)) + 1)
     z1 = np.exp(-2j * np.pi * np.arange(n) / n)
-    pf = np.ones((k, n), complex)
-    qf = np.ones((k, n), complex)
+    pf, qf = np.ones((k, n), complex), np.ones((k, n), complex)
     for i in range(order):
         f = pf if i % 2 == 0 else qf  # interlacing: 1st, 3rd, ... zeros are P's
         f *= 1.0 - 2.0 * np.cos(lsf[:, i:i + 1]) * z1 + z1 * z1
@@ -82,8 +57,7 @@ def lsf_to_poly_rows(lsf: Array) -> Array:
 
 def decimation_sos(ratio: int, rate_hz: float) -> Array:
     """The anti-alias low-pass before keeping every ``ratio``-th sample: elliptic, 0.1 dB
-    ripple to 0.45 x ``rate_hz``, 60 dB down from 0.55 x ``rate_hz`` (what folds onto
-    0-450 Hz at 1 kHz is >= 550 Hz). Empty for ``ratio`` 1."""
+    ripple to 0.45 x ``rate_hz``, 60 dB from 0.55 x ``rate_hz``; none for ``ratio`` 1."""
     if ratio == 1:
         return np.zeros((0, 6))
     fs = ratio * rate_hz
@@ -92,8 +66,7 @@ def decimation_sos(ratio: int, rate_hz: float) -> Array:
 
 
 class PennTexture(FamilyBase):
-    """A HaTT model set behind the texture-family contract (module docstring); its
-    parameter ``seed`` draws the excitation noise."""
+    """A HaTT model set behind the family contract; parameter ``seed``: the noise's."""
 
     kind = "penn"
     tick_channels = ("vibration",)
@@ -103,16 +76,12 @@ class PennTexture(FamilyBase):
                  seed: int | None = None, still_mm_s: float = 1.0, ramp_s: float = 0.005,
                  grid: tuple[int, int] = (64, 32)):
         super().__init__()
-        self.ms = ms
-        self.path = path or ms.name
-        self.surface = ms.name
+        self.ms, self.path, self.surface = ms, path or ms.name, ms.name
         self.rate_hz = float(rate_hz)
         self.channels = {"vibration": self.rate_hz}
         self.parameters = {"seed": seed}
-        self.still_mm_s = float(still_mm_s)
-        self.ramp_s = float(ramp_s)
-        self.p = ms.ar_lsf.shape[1]
-        self.q = ms.ma_lsf.shape[1]
+        self.still_mm_s, self.ramp_s = float(still_mm_s), float(ramp_s)
+        self.p, self.q = ms.ar_lsf.shape[1], ms.ma_lsf.shape[1]
         self._grid = self._fit_grid(grid)
         self._build_table()
         self.default_force_n = float(np.median(ms.forces_n))
@@ -121,7 +90,6 @@ class PennTexture(FamilyBase):
         self.clamped = False
         self.reset()
 
-    # ------------------------------------------------------------------ the model grid
     def _fit_grid(self, grid: tuple[int, int]) -> tuple[int, int]:
         ns, nf = max(2, int(grid[0])), max(2, int(grid[1]))
         ratio = max(1, round(self.ms.fs_hz / self.rate_hz))
@@ -133,17 +101,15 @@ class PennTexture(FamilyBase):
         return ns, nf
 
     def _build_table(self) -> None:
-        ms = self.ms
-        ns, nf = self._grid
+        ms, (ns, nf) = self.ms, self._grid
         self.speed_grid_mm_s = np.linspace(0.0, ms.max_speed_mm_s, ns)
         self.force_grid_n = np.linspace(0.0, ms.max_force_n, nf)
         s, f = np.meshgrid(self.speed_grid_mm_s, self.force_grid_n, indexing="ij")
         w = barycentric_weights(ms, s.ravel(), f.ravel())  # (cells, models)
         self.den = lsf_to_poly_rows(w @ ms.ar_lsf)
-        self.ma_poly = lsf_to_poly_rows(w @ ms.ma_lsf) if self.q else np.ones((w.shape[0], 1))
+        ma = lsf_to_poly_rows(w @ ms.ma_lsf) if self.q else np.ones((w.shape[0], 1))
         self.sigma = np.sqrt(np.maximum(w @ ms.var, 0.0))
-        self.gain = w @ ms.gain  # AR files: 1 (toolkit.read_penn)
-        self.num = self.gain[:, None] * self.ma_poly
+        self.num = (w @ ms.gain)[:, None] * ma  # gain: 1 in AR files (toolkit.read_penn)
         self._inv_ds = (ns - 1) / ms.max_speed_mm_s if ms.max_speed_mm_s > 0 else 0.0
         self._inv_df = (nf - 1) / ms.max_force_n if ms.max_force_n > 0 else 0.0
 
@@ -162,25 +128,20 @@ class PennTexture(FamilyBase):
                           f"beyond the models' {ms.max_speed_mm_s:g} mm/s, "
                           f"{ms.max_force_n:g} N: clamped to them", stacklevel=3)
 
-    # ------------------------------------------------------------------ state
     def set_parameter(self, name: str, value: int | None) -> None:
         super().set_parameter(name, value)
         self._rng = np.random.default_rng(value)
 
     def reset(self) -> None:
         """A new stroke: zero every filter state and the gain ramps."""
-        self._yh = np.zeros(self.p)  # render: newest first, at the model rate
-        self._eh = np.zeros(self.q)
+        self._yh, self._eh = np.zeros(self.p), np.zeros(self.q)  # render's, newest first
         self._rzi: Array | None = None
-        self._rg = 0.0
-        self._f = math.nan
-        self._g = 0.0
+        self._rg, self._f, self._g = 0.0, math.nan, 0.0
         if self._tick_ready:
             self._state[:] = 0.0
 
     def check_rate(self, rate_hz: float) -> int:
-        """R = SampleRate / ``rate_hz``, a whole number >= 1 for ``tick``, else a UserError
-        naming the file."""
+        """R = SampleRate / ``rate_hz``; a UserError naming the file unless whole, >= 1."""
         ratio = self.ms.fs_hz / rate_hz
         r = round(ratio)
         if r < 1 or abs(ratio - r) > 1e-9 * ratio:
@@ -189,11 +150,8 @@ class PennTexture(FamilyBase):
         return r
 
     def prepare(self, rate_hz: float) -> None:
-        """Check ``rate_hz`` and build the tick path for it, before the loop."""
-        r = self.check_rate(rate_hz)
-        self.rate_hz = float(rate_hz)
-        self.channels["vibration"] = self.rate_hz
-        self.ratio = r
+        r = self.ratio = self.check_rate(rate_hz)
+        self.rate_hz = self.channels["vibration"] = float(rate_hz)
         self.sos = decimation_sos(r, self.rate_hz)
         self._W = self._tick_matrices(r, self.sos)
         d = self._d = self._W.shape[1] - 1
@@ -204,8 +162,7 @@ class PennTexture(FamilyBase):
         self._hist, self._next = self._state[:d], self._out[:d]
         self._st_noise = self._state[d:]
         self._noise = np.zeros((_NOISE_TICKS, r))
-        self._noise_rows = list(self._noise)
-        self._npos = _NOISE_TICKS
+        self._noise_rows, self._npos = list(self._noise), _NOISE_TICKS
         self._alpha = 1.0 - math.exp(-1.0 / (max(self.ramp_s, 1e-9) * self.rate_hz))
         self._tick_ready = True
 
@@ -241,7 +198,6 @@ class PennTexture(FamilyBase):
         w = np.concatenate([yh, eh, z.reshape(c, 2 * s, d + r), x[:, None]], axis=1)
         return np.ascontiguousarray(w)
 
-    # ------------------------------------------------------------------ 1 kHz loop
     def tick(self, t_s: float, contact: bool, x_mm: float, y_mm: float,
              speed_mm_s: float, force_n: float) -> tuple[float]:
         if not self._tick_ready:
@@ -272,11 +228,9 @@ class PennTexture(FamilyBase):
         self._g += self._alpha * (target - self._g)
         return (self._g * self._out.item(self._d),)  # item: a float, not a NumPy scalar
 
-    # ------------------------------------------------------------------ offline
     def render(self, finger: FingerBlock, channel: str = "vibration") -> Array:
         """The block's vibration at ``finger.fs_hz`` from its speed and force (m/s^2)."""
-        if channel not in self.channels:
-            raise UserError(f"a penn model renders {', '.join(self.channels)}; not {channel!r}")
+        self.check_channel(channel)
         n = finger.t_s.size
         if n == 0:
             return np.zeros(0)
@@ -289,17 +243,12 @@ class PennTexture(FamilyBase):
         if bad.any():
             k = int(np.argmax(bad))
             self._warn_clamp(float(speed[k]), float(force[k]))
-        cells = self.cells(speed, force)
-        on = finger.contact & (speed >= self.still_mm_s)
+        cells, on = self.cells(speed, force), finger.contact & (speed >= self.still_mm_s)
         ratio = fs / fo
         r = round(ratio)
         whole = r >= 1 and abs(ratio - r) <= 1e-9 * ratio
-        if whole:
-            cm = np.repeat(cells, r)
-        else:
-            m = round(n * ratio)
-            cm = cells[np.minimum((np.arange(m) / ratio).astype(np.int64), n - 1)]
-        y = self._arma(cm)
+        at = np.minimum((np.arange(round(n * ratio)) / ratio).astype(np.int64), n - 1)
+        y = self._arma(np.repeat(cells, r) if whole else cells[at])
         alpha = 1.0 - math.exp(-1.0 / (max(self.ramp_s, 1e-9) * (fo if whole else fs)))
         if whole:
             if r > 1:
@@ -309,8 +258,7 @@ class PennTexture(FamilyBase):
                 y, self._rzi = ss.sosfilt(sos, y, zi=self._rzi)
                 y = y[r - 1::r]
             return y * self._ramp(on.astype(float), alpha)
-        target = on[np.minimum((np.arange(y.size) / ratio).astype(np.int64), n - 1)]
-        y = y * self._ramp(target.astype(float), alpha)
+        y = y * self._ramp(on[at].astype(float), alpha)
         fr = Fraction(fo / fs).limit_denominator(1000)
         out = ss.resample_poly(y, fr.numerator, fr.denominator)
         return np.pad(out[:n], (0, max(0, n - out.size)))
@@ -326,19 +274,15 @@ class PennTexture(FamilyBase):
         e = self._rng.standard_normal(m) * self.sigma[cells]
         y = np.empty(m)
         edges = np.concatenate([[0], np.flatnonzero(np.diff(cells)) + 1, [m]])
-        p, q = self.p, self.q
         for s0, s1 in pairwise(edges.tolist()):
-            c = cells[s0]
-            a, b = self.den[c], self.num[c]
-            zi = ss.lfiltic(b, a, self._yh, self._eh) if max(p, q) else None
-            if zi is None:
-                y[s0:s1] = b[0] * e[s0:s1]
-            else:
+            a, b = self.den[cells[s0]], self.num[cells[s0]]
+            if max(self.p, self.q):
+                zi = ss.lfiltic(b, a, self._yh, self._eh)
                 y[s0:s1], _ = ss.lfilter(b, a, e[s0:s1], zi=zi)
-            if p:
-                self._yh = np.concatenate([y[s0:s1][::-1], self._yh])[:p]
-            if q:
-                self._eh = np.concatenate([e[s0:s1][::-1], self._eh])[:q]
+            else:
+                y[s0:s1] = b[0] * e[s0:s1]
+            self._yh = np.concatenate([y[s0:s1][::-1], self._yh])[:self.p]
+            self._eh = np.concatenate([e[s0:s1][::-1], self._eh])[:self.q]
         return y
 
 

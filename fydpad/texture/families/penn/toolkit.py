@@ -1,27 +1,17 @@
 """Penn Haptic Texture Toolkit (HaTT) model files: ARMA models over speed and force.
 
-A HaTT XML file (one per texture, ``Models_<material>.xml``; Culbertson, Lopez Delgado
-and Kuchenbecker 2014) is a ``<modelSet>`` with ``material``, optional ``AccelUnits``/
-``SpeedUnits``/``ForceUnits``, ``SampleRate`` (Hz; 10 kHz for the recorded models, lower
-for the toolkit's resampled sets), ``mu``, ``numMod``, ``numTri``, ``maxSpeed`` (mm/s),
-``maxForce`` (N), ``speedList``/``forceList`` (``<value>`` lists), the Delaunay
-triangulation of the (speed, force) points as ``<tri><value>i</value>x3</tri>`` (MATLAB's
-1-based indices into ``speedList``/``forceList``), ``numARCoeff``, ``numMACoeff``, then one
-``<model>`` per point: ``modNum``, ``ARcoeff`` (A(z) with its leading 1), ``ARlsf``,
-``MAcoeff`` (B(z) with its leading 1), ``MAlsf`` (radians), ``var``, ``gain``,
-``speedMod``, ``forceMod``. Checked against the toolkit's own code (docs/texture.md,
-"Penn Haptic Texture Toolkit"): its MATLAB writer ``CreateResampledModels.m``, its
-reader ``AutoGenHashMatrix`` and its synthesis ``AccSynthHashMatrix.cpp``/``LPCModel``.
-
-Synthesis (the toolkit's ``LPCvibration``), at the model's sample rate, in m/s^2:
+A ``Models_<material>.xml`` (Culbertson, Lopez Delgado and Kuchenbecker 2014) is a
+``<modelSet>``: ``SampleRate``, ``maxSpeed`` (mm/s), ``maxForce`` (N), ``speedList``/
+``forceList``, the Delaunay triangles ``<tri>`` (MATLAB's 1-based indices into those
+lists), ``numARCoeff``, ``numMACoeff``, and one ``<model>`` per point with ``ARlsf``,
+``MAlsf``, ``var``, ``gain``, ``speedMod``, ``forceMod``; as the toolkit's
+``CreateResampledModels.m`` writes and ``AutoGenHashMatrix`` reads it. Its synthesis
+(``LPCvibration``), in m/s^2 at the model rate:
 
     y(k) = -sum_i A_i y(k-i) + gain * (e(k) + sum_j B_j e(k-j)),  e ~ N(0, var)
 
-which is eq. 5 extended with the moving-average part; with ``numMACoeff`` 0 (AR models)
-the toolkit ignores ``gain`` and ``MAlsf``: y(k) = -sum_i A_i y(k-i) + e(k). Models are
-interpolated inside the Delaunay triangle holding (speed, force) by barycentric weights
-on the LSFs (stable), ``var`` and ``gain``. The toolkit's files are not shipped; point the
-reader at yours.
+(AR files, ``numMACoeff`` 0: no ``gain``, no B), with the LSFs, ``var`` and ``gain``
+interpolated by barycentric weights in the triangle holding (speed, force).
 """
 
 from __future__ import annotations
@@ -30,7 +20,6 @@ import math
 import warnings
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
-from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
@@ -86,37 +75,38 @@ def _num(root: ET.Element, key: str, where: str, default: float | None = None) -
 
 
 def _count(root: ET.Element, key: str, where: str, default: int | None = None) -> int:
-    """A count element (numARCoeff, numMod, ...): a whole number >= 0, else a UserError
-    naming the file and tag (``int()`` of inf or nan would raise a traceback)."""
-    node = root.find(key)
-    if node is None or node.text is None or not node.text.strip():
+    """A count element (numARCoeff, numMod, ...): a whole number >= 0."""
+    text = (root.findtext(key) or "").strip()
+    if not text:
         if default is not None:
             return default
         raise UserError(f"{where}: missing element <{key}>")
     try:
-        v = float(node.text)
+        v = float(text)
     except ValueError:
         v = math.nan
     if not (math.isfinite(v) and v >= 0 and v == round(v)):
-        raise UserError(f"{where}: <{key}> is not a whole number >= 0 ({node.text.strip()!r})")
+        raise UserError(f"{where}: <{key}> is not a whole number >= 0 ({text!r})")
     return int(v)
 
 
 def _check_units(root: ET.Element, where: str) -> None:
     for key, ok in _UNITS.items():
-        node = root.find(key)
-        if node is None or not (node.text or "").strip():
-            continue
-        unit = "".join((node.text or "").split()).lower()
-        if unit not in ok:
-            warnings.warn(f"{where}: <{key}> is {node.text.strip()!r}; read as "
-                          f"{ok[0]} (the toolkit's unit)", stacklevel=3)
+        text = (root.findtext(key) or "").strip()
+        if text and "".join(text.split()).lower() not in ok:
+            warnings.warn(f"{where}: <{key}> is {text!r}; read as {ok[0]} (the toolkit's unit)",
+                          stacklevel=3)
 
 
-def _check_lsf(lsf: Array, where: str) -> None:
-    """Sorted within [0, pi]: what the toolkit's LSF-to-polynomial step assumes."""
+def _lsf(m: ET.Element, tag: str, count_tag: str, size: int, where: str) -> Array:
+    """``size`` LSFs sorted within [0, pi] (what the toolkit's LSF-to-polynomial assumes)."""
+    # numMACoeff 0: the toolkit does not read <MAlsf>.
+    lsf = _values(m.find(tag), f"{where}: <{tag}>") if size or tag == "ARlsf" else np.zeros(0)
+    if lsf.size != size:
+        raise UserError(f"{where}: <{tag}> has {lsf.size} values, <{count_tag}> says {size}")
     if lsf.size and (lsf[0] < 0 or lsf[-1] > np.pi or np.any(np.diff(lsf) < 0)):
-        raise UserError(f"{where}: not sorted line spectral frequencies in [0, pi] rad")
+        raise UserError(f"{where}: <{tag}>: not sorted line spectral frequencies in [0, pi] rad")
+    return lsf
 
 
 def read_penn(path: str | Path) -> PennModelSet:
@@ -152,18 +142,10 @@ def read_penn(path: str | Path) -> PennModelSet:
         var.append(_num(m, "var", mw))
         if not var[-1] >= 0:
             raise UserError(f"{mw}: <var> must be >= 0, got {var[-1]:g}")
-        # AR models (numMACoeff 0): the toolkit reads neither gain nor MAlsf.
+        # AR models (numMACoeff 0): the toolkit reads no gain.
         gain.append(_num(m, "gain", mw, 1.0) if q else 1.0)
-        a = _values(m.find("ARlsf"), f"{mw}: <ARlsf>")
-        if a.size != p:
-            raise UserError(f"{mw}: <ARlsf> has {a.size} values, <numARCoeff> says {p}")
-        _check_lsf(a, f"{mw}: <ARlsf>")
-        ar.append(a)
-        b = _values(m.find("MAlsf"), f"{mw}: <MAlsf>") if q else np.zeros(0)
-        if b.size != q:
-            raise UserError(f"{mw}: <MAlsf> has {b.size} values, <numMACoeff> says {q}")
-        _check_lsf(b, f"{mw}: <MAlsf>")
-        ma.append(b)
+        ar.append(_lsf(m, "ARlsf", "numARCoeff", p, mw))
+        ma.append(_lsf(m, "MAlsf", "numMACoeff", q, mw))
     speeds, forces = np.asarray(sp), np.asarray(fo)
     order = _list_order(root, speeds, forces, w)
     tri = _read_tri(root, n, w)
@@ -219,30 +201,23 @@ def _read_tri(root: ET.Element, n: int, w: str) -> NDArray[np.int64]:
 
 
 def write_penn(path: str | Path, ms: PennModelSet) -> Path:
-    """Write a model set in the toolkit's schema and element order (as its
-    ``CreateResampledModels.m`` does; for tests and hand-made models)."""
+    """A model set in the toolkit's schema and element order (``CreateResampledModels.m``)."""
     root = ET.Element("modelSet")
 
-    def add(parent: ET.Element, tag: str, text: object) -> ET.Element:
-        e = ET.SubElement(parent, tag)
-        e.text = str(text)
-        return e
+    def add(parent: ET.Element, tag: str, text: object) -> None:
+        ET.SubElement(parent, tag).text = str(text)
 
     def add_list(parent: ET.Element, tag: str, vals: Array) -> None:
         e = ET.SubElement(parent, tag)
         for v in vals:
             add(e, "value", repr(float(v)) if not isinstance(v, np.integer) else int(v))
 
-    add(root, "material", ms.name)
-    add(root, "AccelUnits", "m/s^2")
-    add(root, "SpeedUnits", "mm/s")
-    add(root, "ForceUnits", "N")
-    add(root, "SampleRate", ms.fs_hz)
-    add(root, "mu", 0.0 if ms.mu is None or not np.isfinite(ms.mu) else ms.mu)
-    add(root, "numMod", len(ms.speeds_mm_s))
-    add(root, "numTri", len(ms.tri))
-    add(root, "maxSpeed", ms.max_speed_mm_s)
-    add(root, "maxForce", ms.max_force_n)
+    mu = 0.0 if ms.mu is None or not np.isfinite(ms.mu) else ms.mu
+    for tag, text in (("material", ms.name), ("AccelUnits", "m/s^2"), ("SpeedUnits", "mm/s"),
+                      ("ForceUnits", "N"), ("SampleRate", ms.fs_hz), ("mu", mu),
+                      ("numMod", len(ms.speeds_mm_s)), ("numTri", len(ms.tri)),
+                      ("maxSpeed", ms.max_speed_mm_s), ("maxForce", ms.max_force_n)):
+        add(root, tag, text)
     add_list(root, "speedList", ms.speeds_mm_s)
     add_list(root, "forceList", ms.forces_n)
     for t in ms.tri + 1:
@@ -256,28 +231,21 @@ def write_penn(path: str | Path, ms: PennModelSet) -> Path:
         add_list(m, "ARlsf", ms.ar_lsf[i])
         add_list(m, "MAcoeff", lsf_to_poly(ms.ma_lsf[i]) if ms.ma_lsf.shape[1] else [1.0])
         add_list(m, "MAlsf", ms.ma_lsf[i])
-        add(m, "var", ms.var[i])
-        add(m, "gain", ms.gain[i])
-        add(m, "speedMod", ms.speeds_mm_s[i])
-        add(m, "forceMod", ms.forces_n[i])
+        for tag, vals in (("var", ms.var), ("gain", ms.gain), ("speedMod", ms.speeds_mm_s),
+                          ("forceMod", ms.forces_n)):
+            add(m, tag, vals[i])
     ET.indent(root)
     ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
     return Path(path)
 
 
-def _clamp(ms: PennModelSet, speed_mm_s: Array, force_n: Array) -> tuple[Array, Array]:
-    """Into the modelled range, as the toolkit's ``HashAndInterp2`` does (it saturates
-    just inside ``maxSpeed``/``maxForce``); below 0 (and NaN) is 0."""
-    s = np.clip(np.nan_to_num(np.asarray(speed_mm_s, float)), 0.0, ms.max_speed_mm_s)
-    f = np.clip(np.nan_to_num(np.asarray(force_n, float)), 0.0, ms.max_force_n)
-    return s, f
-
-
 def barycentric_weights(ms: PennModelSet, speed_mm_s: Array, force_n: Array) -> Array:
     """(k, m) weights of the m models at k (speed, force) points: barycentric in the first
     Delaunay triangle holding the point; outside every triangle the nearest model alone
-    (the toolkit's walk is undefined outside the hull: it prints "Unstable!")."""
-    s, f = _clamp(ms, np.atleast_1d(speed_mm_s), np.atleast_1d(force_n))
+    (the toolkit's walk is undefined outside the hull: it prints "Unstable!"). Points are
+    clamped into [0, maxSpeed] x [0, maxForce] (NaN: 0), as the toolkit's ``HashAndInterp2``."""
+    s = np.clip(np.nan_to_num(np.atleast_1d(speed_mm_s).astype(float)), 0.0, ms.max_speed_mm_s)
+    f = np.clip(np.nan_to_num(np.atleast_1d(force_n).astype(float)), 0.0, ms.max_force_n)
     k, m = s.size, ms.speeds_mm_s.size
     out = np.zeros((k, m))
     todo = np.ones(k, bool)
@@ -307,17 +275,12 @@ def barycentric_weights(ms: PennModelSet, speed_mm_s: Array, force_n: Array) -> 
     return out
 
 
-def barycentric(ms: PennModelSet, speed_mm_s: float, force_n: float) -> tuple[NDArray, Array]:
-    """Vertex indices and weights of the triangle holding the point (clamped to the grid)."""
-    w = barycentric_weights(ms, speed_mm_s, force_n)[0]
-    idx = np.flatnonzero(w > 0)
-    return idx, w[idx]
-
-
 def interpolate(ms: PennModelSet, speed_mm_s: float, force_n: float
                 ) -> tuple[Array, Array, float, float]:
     """(A, B, var, gain) at (speed, force): LSFs, var and gain weighted barycentrically."""
-    idx, w = barycentric(ms, speed_mm_s, force_n)
+    w = barycentric_weights(ms, speed_mm_s, force_n)[0]
+    idx = np.flatnonzero(w > 0)
+    w = w[idx]
     a = lsf_to_poly(w @ ms.ar_lsf[idx])
     b = lsf_to_poly(w @ ms.ma_lsf[idx]) if ms.ma_lsf.shape[1] else np.array([1.0])
     return a, b, float(w @ ms.var[idx]), float(w @ ms.gain[idx])
@@ -327,12 +290,9 @@ class PennRenderer:
     """The ARMA synthesis at the model rate, state carried across blocks and models."""
 
     def __init__(self, ms: PennModelSet, seed: int | None = None):
-        self.ms = ms
-        self.rng = np.random.default_rng(seed)
-        self.p = ms.ar_lsf.shape[1]
-        self.q = ms.ma_lsf.shape[1]
-        self.y_hist = np.zeros(self.p)  # newest first
-        self.e_hist = np.zeros(self.q)
+        self.ms, self.rng = ms, np.random.default_rng(seed)
+        self.p, self.q = ms.ar_lsf.shape[1], ms.ma_lsf.shape[1]
+        self.y_hist, self.e_hist = np.zeros(self.p), np.zeros(self.q)  # newest first
 
     def block(self, speed_mm_s: float, force_n: float, n: int) -> Array:
         """``n`` samples at the model rate for one (speed, force)."""
@@ -345,15 +305,3 @@ class PennRenderer:
         self.y_hist = np.concatenate([y[::-1], self.y_hist])[: self.p]
         self.e_hist = np.concatenate([e[::-1], self.e_hist])[: self.q]
         return y
-
-    def render(self, speed_mm_s: float, force_n: float, seconds: float,
-               fs_out_hz: float = 1000.0, block_s: float = 0.01) -> Array:
-        """``seconds`` of output resampled (anti-aliased) to ``fs_out_hz``."""
-        n = round(seconds * self.ms.fs_hz)
-        step = max(1, round(block_s * self.ms.fs_hz))
-        y = np.concatenate([self.block(speed_mm_s, force_n, min(step, n - k))
-                            for k in range(0, n, step)]) if n else np.zeros(0)
-        if abs(fs_out_hz - self.ms.fs_hz) < 1e-9:
-            return y
-        fr = Fraction(fs_out_hz / self.ms.fs_hz).limit_denominator(1000)
-        return ss.resample_poly(y, fr.numerator, fr.denominator)
