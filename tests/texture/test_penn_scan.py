@@ -7,9 +7,8 @@ import numpy as np
 
 from fydpad.synth.texture_scans import hand_speed, penn_scan, plateau_speed
 from fydpad.texture.families.penn.toolkit import PennModelSet
-from fydpad.texture.lpc.analysis import reflection_to_poly
 from fydpad.texture.lpc.dft321 import preprocess
-from fydpad.texture.lpc.lsf import poly_to_lsf
+from tests.texture.lpc_polys import poly_to_lsf, reflection_to_poly
 
 FS = 1000.0
 
