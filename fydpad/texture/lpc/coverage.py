@@ -1,13 +1,9 @@
-"""Which speeds the scans went at, and where a model only interpolates (docs/texture.md,
-"Speed coverage: where a model interpolates").
+"""Which speeds the scans went at, and where a model only interpolates.
 
-A model is measured only where the scans' strokes went. A hand asked for a speed
-wanders about +-2 mm/s around it (the generator's hand; faster strokes more), so
-strokes at the paper's 10, 20, 30 and 40 mm/s leave gaps between them. Inside a gap the
-spectrum is the spectral model's interpolation, and on held-out strokes it is
-measurably less accurate there than at the scanned speeds (15 mm/s against 10 and 20 in
-docs/texture.md). The fit records the gaps so that a lab knows where to scan more;
-``evaluate`` and ``synth`` say when they work inside one.
+A hand asked for a speed wanders about +-2 mm/s around it, so strokes at 10, 20, 30 and
+40 mm/s leave gaps between them, where the model is an interpolation and measurably less
+accurate on held-out strokes. The fit records the gaps so that a lab knows where to scan
+more; ``evaluate`` and ``synth`` say when they work inside one.
 """
 
 from __future__ import annotations
@@ -26,22 +22,19 @@ from fydpad.texture.lpc.lines import MAX_SPEED_RATE
 #: Speed bins of the coverage histogram (mm/s): the render smears +-1 mm/s anyway.
 BIN_MM_S = 0.5
 #: Seconds of steady scan a bin needs to count as scanned (a hand's wander stays
-#: 0.5-4 s per bin in the generator's 10 s strokes at 10-40 mm/s).
+#: 0.5-4 s per bin in 10 s strokes at 10-40 mm/s).
 MIN_SECONDS_PER_BIN = 0.1
-#: A one-bin hole between scanned spans is bridged (within the render's smear); a gap
-#: of two bins (1 mm/s) or more is reported.
+#: A one-bin hole between scanned spans is bridged; a gap of 1 mm/s or more is reported.
 MIN_GAP_MM_S = 1.0
-#: Slower is a finger at rest, not a scan (the renderer is silent below its still_mm_s,
-#: 1 mm/s by default); a stroke's start and end dwell there.
+#: Slower is a finger at rest, not a scan (the renderer is silent below 1 mm/s).
 STILL_MM_S = 1.0
 #: A sample counts only where its speed changes by less than this share of itself per
-#: second, over RATE_WINDOW_S (the lines fit's rule: a hand's sway 0.5 /s at most, a
-#: stroke's start 3 /s and more). A start or end sweeps every slower speed in a few ms
-#: per bin, and over many strokes those ms would add up to "scanned".
+#: second over RATE_WINDOW_S (the lines fit's rule): a stroke's start and end sweep
+#: every slower speed in a few ms per bin, which over many strokes would add up.
 STEADY_RATE_PER_S = MAX_SPEED_RATE
 RATE_WINDOW_S = 0.1
-#: Faster than any finger (10 m/s): left out, so that a corrupt sample cannot make the
-#: histogram enormous.
+#: Faster than any finger (10 m/s): left out (a corrupt sample would make the histogram
+#: enormous).
 MAX_SPEED_MM_S = 1e4
 
 Span = tuple[float, float]
@@ -63,20 +56,17 @@ def steady(speed_mm_s: ArrayLike, fs_hz: float) -> NDArray[np.bool_]:
 def speed_histogram(speeds_mm_s: Iterable[ArrayLike], fs_hz: float,
                     speed_range_mm_s: tuple[float, float] | None = None
                     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Seconds of steady scan per ``BIN_MM_S`` bin over the speed traces (one per scan
-    or stroke): (bin edges from 0 mm/s, seconds). Speeds that are not finite (a lost
-    track), below ``STILL_MM_S`` (at rest), changing fast (:func:`steady`), or outside
-    ``speed_range_mm_s`` (lo <= v < hi) are left out."""
+    """Seconds of steady scan per ``BIN_MM_S`` bin over the speed traces: (bin edges
+    from 0 mm/s, seconds). Speeds not finite, below ``STILL_MM_S``, not :func:`steady`,
+    or outside ``speed_range_mm_s`` (lo <= v < hi) are left out."""
     lo, hi = speed_range_mm_s if speed_range_mm_s is not None else (0.0, MAX_SPEED_MM_S)
     hi = min(hi, MAX_SPEED_MM_S)
     kept = []
     for trace in speeds_mm_s:
         v = np.asarray(trace, float).ravel()
-        ok = steady(v, fs_hz) & np.isfinite(v) & (v >= max(lo, STILL_MM_S)) & (v < hi)
-        kept.append(v[ok])
+        kept.append(v[steady(v, fs_hz) & np.isfinite(v) & (v >= max(lo, STILL_MM_S)) & (v < hi)])
     v = np.concatenate(kept) if kept else np.zeros(0)
-    top = math.ceil((v.max() if v.size else 0.0) / BIN_MM_S) + 1
-    edges = np.arange(top + 1) * BIN_MM_S
+    edges = np.arange(math.ceil((v.max() if v.size else 0.0) / BIN_MM_S) + 2) * BIN_MM_S
     counts, _ = np.histogram(v, edges)
     return edges, counts / fs_hz if fs_hz > 0 else np.zeros(counts.size)
 
@@ -84,10 +74,9 @@ def speed_histogram(speeds_mm_s: Iterable[ArrayLike], fs_hz: float,
 def scanned_spans(speeds_mm_s: Iterable[ArrayLike], fs_hz: float,
                   speed_range_mm_s: tuple[float, float] | None = None,
                   min_seconds_per_bin: float = MIN_SECONDS_PER_BIN) -> list[Span]:
-    """The speed ranges (mm/s, ascending, disjoint) in which the traces spent at least
-    ``min_seconds_per_bin`` of steady scan per ``BIN_MM_S`` bin (:func:`speed_histogram`);
-    holes narrower than ``MIN_GAP_MM_S`` are bridged, and the ends clipped to
-    ``speed_range_mm_s``."""
+    """The speed ranges (mm/s, ascending, disjoint) with at least ``min_seconds_per_bin``
+    of steady scan per bin (:func:`speed_histogram`); holes narrower than
+    ``MIN_GAP_MM_S`` bridged, the ends clipped to ``speed_range_mm_s``."""
     edges, seconds = speed_histogram(speeds_mm_s, fs_hz, speed_range_mm_s)
     spans: list[Span] = []
     for i in np.flatnonzero(seconds >= min_seconds_per_bin):
@@ -103,16 +92,11 @@ def scanned_spans(speeds_mm_s: Iterable[ArrayLike], fs_hz: float,
 
 
 def gaps_within(spans: Sequence[Span], lo_mm_s: float, hi_mm_s: float) -> list[Span]:
-    """The parts of [lo, hi] (the fitted speeds' range) outside every span, at least
-    ``MIN_GAP_MM_S`` wide: where a model interpolates between the speeds it was fitted
-    at with no scan to go by."""
+    """The parts of [lo, hi] (the fitted speeds) outside every span, at least
+    ``MIN_GAP_MM_S`` wide: where a model interpolates with no scan to go by."""
     edges = [(lo_mm_s, lo_mm_s), *spans, (hi_mm_s, hi_mm_s)]
-    out = []
-    for (_, a), (b, _) in itertools.pairwise(edges):
-        a, b = max(a, lo_mm_s), min(b, hi_mm_s)
-        if b - a >= MIN_GAP_MM_S:
-            out.append((a, b))
-    return out
+    pairs = ((max(a, lo_mm_s), min(b, hi_mm_s)) for (_, a), (b, _) in itertools.pairwise(edges))
+    return [(a, b) for a, b in pairs if b - a >= MIN_GAP_MM_S]
 
 
 def inside(speed_mm_s: ArrayLike, spans: Sequence[Span]) -> NDArray[np.bool_]:

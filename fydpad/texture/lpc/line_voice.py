@@ -1,14 +1,11 @@
-"""A line spectrum (lines.py) at the output rate: one wavetable per grid speed.
+"""A line spectrum (lines.py) at the output rate, from one wavetable per grid speed:
 
     a_lines(k) = sum_n A_n(v_k) cos(2 pi n phi_k + psi_n),   phi_k = phi_{k-1} + v_k / (fs lambda)
 
-The waveform of one period at every grid speed is built once; each sample reads it at
-the phase phi (linear between table points, 32 per cycle of the highest harmonic) and
-mixes the two grid speeds around v linearly, so the lines move with the speed sample by
-sample and never click. Above the table's fastest speed the pitch and the level hold
-(as the process is clamped there): the table keeps every harmonic in band only up to it.
-``tick`` (no array allocated) and ``block`` give the same samples: the phase is one
-running sum in both.
+Each sample reads the table at the phase phi (linear between points) and mixes the two
+grid speeds around v linearly, so the lines glide with the speed and never click. Above
+the fastest row pitch and level hold (the table is in band only up to it). ``tick`` (no
+allocation) and ``block`` give the same samples: the phase is one running sum in both.
 """
 
 from __future__ import annotations
@@ -31,12 +28,9 @@ class LineVoice:
         self.table = np.ascontiguousarray(spectrum.wavetable())  # (m, points + 1)
         self.points = self.table.shape[1] - 1
         v = spectrum.v_mm_s
-        self._v0 = float(v[0])
+        self._v0, self._v_top = float(v[0]), float(v[-1])
         self._inv_step = 1.0 / float(v[1] - v[0]) if v.size > 1 else 0.0
         self._last_row = float(v.size - 1)
-        # Beyond the fastest row the lines hold its pitch and level (the process is clamped
-        # there too): their harmonics would otherwise fold back from above Nyquist.
-        self._v_top = float(v[-1])
         if v.size == 1:  # one speed: two equal rows keep the mixing uniform
             self.table = np.vstack([self.table, self.table])
             self._last_row = 1.0
@@ -49,20 +43,18 @@ class LineVoice:
         self.phase = 0.0
 
     def tick(self, speed_mm_s: float) -> float:
-        """One sample at this speed (mm/s; finite, >= 0; clamped to the table's top)."""
+        """One sample at this speed (mm/s; finite, >= 0)."""
         if speed_mm_s > self._v_top:
             speed_mm_s = self._v_top
         ph = self.phase + speed_mm_s * self._cycles_per_sample
         self.phase = ph
-        x = (speed_mm_s - self._v0) * self._inv_step
-        x = min(max(x, 0.0), self._last_row)
+        x = min(max((speed_mm_s - self._v0) * self._inv_step, 0.0), self._last_row)
         k = min(int(x), self._k_top)
         w = x - k
         p = (ph - math.floor(ph)) * self.points
         i = int(p)
         fr = p - i
-        r0 = self._rows[k]
-        r1 = self._rows[k + 1]
+        r0, r1 = self._rows[k], self._rows[k + 1]
         a0, a1 = r0.item(i), r0.item(i + 1)
         b0, b1 = r1.item(i), r1.item(i + 1)
         a = a0 + fr * (a1 - a0)
@@ -70,7 +62,7 @@ class LineVoice:
         return a + w * (b - a)
 
     def block(self, speed_mm_s: ArrayLike) -> Array:
-        """Samples for a speed trace (finite, >= 0); the same as ``tick`` sample by sample."""
+        """Samples for a speed trace (finite, >= 0): ``tick`` sample by sample."""
         v = np.minimum(np.asarray(speed_mm_s, float), self._v_top)
         if v.size == 0:
             return np.zeros(0)
@@ -83,8 +75,6 @@ class LineVoice:
         i = p.astype(np.int64)
         fr = p - i
         t = self.table
-        a0, a1 = t[k, i], t[k, i + 1]
-        b0, b1 = t[k + 1, i], t[k + 1, i + 1]
-        a = a0 + fr * (a1 - a0)
-        b = b0 + fr * (b1 - b0)
+        a = t[k, i] + fr * (t[k, i + 1] - t[k, i])
+        b = t[k + 1, i] + fr * (t[k + 1, i + 1] - t[k + 1, i])
         return a + w * (b - a)

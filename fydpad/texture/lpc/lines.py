@@ -1,44 +1,28 @@
 """Periodic surfaces: the harmonics of a spatial period, following the finger.
 
-A grating, a mesh, a weave or a knurl is periodic along the stroke, so part of its
-vibration is a set of lines at n v / lambda that move with the finger's speed v. An
-all-pole model fitted per speed pools the hand's +-5 mm/s of wander and smears those
-lines into bands (docs/texture.md, "The combs"); here they are modelled as what they
-are, deterministic in the position along the stroke:
+A grating, mesh, weave or knurl puts lines at n v / lambda that move with the speed v;
+an all-pole fit per speed pools the hand's wander and smears them into bands. Here they
+are deterministic in the position s along the stroke, beside the paper's eq. 5 process
+(fitted on what they leave):
 
     a_lines(t) = sum_n A_n(v(t)) cos(2 pi n s(t) / lambda + psi_n),   s(t) = int v dt
 
-beside the paper's eq. 5 process, which is fitted on what the lines leave (the
-residual). The synthesis integrates the same speed it is given, so a held-out stroke's
-lines spread exactly as its hand's speed spread them.
+:func:`fit_lines`, on each stroke's preprocessed (high-passed, DFT321) signal:
 
-Fit (:func:`fit_lines`), on the preprocessed (high-passed, DFT321) signal of each stroke:
+1. The period: on the arc-length resampled spectra, the comb n / lambda that puts peaks
+   on the most harmonics, refined to 1e-5 on its strongest harmonics' coherent power;
+   without a comb, a rib: one line that is the strongest peak of every stroke able to
+   see it (corduroy's wale, :func:`_rib`).
+2. Per stroke and harmonic, the complex amplitude as (v / med)^2 times a piecewise linear
+   function of speed, by least squares on the signal demodulated at 2 pi n s / lambda.
+3. Per 0.5 mm/s speed bin, pooled over strokes: amplitude^2 less what noise alone gives
+   the fit; kept where ``DEFAULT_SNR`` times over it. Speeds no stroke reached: a factor
+   model log P_n(v) = u_n + t(n v / lambda) + g(v) (:func:`_factor_model`).
+4. The residual: each stroke less its kept harmonics, on the samples within +-45 % of its
+   median speed (only those go to the stochastic fit).
 
-1. The period (:func:`estimate_period`): each stroke resampled on its arc length s,
-   where the lines are at fixed spatial frequencies n / lambda whatever the speed; the
-   candidate that puts significant peaks on the most harmonics wins, then lambda is
-   refined on the coherent power of its strongest harmonics (the high harmonics need it
-   to 1e-5: their phase over a 100 mm stroke). Without a comb, a rib: one line that is
-   the strongest peak of every stroke able to see it, with the harmonics that stand as
-   peaks (corduroy's wale, searched from 10 Hz, :func:`_rib`).
-2. Per stroke and harmonic, the complex amplitude as (v / med)^2 times a piecewise
-   linear function of speed, by least squares on the signal demodulated at the
-   harmonic's phase 2 pi n s / lambda (the harmonics are orthogonal over a stroke of many
-   periods); what noise alone gives such a fit follows from the spectrum of what every
-   harmonic's fit leaves (:func:`_noise_of_fit`).
-3. Per 0.5 mm/s speed bin, pooled over strokes: the amplitude^2 less the noise's; a
-   harmonic is kept at a speed where it stands ``snr`` times above that noise (or one
-   stroke's own fit stands far above it). Where no stroke's speeds reach, a factor model
-   log P_n(v) = u_n + t(n v / lambda) + g(v) (a surface's harmonic levels through a
-   tool's response, scaled by the drive), corrected by its error at the nearest bins with
-   the line.
-4. The residual: each stroke less its kept harmonics, up to where the table's taper
-   starts (96 % of Nyquist; the all-pole part carries what lies above). Only the samples
-   within a stroke's fitted speed range (+-45 % of its median) have their lines removed,
-   so only they go to the stochastic fit (a ramp at the ends of a stroke does not).
-
-The phases psi_n are those of the slowest stroke (where every harmonic is in band):
-they give the waveform its shape (a rectangular grating's edges), not its spectrum.
+The phases psi_n are the slowest stroke's (every harmonic in band there): they give the
+waveform its shape, not its spectrum.
 """
 
 from __future__ import annotations
@@ -62,54 +46,49 @@ Mask = NDArray[np.bool_]
 
 #: A stroke's samples within this fraction of its median speed carry its line fit.
 SPEED_SPAN = 0.45
-#: Samples where the speed changes faster than this (per second, relative) carry no fit,
-#: nor those within EDGE_S of them or of a stroke's ends (a hand's sway: 0.5 /s at most;
-#: a stroke's start: 3 /s and more).
+#: Nor those where the speed changes faster than this (relative, per second: a hand's
+#: sway 0.5 /s at most, a stroke's start 3 /s and more), within EDGE_S of it or of an end.
 MAX_SPEED_RATE = 1.5
 EDGE_S = 0.25
 #: Speed grid of the amplitude table (mm/s).
 GRID_STEP_MM_S = 0.5
-#: A rib without a comb (:func:`_rib`) is searched from here, a little under the 10 Hz
-#: high-pass's corner (a 2.5 mm rib sits at 4-16 Hz at 10-40 mm/s, below the comb
-#: search's 15 Hz but for the fastest strokes; a hand asked for 30 mm/s wanders down to
-#: 25 in a stroke, where the rib is at 10 Hz: searched from the corner, only the 40 mm/s
-#: strokes saw it, and corduroy got no lines); its line must be the strongest peak of
-#: every stroke that can see it, in at least RIB_MIN_STROKES strokes whose median speeds span
-#: RIB_MIN_SPEED_RATIO (a hum on a constant-speed rig stands at one k in every stroke).
+#: A rib is searched from under the 10 Hz high-pass's corner (a 2.5 mm rib at 25 mm/s
+#: is at 10 Hz), in RIB_MIN_STROKES strokes or more whose median speeds span
+#: RIB_MIN_SPEED_RATIO (a hum on a constant-speed rig stands at one k in every stroke),
+#: among the RIB_TOP_PEAKS strongest peaks of each, holding RIB_MIN_SCORE (_comb_score)
+#: of their spatial power (a rib on a rough surface, 0.003 mm RMS, scored 0.10).
 RIB_F_LO = 8.0
 RIB_MIN_STROKES = 2
 RIB_MIN_SPEED_RATIO = 1.2
-#: ... among the RIB_TOP_PEAKS strongest peaks of each of them (and the strongest in at
-#: least half: a rounded rib's 2nd harmonic may outdo its line in one stroke), holding
-#: RIB_MIN_SCORE of their spatial power (_comb_score; a comb needs MIN_COMB_SCORE, but a
-#: rib on a rough surface, 0.003 mm RMS, scored 0.10; fit_lines' MIN_SHARE follows).
 RIB_TOP_PEAKS = 3
 RIB_MIN_SCORE = 0.1
-#: Harmonics up to this fraction of Nyquist (the scans' anti-alias filter ends there);
-#: the renderer tapers them from TAPER_START of Nyquist so none drops out with a click.
+#: Harmonics up to this fraction of Nyquist (the scans' anti-alias filter ends there),
+#: tapered from TAPER_START so that none drops out with a click.
 BAND_TOP = 0.99
 TAPER_START = 0.96
-#: A kept harmonic's pooled power over what noise alone gives its fit.
+#: A kept harmonic's pooled power over what noise alone gives its fit; or one stroke's
+#: own fit OWN_SNR_FACTOR times over that.
 DEFAULT_SNR = 3.0
-#: A stroke's own fit this many times over ``snr`` makes its line present at that row.
 OWN_SNR_FACTOR = 4.0
-#: Less of the in-band power than this in the lines: no line model (the all-pole
-#: model holds such weak lines as well).
+#: Less of the power than this in the lines: no line model (the all-pole model holds
+#: such weak lines as well).
 MIN_SHARE = 0.05
-#: A bin needs this much data (seconds, pooled) to say something about a harmonic.
+#: Seconds of data (pooled) a speed bin needs to say something about a harmonic.
 MIN_BIN_S = 0.25
 #: The comb's teeth must hold this much more of the spatial power than their share of
 #: the band (a smooth spectrum: 0).
 MIN_COMB_SCORE = 0.2
-#: Harmonics modelled at most (a long period at a slow speed has thousands in band); the
-#: wavetable then has 32 points per cycle of the highest in 16384.
+#: Harmonics modelled at most (the wavetable then has 32 points per cycle of the highest).
 MAX_HARMONICS = 512
-#: Knot spacing of a harmonic's amplitude along speed, in Hz of the harmonic's frequency:
-#: the scale on which a tool resonance changes it (a mode of Q 10 at 300 Hz is 30 Hz wide).
+#: Knot spacing of a harmonic's amplitude along speed, in Hz of its frequency: the scale
+#: on which a tool resonance changes it (a mode of Q 10 at 300 Hz is 30 Hz wide).
 KNOT_HZ = 20.0
+K_MAX = 12  # knots of one harmonic's amplitude at most
 #: Speed bins of the per-harmonic fits (mm/s): the amplitudes change over 1 mm/s or more.
 FINE_MM_S = 0.01
 _CHUNK = 64  # harmonics per matrix product (memory: samples x chunk complex)
+_PAD = 2  # zero padding of the spatial periodogram
+_TOL_BINS = 1.5 * _PAD  # a peak matches a harmonic within this many padded bins
 
 
 @dataclass
@@ -121,30 +100,13 @@ class LineSpectrum:
     amplitude: Array  # (m, N) peak amplitude of harmonic n = 1..N, m/s^2
     phase_rad: Array  # (N,)
 
-    @property
-    def harmonics(self) -> int:
-        return int(self.amplitude.shape[1])
-
-    def amplitudes_at(self, speed_mm_s: float) -> Array:
-        """A_n at a speed: linear between grid rows, the edge rows beyond."""
-        v = self.v_mm_s
-        x = float(np.clip((speed_mm_s - v[0]) / (v[1] - v[0]) if v.size > 1 else 0.0,
-                          0.0, v.size - 1))
-        k = min(int(x), v.size - 2) if v.size > 1 else 0
-        w = x - k
-        if v.size == 1:
-            return self.amplitude[0].copy()
-        return (1 - w) * self.amplitude[k] + w * self.amplitude[k + 1]
-
-    def wavetable(self, points: int | None = None) -> Array:
-        """One period of the waveform at every grid speed: (m, points + 1), the last
-        column repeating the first (so a linear interpolation needs no wrap)."""
-        n = self.harmonics
+    def wavetable(self) -> Array:
+        """One period of the waveform at every grid speed, (m, points + 1), the last
+        column repeating the first; 32 points per cycle of the highest harmonic."""
         top = int(np.max(np.nonzero(self.amplitude.any(axis=0))[0], initial=-1)) + 1
-        if points is None:  # 32 points per cycle of the highest harmonic: images < -30 dB
-            points = int(min(max(256, 2 ** math.ceil(math.log2(max(32 * top, 1)))), 16384))
+        points = int(min(max(256, 2 ** math.ceil(math.log2(max(32 * top, 1)))), 16384))
         spec = np.zeros((self.v_mm_s.size, points // 2 + 1), complex)
-        m = min(n, points // 2 - 1)
+        m = min(self.amplitude.shape[1], points // 2 - 1)
         spec[:, 1:m + 1] = self.amplitude[:, :m] * np.exp(1j * self.phase_rad[:m])
         table = np.fft.irfft(spec, points, axis=1) * (points / 2)
         return np.concatenate([table, table[:, :1]], axis=1)
@@ -164,38 +126,39 @@ class LineSpectrum:
         if not isinstance(d, dict):
             raise UserError(f"{where}: key 'lines' must be an object")
 
+        def bad(key: str, what: str) -> UserError:
+            return UserError(f"{where}: key 'lines.{key}' must {what}")
+
         def arr(key: str, ndim: int) -> Array:
             if key not in d:
                 raise UserError(f"{where}: missing key 'lines.{key}'")
             try:
                 a = np.asarray(d[key], float)
             except (TypeError, ValueError):
-                raise UserError(f"{where}: key 'lines.{key}' must be numbers") from None
+                raise bad(key, "be numbers") from None
             if a.ndim != ndim or a.size == 0 or not np.all(np.isfinite(a)):
-                raise UserError(f"{where}: key 'lines.{key}' must be a non-empty "
-                                f"{'list' if ndim == 1 else 'table'} of finite numbers")
+                raise bad(key, f"be a non-empty {'list' if ndim == 1 else 'table'} of "
+                          "finite numbers")
             return a
 
         period = d.get("period_mm")
         if isinstance(period, bool) or not isinstance(period, int | float) or not (
                 math.isfinite(period) and period > 0):
-            raise UserError(f"{where}: key 'lines.period_mm' must be a number > 0, "
-                            f"not {period!r}")
+            raise bad("period_mm", f"be a number > 0, not {period!r}")
         if period < 1e-3 or period > 1e3:
-            raise UserError(f"{where}: key 'lines.period_mm' must be within 0.001-1000 mm, "
-                            f"not {period!r}")
+            raise bad("period_mm", f"be within 0.001-1000 mm, not {period!r}")
         v, phase, amp = arr("v_mm_s", 1), arr("phase_rad", 1), arr("amplitude", 2)
         step = np.diff(v)
         if (v[0] < 0 or v[-1] > 1e4 or np.any(step < 0.01)
                 or (step.size and np.any(np.abs(step - step[0]) > 1e-6 * step[0]))):
-            raise UserError(f"{where}: key 'lines.v_mm_s' must be speeds 0-10000 mm/s, "
-                            "ascending in equal steps of at least 0.01 mm/s")
+            raise bad("v_mm_s", "be speeds 0-10000 mm/s, ascending in equal steps of at "
+                      "least 0.01 mm/s")
         if amp.shape != (v.size, phase.size):
-            raise UserError(f"{where}: key 'lines.amplitude' must have one row per "
-                            f"'lines.v_mm_s' ({v.size}) and one column per 'lines.phase_rad' "
-                            f"({phase.size}), not {amp.shape[0]} x {amp.shape[1]}")
+            raise bad("amplitude", f"have one row per 'lines.v_mm_s' ({v.size}) and one "
+                      f"column per 'lines.phase_rad' ({phase.size}), not {amp.shape[0]} x "
+                      f"{amp.shape[1]}")
         if np.any(amp < 0):
-            raise UserError(f"{where}: key 'lines.amplitude' must be >= 0")
+            raise bad("amplitude", "be >= 0")
         return cls(float(period), v, amp, phase)
 
 
@@ -224,13 +187,22 @@ def arc_length_mm(speed_mm_s: Array, fs_hz: float) -> Array:
     return np.cumsum(np.asarray(speed_mm_s, float)) / fs_hz
 
 
-def _stroke_span(v: Array, speed_range: tuple[float, float], fs_hz: float
-                 ) -> tuple[float, Mask] | None:
-    """(median speed, the samples that carry the stroke's line fit), or None: within
-    SPEED_SPAN of the median and within the range, and not where the speed changes faster
-    than MAX_SPEED_RATE of itself per second (a stroke's start and end: the tool's
-    resonance does not follow lines that sweep that fast, and the DFT321 window smears
-    them), nor within a window of that or of the stroke's ends."""
+@dataclass
+class _Stroke:
+    index: int  # of the signal it comes from
+    y: Array
+    v: Array
+    s: Array  # arc length, mm
+    med: float
+    valid: Mask  # the samples that carry the line fit
+    run: slice | None  # the longest run of them, if 256 samples or more
+
+
+def _stroke(i: int, y: Array, v: Array, speed_range: tuple[float, float], fs_hz: float
+            ) -> _Stroke | None:
+    """The stroke's samples within SPEED_SPAN of its median speed and the range, not
+    within EDGE_S of a change faster than MAX_SPEED_RATE (the tool's resonance does not
+    follow such a sweep, and DFT321 smears it) nor of its ends; None under 0.5 s."""
     lo, hi = speed_range
     inr = (v >= lo) & (v <= hi) & (v > 0)
     if inr.sum() < 16:
@@ -240,21 +212,12 @@ def _stroke_span(v: Array, speed_range: tuple[float, float], fs_hz: float
     guard = max(1, round(EDGE_S * fs_hz))
     fast = ndi.binary_dilation(fast, np.ones(2 * guard + 1, bool))
     fast[:guard] = fast[-guard:] = True
-    return med, inr & ~fast & (np.abs(v - med) < SPEED_SPAN * med)
-
-
-def _longest_run(mask: Mask) -> tuple[int, int]:
-    return max(runs(mask), key=lambda r: r[1] - r[0], default=(0, 0))
-
-
-@dataclass
-class _Stroke:
-    index: int  # of the signal it comes from
-    y: Array
-    v: Array
-    s: Array  # arc length, mm
-    med: float
-    valid: Mask
+    valid = inr & ~fast & (np.abs(v - med) < SPEED_SPAN * med)
+    if valid.sum() < 0.5 * fs_hz:
+        return None
+    a, b = max(runs(valid), key=lambda r: r[1] - r[0], default=(0, 0))
+    return _Stroke(i, y, v, arc_length_mm(v, fs_hz), med, valid,
+                   slice(a, b) if b - a >= 256 else None)
 
 
 @dataclass
@@ -268,17 +231,12 @@ class _Spectrum:
     peaks_k: Array  # strongest first
 
 
-_PAD = 2  # zero padding of the spatial periodogram
-_TOL_BINS = 1.5 * _PAD  # a peak matches a harmonic within this many padded bins
-
-
 def _spatial_spectrum(st: _Stroke, f_lo: float, f_hi: float) -> _Spectrum | None:
     """Hann periodogram of the stroke's longest valid run on a uniform arc-length grid,
     where the harmonics stand at n / lambda whatever the speed."""
-    a, b = _longest_run(st.valid)
-    if b - a < 256:
+    if st.run is None:
         return None
-    s, y, v = st.s[a:b], st.y[a:b], st.v[a:b]
+    s, y, v = st.s[st.run], st.y[st.run], st.v[st.run]
     ds = 0.5 * float(np.median(np.diff(s)))  # twice the samples: no harmonic folds
     if not ds > 0:
         return None
@@ -301,13 +259,12 @@ def _spatial_spectrum(st: _Stroke, f_lo: float, f_hi: float) -> _Spectrum | None
     return _Spectrum(k, k_lo, k_hi, p, k[j] + np.clip(off, -0.5, 0.5) * (k[1] - k[0]))
 
 
-def _comb_fit(specs: Sequence[_Spectrum], lam: float, rounds: int = 3
-              ) -> tuple[float, list[int]]:
-    """A comb n / lambda fitted to the peaks from a first guess by least squares on the
-    peaks it matches (k_i = n_i / lambda): (lambda, matched peaks per stroke)."""
+def _comb_fit(specs: Sequence[_Spectrum], lam: float) -> tuple[float, list[int]]:
+    """A comb k_i = n_i / lambda fitted by least squares on the peaks it matches, three
+    rounds from a guess: (lambda, matched peaks per stroke)."""
     dk = min(float(sp.k[1] - sp.k[0]) for sp in specs)
     k_all = np.concatenate([sp.peaks_k for sp in specs])
-    for _ in range(rounds):
+    for _ in range(3):
         n_all = np.rint(k_all * lam)
         good = (n_all >= 1) & (np.abs(k_all - n_all / lam) <= _TOL_BINS * dk)
         if not good.any():
@@ -322,8 +279,7 @@ def _comb_fit(specs: Sequence[_Spectrum], lam: float, rounds: int = 3
 
 def _comb_score(specs: Sequence[_Spectrum], lam: float) -> float:
     """The share of each stroke's in-band spatial power within the comb's teeth less the
-    share of the band they cover (what a comb of that density catches of a smooth
-    spectrum), averaged over strokes."""
+    share of the band they cover, averaged over strokes."""
     score = 0.0
     tol = math.ceil(_TOL_BINS)
     for sp in specs:
@@ -342,27 +298,6 @@ def _comb_score(specs: Sequence[_Spectrum], lam: float) -> float:
     return score / len(specs)
 
 
-@dataclass
-class Period:
-    """What the period search found: the period, how (``"comb"``; ``"rib"``, a line
-    and at most a few harmonics without a comb, :func:`_rib`; ``"given"``), and the
-    highest harmonic worth modelling (None: every one in band)."""
-
-    period_mm: float
-    kind: str
-    harmonics: int | None = None
-
-
-def estimate_period(strokes: Sequence[_Stroke], f_lo: float, f_hi: float,
-                    period_mm: float | None = None) -> Period | None:
-    """The spatial period, or None without a comb or a rib. ``period_mm``: a given
-    period, refined (within 2 %)."""
-    if period_mm is not None:  # given: refined on the coherent power alone
-        return Period(_refine(strokes, float(period_mm), f_lo, f_hi, 0.02), "given")
-    comb = _comb_period(strokes, f_lo, f_hi)
-    return Period(comb, "comb") if comb is not None else _rib(strokes, f_hi)
-
-
 def _comb_period(strokes: Sequence[_Stroke], f_lo: float, f_hi: float) -> float | None:
     """A comb's period (mm), or None."""
     specs = [sp for st in strokes if (sp := _spatial_spectrum(st, f_lo, f_hi)) is not None]
@@ -376,19 +311,15 @@ def _comb_period(strokes: Sequence[_Stroke], f_lo: float, f_hi: float) -> float 
         candidates |= {m / kp for kp in top[:5] for m in range(1, 13)}
         diff = np.abs(top[:, None] - top[None, :])
         candidates |= {d / float(x) for x in diff[diff > 0] for d in (1, 2, 3)}
-    candidates = {lam for lam in candidates if 0.05 <= lam <= 50.0}
-    if not candidates:
-        return None
-    # Each guess fitted to the peaks (cheap); the distinct combs with the most matched
-    # peaks then scored on the spectra's power.
     fitted: dict[float, tuple[float, list[int]]] = {}
-    for guess in sorted(candidates):
+    for guess in sorted(lam for lam in candidates if 0.05 <= lam <= 50.0):
         lam, hits = _comb_fit(specs, guess)
         if 0.05 <= lam <= 50.0:
             fitted.setdefault(round(math.log(lam), 4), (lam, hits))
     if not fitted:
         return None
-    # Ranked by matches less those a comb that dense would make by chance.
+    # The 12 with the most matches less those a comb that dense makes by chance, scored
+    # on the spectra's power.
     dk = min(float(sp.k[1] - sp.k[0]) for sp in specs)
     peaks = sum(sp.peaks_k.size for sp in specs)
     top = sorted(fitted.values(),
@@ -400,19 +331,14 @@ def _comb_period(strokes: Sequence[_Stroke], f_lo: float, f_hi: float) -> float 
     return _refine(strokes, lam, f_lo, f_hi, 2e-3)
 
 
-def _rib(strokes: Sequence[_Stroke], f_hi: float) -> Period | None:
-    """A rib without a comb: one spatial line, perhaps with a harmonic or two (a
-    sinusoidal or rounded rib: corduroy's wale), searched from RIB_F_LO.
+def _rib(strokes: Sequence[_Stroke], f_hi: float) -> tuple[float, int] | None:
+    """A rib without a comb: (period, highest harmonic modelled), or None.
 
-    Taken when a spatial frequency k is among the strongest peaks of every stroke whose
-    band holds it (the strongest in half of them), in at least RIB_MIN_STROKES strokes
-    whose median speeds differ by RIB_MIN_SPEED_RATIO (a fixed tone on strokes at one
-    speed stands at one k too; a surface's line moves in f with the speed), and scores
-    RIB_MIN_SCORE on those strokes. The fundamental is k / m (m = 3, 2) where every
-    stroke that can see k / m has a peak there (the strongest line may be a harmonic);
-    the harmonics modelled are those that stand as peaks in at least half the strokes
-    that can see them. A rough surface's strongest peaks, where any clear the median
-    filter, fall at a different k in every stroke."""
+    Its line k is among the RIB_TOP_PEAKS strongest peaks of every stroke whose band
+    holds it (the strongest in half of them: a rounded rib's 2nd harmonic may outdo it);
+    the fundamental is k / 3 or k / 2 where every stroke that can see it has a peak
+    there; harmonics up to the 12th count where half the strokes that can see them have
+    a peak. A rough surface's strongest peaks fall at a different k in every stroke."""
     pairs = [(sp, float(np.median(st.v[st.valid]))) for st in strokes
              if (sp := _spatial_spectrum(st, RIB_F_LO, f_hi)) is not None]
     if not pairs:
@@ -427,72 +353,60 @@ def _rib(strokes: Sequence[_Stroke], f_hi: float) -> Period | None:
         near = np.flatnonzero(np.abs(specs[i].peaks_k - k) <= tol)
         return int(near[0]) if near.size else 99
 
-    def has_peak(i: int, k: float) -> bool:
-        return rank(i, k) < 99
-
-    line = None
-    for k in (float(sp.peaks_k[0]) for sp in specs if sp.peaks_k.size):
-        idx = seen(k)
-        ranks = [rank(i, k) for i in idx]
+    for line in (float(sp.peaks_k[0]) for sp in specs if sp.peaks_k.size):
+        idx = seen(line)
+        ranks = [rank(i, line) for i in idx]
         if (len(idx) >= RIB_MIN_STROKES and max(ranks) < RIB_TOP_PEAKS
                 and 2 * ranks.count(0) >= len(idx)
                 and max(meds[i] for i in idx) >= RIB_MIN_SPEED_RATIO * min(meds[i] for i in idx)
-                and _comb_score([specs[i] for i in idx], 1.0 / k) >= RIB_MIN_SCORE):
-            line = k
+                and _comb_score([specs[i] for i in idx], 1.0 / line) >= RIB_MIN_SCORE):
             break
-    if line is None:
+    else:
         return None
     k0 = line
-    for m in (3, 2):  # the strongest line may be the 2nd or 3rd harmonic
+    for m in (3, 2):
         idx = seen(line / m)
-        if idx and all(has_peak(i, line / m) for i in idx):
+        if idx and all(rank(i, line / m) < 99 for i in idx):
             k0 = line / m
             break
     harmonics = 1
     for n in range(2, 13):
         idx = seen(n * k0)
-        if idx and 2 * sum(has_peak(i, n * k0) for i in idx) >= len(idx):
+        if idx and 2 * sum(rank(i, n * k0) < 99 for i in idx) >= len(idx):
             harmonics = n
-    return Period(_refine(strokes, 1.0 / k0, RIB_F_LO, f_hi, 2e-3), "rib", harmonics)
+    return _refine(strokes, 1.0 / k0, RIB_F_LO, f_hi, 2e-3), harmonics
 
 
 def _refine(strokes: Sequence[_Stroke], lam: float, f_lo: float, f_hi: float,
             span: float) -> float:
-    """lambda maximising the coherent power of each stroke's strongest harmonics, within
-    +-span (relative), then finer (a parabola through the best three of 21 points).
+    """lambda maximising the coherent power of each stroke's 24 strongest harmonics
+    within +-span (relative), four levels of 21 points and a parabola.
 
-    At lambda_0 / (1 + eps) harmonic n's phase gains 2 pi n s eps / lambda_0, slow along
-    the stroke: the demodulated signal is summed over blocks short enough for that
+    At lambda_0 / (1 + eps) harmonic n's phase gains 2 pi n s eps / lambda_0, slowly
+    along the stroke: the demodulated signal is summed over blocks short enough for that
     phase to stay put, and each eps costs one small matrix product."""
-    pieces = []
+    blocks = []  # demodulated once, summed over blocks short enough for the span
     for st in strokes:
-        a, b = _longest_run(st.valid)
-        if b - a < 256:
+        if st.run is None:
             continue
-        s, y, v = st.s[a:b] - st.s[a], st.y[a:b], st.v[a:b]
+        s, y, v = st.s[st.run] - st.s[st.run.start], st.y[st.run], st.v[st.run]
         n = np.arange(max(1, math.ceil(f_lo * lam / v.min())),
                       math.floor(f_hi * lam / v.max()) + 1, dtype=float)
         if n.size == 0:
             continue
-        if n.size > 24:  # the strongest harmonics carry the fit
+        if n.size > 24:
             z = np.concatenate([np.abs(y @ _phasors(s, n[c], min(_CHUNK, n.size - c), lam))
                                 for c in range(0, n.size, _CHUNK)])
             n = np.sort(n[np.argsort(z)[::-1][:24]])
-        pieces.append((s, y, n))
-    if not pieces:
-        return lam
-    # Demodulated once at lambda_0, summed over blocks short enough for the widest span;
-    # each level re-centres those sums and regroups them into 64 blocks.
-    lam0, first = lam, span
-    blocks = []
-    for s, y, n in pieces:
         ds = float(s[-1] - s[0]) / max(s.size - 1, 1)
-        blk = max(1, int(0.05 * lam0 / (n.max() * max(ds, 1e-12) * first)))
+        blk = max(1, int(0.05 * lam / (n.max() * max(ds, 1e-12) * span)))
         blk = min(blk, max(1, s.size // 64))  # enough blocks to see the phase ramp
         m = (s.size // blk) * blk
-        z = y[:m, None] * np.exp(-2j * np.pi * np.outer(s[:m], n / lam0))
+        z = y[:m, None] * np.exp(-2j * np.pi * np.outer(s[:m], n / lam))
         blocks.append((z.reshape(-1, blk, n.size).sum(axis=1),
-                       s[:m].reshape(-1, blk).mean(axis=1), n / lam0, blk * ds))
+                       s[:m].reshape(-1, blk).mean(axis=1), n / lam, blk * ds))
+    if not blocks:
+        return lam
     centre = 0.0  # lambda = lambda_0 / (1 + eps)
     for _ in range(4):
         grid = np.linspace(-span, span, 21)
@@ -513,25 +427,21 @@ def _refine(strokes: Sequence[_Stroke], lam: float, f_lo: float, f_hi: float,
         step = grid[1] - grid[0]
         centre += grid[i] + (0.5 * step * (y0 - y2) / den if den < 0 else 0.0)
         span = 2 * step
-    lam = lam0 / (1.0 + centre)
-    return lam
-
-
-K_MAX = 12  # knots of one harmonic's amplitude along speed
+    return lam / (1.0 + centre)
 
 
 @dataclass
 class _Harmonics:
-    """One stroke's harmonics: each one's complex amplitude, piecewise linear in speed
-    over ``knots[n]`` uniform knots from ``lo[n]`` to ``hi[n]`` (0 knots: no data)."""
+    """One stroke's harmonics: each one's complex amplitude (v / med)^2 times a piecewise
+    linear function over ``knots[n]`` uniform knots from ``lo[n]`` to ``hi[n]`` (0 knots:
+    no data); ``ginv`` the inverse normal matrices."""
 
     lo: Array  # (N,)
     hi: Array  # (N,)
     knots: NDArray[np.int64]  # (N,)
     coef: NDArray[np.complex128]  # (N, K_MAX), the knots' values
-    samples: NDArray[np.int64]  # (N,) the fit's samples (those with the harmonic in band)
-    ginv: Array  # (N, K_MAX, K_MAX) the inverse normal matrices
-    med: float  # the stroke's median speed: the basis is hat(v) (v / med)^2
+    ginv: Array  # (N, K_MAX, K_MAX)
+    med: float
 
     def _hats(self, v: Array, sl: slice) -> tuple[NDArray[np.int64], Array]:
         """(lower knot index, weight of the upper) of each speed for each harmonic."""
@@ -545,8 +455,7 @@ class _Harmonics:
 
     def at(self, v: Array, first: int = 0, count: int | None = None
            ) -> NDArray[np.complex128]:
-        """Complex amplitudes (len(v), count) of harmonics first.. at speeds v (the edge
-        knots' values beyond)."""
+        """Amplitudes (len(v), count) of harmonics first.. (the edge knots' beyond)."""
         sl = slice(first, None if count is None else first + count)
         i0, w = self._hats(v, sl)
         c = self.coef[sl]
@@ -557,7 +466,7 @@ class _Harmonics:
 
     def noise_gain(self, v: Array) -> Array:
         """b(v)^T G^-1 b(v) (len(v), N): the fit's variance at v per unit of noise (b the
-        hat weights at v, G the normal matrix): large where the stroke had few samples."""
+        hat weights at v, G the normal matrix)."""
         i0, w = self._hats(v, slice(None))
         rows = np.arange(self.knots.size)[None, :]
         i1 = np.minimum(i0 + 1, K_MAX - 1)
@@ -568,7 +477,7 @@ class _Harmonics:
 
 def _phasors(s: Array, n0: float, count: int, lam: float) -> NDArray[np.complex128]:
     """exp(-j 2 pi n s / lambda) for n = n0, n0 + 1, ..: (len(s), count), by a running
-    product of the first harmonic's phasor (cheaper than exp; exact to ~count x 1e-16)."""
+    product (cheaper than exp; exact to ~count x 1e-16)."""
     e1 = np.exp(-2j * np.pi * s / lam)
     out = np.empty((s.size, count), complex)
     out[:, 0] = np.exp(-2j * np.pi * n0 * s / lam)
@@ -586,21 +495,15 @@ def _speed_bins(v: Array) -> tuple[NDArray[np.int64], Array, NDArray[np.int64]]:
     return b, np.bincount(b, v, used.size) / cnt, cnt
 
 
-def _fit_stroke(st: _Stroke, lam: float, n_max: int, f_top: float, knot_hz: float
-                ) -> tuple[_Harmonics, Array]:
-    """Per harmonic n = 1..n_max, its complex amplitude as a function of
-    speed by least squares: (v / med)^2 (an acceleration's v^2) times a piecewise linear
-    function between knots spaced so that the harmonic's frequency moves ``knot_hz`` from
-    one to the next (the scale on which a tool's resonance changes it), 3 to K_MAX knots
-    over the stroke's speeds.
+def _grid_row(v: Array, grid: Array) -> NDArray[np.int64]:
+    return np.clip(np.rint((v - grid[0]) / GRID_STEP_MM_S).astype(int), 0, grid.size - 1)
 
-    y ~ Re{c(v) e^{j theta}} with theta = 2 pi n s / lambda: the demodulated
-    y e^{-j theta} ~ c(v) / 2 + terms at 2 theta, which average out over many periods, so
-    each harmonic is a small real-basis least squares on it (a tridiagonal system). The
-    basis is a function of speed alone: the demodulated samples are summed per
-    FINE_MM_S speed bin first (one sparse product), and each harmonic's system is built
-    on the bins. Also returns every fitted harmonic summed over the valid samples (what
-    the noise estimate subtracts), made with the same phasors."""
+
+def _fit_stroke(st: _Stroke, lam: float, n_max: int, f_top: float) -> _Harmonics:
+    """Each harmonic n's amplitude c(v) by least squares: the demodulated
+    y e^{-j 2 pi n s / lambda} ~ c(v) / 2 (the terms at twice the phase average out over
+    many periods), summed per FINE_MM_S speed bin, on the hat basis of 3 to K_MAX knots
+    KNOT_HZ of the harmonic's frequency apart over the stroke's speeds (tridiagonal)."""
     idx = np.flatnonzero(st.valid)
     v, y, s = st.v[idx], st.y[idx], st.s[idx]
     bins, vb, cnt = _speed_bins(v)
@@ -608,29 +511,22 @@ def _fit_stroke(st: _Stroke, lam: float, n_max: int, f_top: float, knot_hz: floa
     summing = sparse.csr_matrix((np.ones(v.size), (bins, np.arange(v.size))),
                                 shape=(vb.size, v.size))
     grow = (vb / st.med) ** 2  # an acceleration's lines grow as v^2
-    lo_all, hi_all = np.zeros(n_max), np.zeros(n_max)
-    kn_all = np.zeros(n_max, np.int64)
-    m_all = np.zeros(n_max, np.int64)
-    coef = np.zeros((n_max, K_MAX), complex)
-    ginv = np.zeros((n_max, K_MAX, K_MAX))
-    phasors = []  # kept for the fitted lines' sum below
+    fit = _Harmonics(np.zeros(n_max), np.zeros(n_max), np.zeros(n_max, np.int64),
+                     np.zeros((n_max, K_MAX), complex), np.zeros((n_max, K_MAX, K_MAX)), st.med)
     for c0 in range(0, n_max, _CHUNK):
         c_n = min(_CHUNK, n_max - c0)
         n = np.arange(c0, c0 + c_n) + 1.0
-        ph = _phasors(s, n[0], c_n, lam)
-        phasors.append(ph)
-        zb = summing @ (ph * y[:, None])  # (bins, c) sums
+        zb = summing @ (_phasors(s, n[0], c_n, lam) * y[:, None])  # (bins, c) sums
         for j in range(c_n):
             nb_in = int(np.searchsorted(vb, f_top * lam / n[j], side="right"))  # in band
             m = int(total[nb_in - 1]) if nb_in else 0
             if m < 64:
                 continue
-            # The knots span all but the sparse 1 % tails of the speeds (clamped beyond):
-            # a knot out there would rest on a handful of samples.
+            # The knots span all but the sparse 1 % tails of the speeds (clamped beyond).
             q_lo = int(np.searchsorted(total, m // 100, side="right"))
             q_hi = int(np.searchsorted(total, m - m // 100, side="left"))
             lo, hi = float(vb[min(q_lo, nb_in - 1)]), float(vb[min(q_hi, nb_in - 1)])
-            k = (int(np.clip(1 + math.ceil((hi - lo) * n[j] / lam / knot_hz), 3, K_MAX))
+            k = (int(np.clip(1 + math.ceil((hi - lo) * n[j] / lam / KNOT_HZ), 3, K_MAX))
                  if hi > lo else 1)
             w_cnt, zj, gj = cnt[:nb_in], zb[:nb_in, j], grow[:nb_in]
             if k > 1:
@@ -638,109 +534,105 @@ def _fit_stroke(st: _Stroke, lam: float, n_max: int, f_top: float, knot_hz: floa
                 i0 = x.astype(np.int64)
                 w1 = (x - i0) * gj
                 w0 = (1 - (x - i0)) * gj
-                # Normal equations of the hat basis: a tridiagonal G, right side B^T z.
+
                 diag = (np.bincount(i0, w_cnt * w0 * w0, k)
                         + np.bincount(i0 + 1, w_cnt * w1 * w1, k))
                 off = np.bincount(i0, w_cnt * w0 * w1, k)[:-1]
                 g = np.diag(diag) + np.diag(off, 1) + np.diag(off, -1)
                 g += np.eye(k) * 1e-6 * diag.sum() / k  # a knot with little data near it
-                rhs = (np.bincount(i0, w0 * zj.real, k) + np.bincount(i0 + 1, w1 * zj.real, k)
-                       + 1j * (np.bincount(i0, w0 * zj.imag, k)
-                               + np.bincount(i0 + 1, w1 * zj.imag, k)))
+                rhs = [np.bincount(i0, w0 * z, k) + np.bincount(i0 + 1, w1 * z, k)
+                       for z in (zj.real, zj.imag)]
                 gi = np.linalg.inv(g)
-                c = 2.0 * (gi @ rhs)
+                c = 2.0 * (gi @ (rhs[0] + 1j * rhs[1]))
             else:
                 gi = np.array([[1.0 / float(np.dot(w_cnt * gj, gj))]])
                 c = np.array([2.0 * complex(np.dot(gj, zj)) * gi[0, 0]])
-            ginv[c0 + j, :k, :k] = gi
-            lo_all[c0 + j], hi_all[c0 + j], kn_all[c0 + j], m_all[c0 + j] = lo, hi, k, m
-            coef[c0 + j, :k] = c
-            coef[c0 + j, k:] = c[-1]
-    fit = _Harmonics(lo_all, hi_all, kn_all, coef, m_all, ginv, st.med)
-    line = np.zeros(v.size)
-    for c0, ph in zip(range(0, n_max, _CHUNK), phasors, strict=True):
-        c_n = ph.shape[1]
-        inband = np.outer(vb, (np.arange(c0, c0 + c_n) + 1.0) / lam) <= f_top
-        amp = fit.at(vb, c0, c_n) * inband
-        line += np.sum(np.real(amp[bins] * np.conj(ph)), axis=1)
-    return fit, line
+            h = c0 + j
+            fit.ginv[h, :k, :k] = gi
+            fit.lo[h], fit.hi[h], fit.knots[h] = lo, hi, k
+            fit.coef[h, :k] = c
+            fit.coef[h, k:] = c[-1]
+    return fit
 
 
-def _spread(values: Array, has: Mask) -> Array:
-    """Each row without data takes the nearest row with data (index along axis 0)."""
-    out = values.copy()
-    j = np.flatnonzero(has)
-    if j.size == 0:
-        return out
-    near = j[np.argmin(np.abs(np.arange(values.shape[0])[:, None] - j[None, :]), axis=1)]
-    return out[near]
+def _lines(st: _Stroke, fit: _Harmonics, lam: float, f_top: float,
+           use_at: Mask | None = None, grid: Array | None = None) -> Array:
+    """The stroke's fitted harmonics summed over its valid samples, in band up to
+    ``f_top`` and, given ``use_at``, where ``use_at[grid row of the speed, n]``."""
+    idx = np.flatnonzero(st.valid)
+    vv, ss_ = st.v[idx], st.s[idx]
+    n_max = fit.knots.size
+    bins, vb, _ = _speed_bins(vv)  # the amplitudes are a function of speed alone
+    line = np.zeros(idx.size)
+    for c0 in range(0, n_max, _CHUNK):
+        cnt = min(_CHUNK, n_max - c0)
+        n = np.arange(c0, c0 + cnt) + 1.0
+        use = np.outer(vb, n / lam) <= f_top
+        if use_at is not None:
+            use = use_at[_grid_row(vb, grid), c0:c0 + cnt] & use
+        amp = fit.at(vb, c0, cnt) * use
+        line += np.sum(np.real(amp[bins] * np.conj(_phasors(ss_, n[0], cnt, lam))), axis=1)
+    return line
 
 
-def _factor_model(power: Array, present: Mask, grid: Array, lam: float, fs_hz: float,
-                  smooth: float = 1.0) -> Array:
-    """log P_n(v) ~ u_n + t(n v / lambda) + g(v), the two-part picture of a periodic
-    surface seen through a tool (docs/texture.md): a level per harmonic (the surface's
-    shape), a function of frequency (the tool's response, piecewise linear every 10 Hz)
-    and one of speed (the drive, one value per grid row), fitted by least squares to the
-    log power of the harmonics present, second differences of t and g penalised; g across
-    rows where no harmonic is present is linear in log speed between the rows where one
-    is. Returns exp of the fit at every (row, harmonic)."""
+def _factor_model(power: Array, present: Mask, grid: Array, lam: float, fs_hz: float
+                  ) -> Array:
+    """log P_n(v) ~ u_n + t(n v / lambda) + g(v) (a surface's harmonic levels through a
+    tool's response, piecewise linear every 10 Hz, scaled by the drive per grid row) by
+    least squares on the log power of the harmonics present, second differences of t and
+    g penalised; exp of it at every (row, harmonic)."""
     nb, n_h = power.shape
     rows, harm = np.nonzero(present & (power > 0))
     if rows.size == 0:
         return np.zeros_like(power)
     f_knots = np.arange(0.0, fs_hz / 2 + 10.0, 10.0)
     nf = f_knots.size
-    freq = grid[rows] * (harm + 1) / lam
-    x = np.clip(freq / 10.0, 0.0, nf - 1 - 1e-9)
+    x = np.clip(grid[rows] * (harm + 1) / lam / 10.0, 0.0, nf - 1 - 1e-9)
     i0 = x.astype(int)
     w1 = x - i0
     m = rows.size
     r = np.arange(m)
-    # Columns: u (n_h), t (nf), g (nb).
+    cols = n_h + nf + nb  # u (n_h), t (nf), g (nb)
     a = sparse.csr_matrix((np.concatenate([np.ones(m), 1 - w1, w1, np.ones(m)]),
-                       (np.concatenate([r, r, r, r]),
-                        np.concatenate([harm, n_h + i0, n_h + i0 + 1, n_h + nf + rows]))),
-                      shape=(m, n_h + nf + nb))
+                           (np.concatenate([r, r, r, r]),
+                            np.concatenate([harm, n_h + i0, n_h + i0 + 1, n_h + nf + rows]))),
+                          shape=(m, cols))
 
     def second_diff(k: int, start: int) -> sparse.csr_matrix:
         if k < 3:  # a one- or two-row speed grid (a constant-speed rig): nothing to bend
-            return sparse.csr_matrix((0, n_h + nf + nb))
+            return sparse.csr_matrix((0, cols))
         d = sparse.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(k - 2, k))
         return sparse.hstack([sparse.csr_matrix((d.shape[0], start)), d,
-                          sparse.csr_matrix((d.shape[0], n_h + nf + nb - start - k))])
+                              sparse.csr_matrix((d.shape[0], cols - start - k))])
 
     pen = sparse.vstack([second_diff(nf, n_h), second_diff(nb, n_h + nf)])
-    lhs = (a.T @ a + smooth * m / max(pen.shape[0], 1) * (pen.T @ pen)
-           + 1e-6 * sparse.identity(n_h + nf + nb)).tocsc()
+    lhs = (a.T @ a + m / max(pen.shape[0], 1) * (pen.T @ pen)
+           + 1e-6 * sparse.identity(cols)).tocsc()
     sol = spla.spsolve(lhs, a.T @ np.log(power[rows, harm]))
-    u, t, g = sol[:n_h], sol[n_h:n_h + nf], sol[n_h + nf:]
-    # Across a gap between rows with lines (no stroke went there, or its lines were under
-    # the noise), g is a power law (linear in log speed) between its ends: the penalty
-    # alone bends it by the slopes it has at them (R1 at 15 mm/s, between strokes at 10
-    # and 20: +2 dB on every line).
+    u, t, g = sol[:n_h], sol[n_h:n_h + nf], sol[n_h + nf:].copy()
+    # Across rows without lines g is a power law between its ends: the penalty alone
+    # bent it (R1 at 15 mm/s, between strokes at 10 and 20: +2 dB on every line).
     have = np.unique(rows)
     gap = np.setdiff1d(np.arange(have[0] + 1, have[-1]), have)
-    g = g.copy()
     g[gap] = np.interp(np.log(grid[gap]), np.log(grid[have]), g[have])
     f_all = np.outer(grid, np.arange(1, n_h + 1) / lam)
     return np.exp(u[None, :] + np.interp(f_all, f_knots, t) + g[:, None])
 
 
 def _fill(power: Array, present: Mask, data: Mask, model: Array) -> Array:
-    """One harmonic's power at every grid row. Rows with data: the measured line (0 where
-    it was below the noise). Rows without: the factor model times its error at the
-    nearest rows with the line (interpolated between two), going linearly to 0 towards a
-    row with data and no line; 0 if the harmonic has no line anywhere, or at only one
-    row that has a neighbour with data (a stroke's fastest or slowest instants: see
-    :func:`_carries_over`)."""
+    """One harmonic's power at every grid row: the measured line where there is data (0
+    under the noise); elsewhere the factor model times its error at the nearest rows
+    with the line, fading linearly to 0 towards a row with data and no line.
+
+    Not carried at all from a single row next to data: a stroke's few fastest or
+    slowest instants, where noise over the threshold grew 15 dB across a gap (canvas,
+    +3.1 dB LSD at 15 mm/s); a single isolated row (a constant-speed rig) is carried."""
     out = np.where(data, power, 0.0)
-    if not _carries_over(present, data):
+    rows = np.flatnonzero(present)  # (a present row always has data)
+    if rows.size == 0 or (rows.size == 1 and data[max(rows[0] - 1, 0):rows[0] + 2].sum() > 1):
         return out
     x = np.arange(power.size, dtype=float)
-    rows = np.flatnonzero(present)
-    err = np.interp(x, rows, np.log(power[rows] / model[rows]))
-    pred = model * np.exp(err)
+    pred = model * np.exp(np.interp(x, rows, np.log(power[rows] / model[rows])))
     drows = np.flatnonzero(data)
     nxt = np.searchsorted(drows, x)  # the first row with data at or after each row
     for i in np.flatnonzero(~data):
@@ -751,64 +643,10 @@ def _fill(power: Array, present: Mask, data: Mask, model: Array) -> Array:
         on_r = right is not None and present[right]
         if (left is None or on_l) and (right is None or on_r):
             out[i] = pred[i]
-        elif on_l or on_r:  # between a row with the line and one without: fade
+        elif on_l or on_r:
             w = (i - left) / (right - left)
             out[i] = pred[i] * ((1 - w) if on_l else w)
     return out
-
-
-def _carries_over(present: Mask, data: Mask) -> bool:
-    """Whether a harmonic's line may be carried into rows without data: seen at two rows
-    or more, or at one row that is data alone (a constant-speed rig's speed). One row at
-    the edge of a run of data is a stroke's few fastest or slowest instants: noise over
-    the threshold there (canvas: harmonics 26 and 31 seen only at 11.5 mm/s, the 10 mm/s
-    strokes' top, 20 dB over what the recordings hold) was carried by the factor model
-    across the 12-17 mm/s gap and grew 15 dB on the way (+3.1 dB LSD at 15 mm/s)."""
-    rows = np.flatnonzero(present)
-    if rows.size != 1:
-        return rows.size > 1
-    r = int(rows[0])
-    return not ((r > 0 and data[r - 1]) or (r + 1 < data.size and data[r + 1]))
-
-
-def _lines(st: _Stroke, fit: _Harmonics, use_at: Mask, grid: Array, lam: float,
-           f_top: float) -> Array:
-    """The stroke's fitted harmonics summed over its valid samples, each where
-    ``use_at[grid row of the sample's speed, n]`` and in band."""
-    idx = np.flatnonzero(st.valid)
-    vv, ss_ = st.v[idx], st.s[idx]
-    nb, n_max = use_at.shape
-    # Amplitudes at the speed bins' speeds, then per sample (a function of speed alone).
-    bins, vb, _ = _speed_bins(vv)
-    row = np.clip(np.rint((vb - grid[0]) / GRID_STEP_MM_S).astype(int), 0, nb - 1)
-    line = np.zeros(idx.size)
-    for c0 in range(0, n_max, _CHUNK):
-        cnt = min(_CHUNK, n_max - c0)
-        n = np.arange(c0, c0 + cnt) + 1.0
-        amp = fit.at(vb, c0, cnt) * (use_at[row, c0:c0 + cnt]
-                                      & (np.outer(vb, n / lam) <= f_top))
-        line += np.sum(np.real(amp[bins] * np.conj(_phasors(ss_, n[0], cnt, lam))), axis=1)
-    return line
-
-
-def _noise_of_fit(rest: Array, fit: _Harmonics, lam: float, fs_hz: float):
-    """v -> (len(v), N): the E|c(v)|^2 that noise alone gives harmonic n's fit at v.
-
-    With the demodulated noise's slow part at half the one-sided spectrum P(f) of the
-    signal near the harmonic, the least-squares fit c = 2 G^-1 B^T z has
-    E|c(v)|^2 = 2 P(f) fs b(v)^T G^-1 b(v) (a constant fit over T seconds: 2 P / T). P is
-    the Welch spectrum of ``rest`` (what every harmonic's fit leaves), median-smoothed
-    over 5 bins so a line left in it does not count as noise."""
-    nper = int(min(256, rest.size))
-    f, p = ss.welch(rest, fs_hz, nperseg=nper)
-    p = ndi.median_filter(p, size=5, mode="nearest")
-    n = np.arange(1, fit.knots.size + 1)
-
-    def q_of(v: Array) -> Array:
-        pf = np.interp(np.outer(v, n / lam), f, p)
-        return 2.0 * pf * fs_hz * fit.noise_gain(v)
-
-    return q_of
 
 
 def fit_lines(signals: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
@@ -821,139 +659,123 @@ def fit_lines(signals: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     (or one below ``MIN_SHARE`` of the power) the residuals are the signals and every
     sample may be used.
     """
-    snr, min_share, knot_hz = DEFAULT_SNR, MIN_SHARE, KNOT_HZ
     signals = [np.asarray(y, float) for y in signals]
     speeds = [np.asarray(v, float) for v in speeds]
-    whole = LineFit.none(signals, "")
     f_top = BAND_TOP * fs_hz / 2
     f_lo = 15.0  # above the 10 Hz high-pass's knee
-    strokes = []
-    for i, (y, v) in enumerate(zip(signals, speeds, strict=True)):
-        span = _stroke_span(v, speed_range, fs_hz)
-        if span is not None and span[1].sum() >= 0.5 * fs_hz:
-            strokes.append(_Stroke(i, y, v, arc_length_mm(v, fs_hz), span[0], span[1]))
+    strokes = [st for i, (y, v) in enumerate(zip(signals, speeds, strict=True))
+               if (st := _stroke(i, y, v, speed_range, fs_hz)) is not None]
     if not strokes:
-        whole.note = "no stroke holds 0.5 s within the modelled speeds"
-        return whole
-    found = estimate_period(strokes, f_lo, f_top, period_mm)
-    if found is None:
-        whole.note = ("no spatial period (no harmonic comb stands out of the spectrum, nor "
-                      "a rib's line in every stroke whose band holds it)")
-        return whole
-    lam = found.period_mm
+        return LineFit.none(signals, "no stroke holds 0.5 s within the modelled speeds")
+    rib = None  # a rib's highest harmonic (None: a comb or a given period)
+    if period_mm is not None:
+        lam = _refine(strokes, float(period_mm), f_lo, f_top, 0.02)
+    elif (lam := _comb_period(strokes, f_lo, f_top)) is None:
+        if (found := _rib(strokes, f_top)) is None:
+            return LineFit.none(signals, "no spatial period (no harmonic comb stands out of "
+                                "the spectrum, nor a rib's line in every stroke whose band "
+                                "holds it)")
+        lam, rib = found
     n_max = int(max(math.floor(f_top * lam / float(st.v[st.valid].min())) for st in strokes))
-    if found.harmonics is not None:
-        # A rib: only the harmonics that stood as spatial peaks. Every harmonic in band,
-        # kept at the noise rule's odds (a few cells per thousand over every harmonic
-        # and row), gave corduroy 47 narrow lines of noise, and its held-out strokes
-        # scored 0.04-0.11 dB better with its one line alone.
-        n_max = min(n_max, found.harmonics)
+    if rib is not None:
+        # Only the harmonics that stood as peaks: every one in band gave corduroy 47
+        # narrow lines of noise (held out 0.04-0.11 dB worse than its one line).
+        n_max = min(n_max, rib)
     capped = n_max > MAX_HARMONICS
     n_max = min(n_max, MAX_HARMONICS)
     if n_max < 1:
-        whole.note = f"period {lam:.4g} mm: no harmonic within the band"
-        return whole
+        return LineFit.none(signals, f"period {lam:.4g} mm: no harmonic within the band")
     grid = np.arange(math.floor(speed_range[0] / GRID_STEP_MM_S) * GRID_STEP_MM_S,
                      speed_range[1] + GRID_STEP_MM_S / 2, GRID_STEP_MM_S)
     grid = grid[grid > 0]
     nb = grid.size
-    p_sum = np.zeros((nb, n_max))
-    q_sum = np.zeros((nb, n_max))
-    w_sum = np.zeros((nb, n_max))
-    fitted = [_fit_stroke(st, lam, n_max, f_top, knot_hz) for st in strokes]
-    fits = [f for f, _ in fitted]
+    p_sum, q_sum, w_sum = np.zeros((nb, n_max)), np.zeros((nb, n_max)), np.zeros((nb, n_max))
     strong = np.zeros((nb, n_max), bool)
-    for st, (fit, every_line) in zip(strokes, fitted, strict=True):
-        # What a fit of this many knots catches of the noise alone: from the spectrum of
-        # what every harmonic's fit leaves (module docstring, step 3).
-        q_of = _noise_of_fit(st.y[st.valid] - every_line, fit, lam, fs_hz)
-        vv = st.v[st.valid]
-        b = np.clip(np.rint((vv - grid[0]) / GRID_STEP_MM_S).astype(int), 0, nb - 1)
-        cnt = np.bincount(b, minlength=nb).astype(float)
+    fits = [_fit_stroke(st, lam, n_max, f_top) for st in strokes]
+    harm = np.arange(1, n_max + 1) / lam  # cycles/mm
+    for st, fit in zip(strokes, fits, strict=True):
+        cnt = np.bincount(_grid_row(st.v[st.valid], grid), minlength=nb).astype(float)
         rows = np.flatnonzero(cnt)
-        inband = np.outer(grid[rows], np.arange(1, n_max + 1) / lam) <= f_top
-        w = cnt[rows, None] * inband * (fit.knots > 0)[None, :]
-        p_rows, q_rows = np.abs(fit.at(grid[rows])) ** 2, q_of(grid[rows])
+        w = cnt[rows, None] * (np.outer(grid[rows], harm) <= f_top) * (fit.knots > 0)[None, :]
+        p_rows = np.abs(fit.at(grid[rows])) ** 2
+        # What noise alone gives the fit, E|c(v)|^2 = 2 P(f) fs b^T G^-1 b, with P the
+        # spectrum of what every harmonic's fit leaves (median-smoothed: no line in it).
+        rest = st.y[st.valid] - _lines(st, fit, lam, f_top)
+        f, p = ss.welch(rest, fs_hz, nperseg=int(min(256, rest.size)))
+        p = ndi.median_filter(p, size=5, mode="nearest")
+        q_rows = 2.0 * np.interp(np.outer(grid[rows], harm), f, p) * fs_hz * fit.noise_gain(
+            grid[rows])
         p_sum[rows] += w * p_rows
         q_sum[rows] += w * q_rows
         w_sum[rows] += w
-        # A stroke whose own fit stands far out at a row makes the line present there
-        # whatever the pool's mean says (a speed few strokes reached); not at the pool's
-        # threshold: many weak harmonics over many rows would keep noise as lines.
-        strong[rows] |= (w > 0) & (p_rows > OWN_SNR_FACTOR * snr * q_rows)
+        # A stroke's own fit far out makes the line present at a row (a speed few strokes
+        # reached); not at the pool's threshold, which would keep many weak cells of noise.
+        strong[rows] |= (w > 0) & (p_rows > OWN_SNR_FACTOR * DEFAULT_SNR * q_rows)
     data = w_sum >= MIN_BIN_S * fs_hz
     with np.errstate(invalid="ignore", divide="ignore"):
         p_mean = np.where(data, p_sum / w_sum, 0.0)
         q_mean = np.where(data, q_sum / w_sum, 0.0)
-    present = data & ((p_mean > snr * q_mean) | strong)
-    # A line persists from one 0.5 mm/s row to the next; noise over the threshold does not
-    # (a few cells in a thousand at snr 3): a row counts unless every neighbour with data
-    # disagrees (a row whose neighbours have no data stands on its own: a constant-speed
-    # rig, the fastest instants of a stroke).
+    present = data & ((p_mean > DEFAULT_SNR * q_mean) | strong)
+    # A line persists from one row to the next, noise over the threshold does not: a row
+    # counts unless every neighbour with data disagrees.
     agree = np.zeros_like(present)
     agree[1:] |= present[:-1] | ~data[:-1]
     agree[:-1] |= present[1:] | ~data[1:]
-    agree[[0, -1]] |= True if nb == 1 else False
+    agree[[0, -1]] |= nb == 1
     present &= agree
-    # Amplitude^2 of the line alone; where only one stroke's fit made it present, the
-    # pool's mean over strokes may not clear the noise's: at least a quarter of the mean.
+    # Amplitude^2 of the line alone; at least a quarter of the mean where one stroke's
+    # fit made it present.
     power = np.where(present, np.maximum(p_mean - q_mean, 0.25 * p_mean), 0.0)
     present &= power > 0
-    # Each harmonic's rows: the table from its rows with data (interpolated per column).
+    if not present.any():
+        return LineFit.none(signals, f"period {lam:.4g} mm: no harmonic stands over the noise",
+                            lam)
     model = _factor_model(power, present, grid, lam, fs_hz)
     table = np.zeros_like(power)
     for n in range(n_max):
         table[:, n] = _fill(power[:, n], present[:, n], data[:, n], model[:, n])
     # A row is mixed in up to the next row's speed: its harmonics must stay in band there.
-    freq = np.outer(grid + GRID_STEP_MM_S, np.arange(1, n_max + 1) / lam)
+    freq = np.outer(grid + GRID_STEP_MM_S, harm)
     taper = np.clip((BAND_TOP * fs_hz / 2 - freq) / ((BAND_TOP - TAPER_START) * fs_hz / 2),
                     0.0, 1.0)
     amplitude = np.sqrt(table) * (0.5 - 0.5 * np.cos(np.pi * taper))
-    # Subtraction: a harmonic is removed where its nearest row with data keeps it.
-    keep_near = np.zeros((nb, n_max), bool)
+    # Subtracted where the nearest row with data keeps the harmonic, up to the taper: above
+    # it a stroke's fit over-states its harmonics (the decimation filter's roll-off moves
+    # faster than its knots; R1 at 40 mm/s: residual up to 6 dB over the signal).
+    keep_near = present.copy()
     for n in range(n_max):
-        keep_near[:, n] = _spread(present[:, n].astype(float), data[:, n]) > 0.5
-    # Up to where the table's taper starts: above it a stroke's fit over-states its
-    # harmonics (the decimation filter's roll-off moves across a harmonic's speed range
-    # faster than its knots), and taking them out left the residual up to 6 dB over the
-    # signal at 470-500 Hz (R1 at 40 mm/s: +2 dB at 450-500 Hz rendered).
-    f_sub = TAPER_START * fs_hz / 2
+        j = np.flatnonzero(data[:, n])
+        if j.size:
+            keep_near[:, n] = present[j[np.argmin(np.abs(np.arange(nb)[:, None] - j[None, :]),
+                                                  axis=1)], n]
     residuals = list(signals)  # a stroke without a line fit: none of it is clean
     keeps = [np.zeros(y.size, bool) for y in signals]
     line_energy = total_energy = 0.0
     for st, fit in zip(strokes, fits, strict=True):
         idx = np.flatnonzero(st.valid)
         r = st.y.copy()
-        r[idx] -= _lines(st, fit, keep_near, grid, lam, f_sub)
+        r[idx] -= _lines(st, fit, lam, TAPER_START * fs_hz / 2, keep_near, grid)
         residuals[st.index] = r
         keeps[st.index] = st.valid.copy()
         line_energy += float(np.dot(st.y[idx], st.y[idx]) - np.dot(r[idx], r[idx]))
         total_energy += float(np.dot(st.y[idx], st.y[idx]))
     share = line_energy / total_energy if total_energy > 0 else 0.0
-    if not present.any():
-        whole.note = f"period {lam:.4g} mm: no harmonic stands over the noise"
-        whole.period_mm = lam
-        return whole
-    if period_mm is None and share < min_share:
-        whole.note = (f"period {lam:.4g} mm: its lines hold {100 * share:.1f} % of the power "
-                      f"(< {100 * min_share:g} %): left to the all-pole model")
-        whole.period_mm = lam
-        whole.share = share
-        return whole
+    if period_mm is None and share < MIN_SHARE:
+        return LineFit.none(signals, f"period {lam:.4g} mm: its lines hold {100 * share:.1f} % "
+                            f"of the power (< {100 * MIN_SHARE:g} %): left to the all-pole "
+                            "model", lam, share)
     ref = min(range(len(strokes)), key=lambda i: (strokes[i].med, -strokes[i].valid.sum()))
     phase = np.angle(fits[ref].at(np.array([strokes[ref].med]))[0])
-    spectrum = LineSpectrum(lam, grid, amplitude, phase)
     kept = int(np.sum(present.any(axis=0)))
-    if found.kind == "rib":
-        what = ("a rib: one line" if kept == 1 else f"a rib: {kept} harmonics") + ", no comb"
-    else:
-        what = f"{kept} harmonics kept"
+    what = f"{kept} harmonics kept" if rib is None else (
+        f"a rib: {'one line' if kept == 1 else f'{kept} harmonics'}, no comb")
     note = (f"period {lam:.4f} mm, {what}, {100 * share:.1f} % of the power in "
             + ("the line" if kept == 1 else "lines"))
     if capped:
         note += (f"; harmonics above the {MAX_HARMONICS}th (in band only at the slowest "
                  "speeds) are left to the all-pole model")
-    if period_mm is not None and share < min_share:
+    if period_mm is not None and share < MIN_SHARE:
         note += (f"; only {100 * share:.1f} % of the power at the given period: check it "
                  "(it is refined within about 2 %)")
-    return LineFit(spectrum, residuals, keeps, lam, share, note)
+    return LineFit(LineSpectrum(lam, grid, amplitude, phase), residuals, keeps, lam, share,
+                   note)
