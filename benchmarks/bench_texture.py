@@ -94,7 +94,7 @@ def main() -> None:
                 r.tick(float(s), True)
 
         t_hand_tick = best(hand_ticks, 5)
-        what = f"{form}/{r.method}/{r.structure}"
+        what = f"{form}/{r.interpolation}/{r.structure}"
         print(f"  [{what}] renderer start-up (speed table): {t_build * 1e3:.0f} ms")
         print(f"  [{what}] block synthesis, 1 s at constant speed: {t_block * 1e3:.3f} ms = "
               f"{1 / t_block:.0f}x real time (target >= 1000x); speed sweeping 10-40 mm/s "

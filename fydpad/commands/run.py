@@ -19,11 +19,6 @@ if TYPE_CHECKING:  # annotations only: the station loads inside the command
     from fydpad.station.station import Station
     from fydpad.texture.family import TextureFamily
 
-#: fydpad.texture.lpc.interpolation.METHODS, written out so that --help loads no texture code
-#: (tests/cli/test_fast_help.py keeps the two equal).
-TEXTURE_METHODS = ("nearest", "stretch")
-
-
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "run",
@@ -95,10 +90,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_link_arguments(p)
     p.add_argument("--vibration-gain", type=float, default=1.0,
                    help="texture vibration gain (the paper: 1)")
-    p.add_argument("--texture-method", choices=TEXTURE_METHODS, default=None,
-                   help="an LPC model's interpolation between its fitted speeds (default: the "
-                   "model file's, which fit chose): nearest (the paper's per-speed fits) or "
-                   "stretch (the calibrated spectrum) (docs/texture.md)")
     p.add_argument("--drive-filter", action="store_true",
                    help="band-pass an LPC model's vibration through its file's drive band "
                    "(the paper's 165-220 Hz, where the fabric's actuators respond)")
@@ -453,11 +444,11 @@ def run(args: argparse.Namespace) -> int:
     if args.texture:  # a bad model file fails here, in one line, not in the render process
         from fydpad.station.texture_source import check_texture
 
-        family = check_texture(args.texture, config.loops.render_hz, args.texture_method,
+        family = check_texture(args.texture, config.loops.render_hz,
                                args.drive_filter)  # a wrong rate would play a wrong pitch
         _say_texture_gaps(family, args.texture)
-    elif args.texture_method or args.drive_filter:
-        raise UserError("--texture-method and --drive-filter need --texture MODEL")
+    elif args.drive_filter:
+        raise UserError("--drive-filter needs --texture MODEL")
     if args.compensate:  # a TF file of another chain fails here, in one line
         from fydpad.chain.tf_file import load_tf_set
 
@@ -468,7 +459,6 @@ def run(args: argparse.Namespace) -> int:
         rate_hz=config.loops.render_hz,
         texture=args.texture,
         vibration_gain=args.vibration_gain,
-        texture_method=args.texture_method,
         drive_filter=args.drive_filter,
         stiffness_n_per_mm=_stiffness(args),
         motors=args.motors,

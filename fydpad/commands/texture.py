@@ -22,14 +22,7 @@ if TYPE_CHECKING:  # annotations only
 #: fydpad.texture.families.KIND_NAMES and FIT_KIND_NAMES
 KIND_NAMES = ("lpc", "friction", "grating", "mlp", "penn")
 FIT_KIND_NAMES = ("lpc", "friction", "grating", "mlp")
-#: fydpad.texture.lpc.interpolation.METHODS and DEFAULT_METHOD
-METHODS = ("nearest", "stretch")
-DEFAULT_METHOD = None
 
-#: The interpolation between modelled speeds (fydpad.texture.lpc.interpolation, docs/texture.md).
-INTERPOLATION_HELP = ("interpolation between modelled speeds (default: the model file's "
-                      "own, which fit chose): nearest (Bianchi 2015's per-speed fits), "
-                      "stretch (the calibrated speed-resolved spectrum)")
 
 def _floats(text: str) -> list[float]:
     try:
@@ -173,8 +166,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="rate of the audio channel (default 48000)")
     s.add_argument("--x0-mm", type=float,
                    help="position-indexed kinds: start of the stroke (default: the model's)")
-    s.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD,
-                   help=INTERPOLATION_HELP)
     s.add_argument("--drive-filter", action="store_true",
                    help="apply the model's drive band filter (e.g. 165-220 Hz) to the output")
     s.add_argument("--seed", type=int, default=0,
@@ -198,8 +189,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "the means: one stroke against one second recording is a draw)")
     e.add_argument("--json", metavar="OUT.json", help="write the figures as JSON")
     e.add_argument("--plot", metavar="FIG.png", help="recorded against synthesized spectra")
-    e.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD,
-                   help=INTERPOLATION_HELP)
     e.add_argument("--seed", type=int, default=0,
                    help="noise seed of an LPC model's synthesis (default 0; the i-th of "
                    "several scans takes SEED + i, a draw of its own)")
@@ -230,8 +219,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     i.add_argument("--json", metavar="OUT.json",
                    help="write {rate, labels, confusion, assignments}")
     i.add_argument("--plot", metavar="FIG.png", help="the confusion matrix")
-    i.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD,
-                   help=INTERPOLATION_HELP)
     i.add_argument("--distance", choices=("bands", "lsd", "shape"),
                    help="between the spectra: bands (the LPC family's default: RMS dB "
                    "difference of the third-octave band levels), lsd (log-spectral distance "
@@ -405,7 +392,7 @@ def run_synth(args: argparse.Namespace) -> int:
         _check_out(args.out, "--out")
     syn = ops.synthesize(args.model, speed_mm_s=args.speed_mm_s, seconds=args.seconds,
                          channel=args.channel, force_n=args.force_n, audio_hz=args.audio_hz,
-                         x0_mm=args.x0_mm, kind=args.kind, method=args.method,
+                         x0_mm=args.x0_mm, kind=args.kind,
                          drive_filter=args.drive_filter, seed=args.seed)
     _warn("synth", syn.warnings, args.model)
     if syn.unscanned:
@@ -449,8 +436,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
 
     _check_out(args.json, "--json")
     _check_out(args.plot, "--plot")
-    results = ops.evaluate_model(args.model, args.scan, args.second, seed=args.seed,
-                                 method=args.method)
+    results = ops.evaluate_model(args.model, args.scan, args.second, seed=args.seed)
     for path, r in zip(args.scan, results, strict=True):
         if len(args.scan) > 1:
             print(f"{path}:")
@@ -478,7 +464,7 @@ def run_identify(args: argparse.Namespace) -> int:
     _check_out(args.json, "--json")
     _check_out(args.plot, "--plot")
     kind, ident = ops.identify_models(
-        args.models, args.scans, distance=args.distance, seed=args.seed, method=args.method,
+        args.models, args.scans, distance=args.distance, seed=args.seed,
         wrap=lambda it: progress(it, total=len(args.scans), desc="identify"))
     print(f"{kind}: identification rate {ident.rate:.1%} ({len(args.scans)} scans, "
           f"{len(args.models)} models)")

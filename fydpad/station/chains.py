@@ -25,10 +25,10 @@ class DriveChain:
         # Every model is loaded now, so switching (the experiment's stimuli) reads no file
         # in the 1 kHz loop: slot 0 is --texture (None: none), then spec.textures.
         self.specs = [spec.texture, *spec.textures]
-        # --texture-method/--drive-filter: an error on a --texture of another family
-        # (checked before the station starts), ignored on the stimuli of other families.
-        self.models = [None if s is None else _TickModel(s, spec.rate_hz, spec.texture_method,
-                                                         spec.drive_filter, lenient=k > 0)
+        # --drive-filter: an error on a --texture of another family (checked before the
+        # station starts), ignored on the stimuli of other families.
+        self.models = [None if s is None else _TickModel(s, spec.rate_hz, spec.drive_filter,
+                                                         lenient=k > 0)
                        for k, s in enumerate(self.specs)]
         if spec.textures:  # the commands log says which model each tick rendered
             self.outputs = (*DriveChain.outputs, "texture")
@@ -154,10 +154,9 @@ def _same(a: float, b: float) -> bool:
 class _TickModel:
     """A texture family opened for the 1 kHz tick, with where its tick puts each channel."""
 
-    def __init__(self, spec: str, rate_hz: float, method: str | None = None,
-                 drive_filter: bool = False, lenient: bool = False):
-        self.family = open_texture(spec, rate_hz, method=method, drive_filter=drive_filter,
-                                   lenient=lenient)
+    def __init__(self, spec: str, rate_hz: float, drive_filter: bool = False,
+                 lenient: bool = False):
+        self.family = open_texture(spec, rate_hz, drive_filter=drive_filter, lenient=lenient)
         ch = self.family.tick_channels
         self.needs_speed = "speed_mm_s" in self.family.needs
         # Where the family's tick puts each 1 kHz channel (-1: not rendered).

@@ -22,8 +22,6 @@ class RenderSpec:
     #: ``texture_index`` (1, 2, ...; 0 is ``texture``): no file I/O in the 1 kHz loop.
     textures: tuple[str, ...] = ()
     vibration_gain: float = 1.0
-    #: LPC models' interpolation between fitted speeds (None: the default, "stretch").
-    texture_method: str | None = None
     #: Band-pass LPC models' vibration through the model file's drive band (paper III-B:
     #: 165-220 Hz, where the fabric's actuator chain responds).
     drive_filter: bool = False

@@ -20,41 +20,34 @@ def tick_speed() -> CentroidSpeed:
     then ``tick(dt_s)`` gives the speed (mm/s, 0 without contact)."""
     return CentroidSpeed(cutoff_hz=10.0)
 
-#: ``fydpad run`` options -> the render parameter they set.
-OPTION_PARAMETERS = {"--texture-method": "method", "--drive-filter": "drive_filter"}
+def apply_options(family: TextureFamily, spec: str, drive_filter: bool = False,
+                  lenient: bool = False) -> None:
+    """Set ``--drive-filter`` on a family that has that render parameter (the LPC
+    family); on another family it is an error naming the spec, unless ``lenient`` (the
+    experiment's stimuli, a mix of families)."""
+    if not drive_filter:
+        return
+    if "drive_filter" in family.parameters:
+        family.set_parameter("drive_filter", True)
+    elif not lenient:
+        raise UserError(f"{spec}: --drive-filter applies to LPC texture models (their "
+                        f"'drive_filter' parameter); this one is {family.kind!r}")
 
 
-def apply_options(family: TextureFamily, spec: str, method: str | None = None,
-                  drive_filter: bool = False, lenient: bool = False) -> None:
-    """Set ``--texture-method``/``--drive-filter`` on a family that has those render
-    parameters (the LPC family); on another family they are an error naming the spec,
-    unless ``lenient`` (the experiment's stimuli, a mix of families)."""
-    for flag, value in (("--texture-method", method), ("--drive-filter", drive_filter or None)):
-        if value is None:
-            continue
-        name = OPTION_PARAMETERS[flag]
-        if name in family.parameters:
-            family.set_parameter(name, value)
-        elif not lenient:
-            raise UserError(f"{spec}: {flag} applies to LPC texture models (their {name!r} "
-                            f"parameter); this one is {family.kind!r}")
-
-
-def check_texture(spec: str, rate_hz: float, method: str | None = None,
-                  drive_filter: bool = False) -> TextureFamily:
+def check_texture(spec: str, rate_hz: float, drive_filter: bool = False) -> TextureFamily:
     """Read ``[KIND:]MODEL``, check it ticks at ``rate_hz`` and takes the options: in the
     main process, so a bad model fails in one line before the station starts."""
     family = load_family(spec)
     family.check_rate(rate_hz)
-    apply_options(family, spec, method, drive_filter)
+    apply_options(family, spec, drive_filter)
     return family
 
 
-def open_texture(spec: str, rate_hz: float, method: str | None = None,
-                 drive_filter: bool = False, lenient: bool = False) -> TextureFamily:
+def open_texture(spec: str, rate_hz: float, drive_filter: bool = False,
+                 lenient: bool = False) -> TextureFamily:
     """The family of ``[KIND:]MODEL`` prepared for ``tick`` at ``rate_hz``: everything
     built now, not on the first tick."""
     family = load_family(spec)
-    apply_options(family, spec, method, drive_filter, lenient)
+    apply_options(family, spec, drive_filter, lenient)
     family.prepare(rate_hz)
     return family

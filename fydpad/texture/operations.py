@@ -282,8 +282,6 @@ def evaluate_scan_file(spec: str, family: TextureFamily, path: str, second: str 
     out = {"model": spec, "kind": family.kind, "scan": path, **c.to_json(),
            "interpolated_share": share,
            "note": "time_correlation compares independent realisations: ~0 expected"}
-    if "method" in family.parameters:
-        out["method"] = family.parameters["method"]
     ev = Evaluated(out, c, f, pr, ps, sec, f"{scan.surface} vs {family.surface or family.kind}")
     ev.lines.append(
         f"{family.kind}: power-spectrum correlation (20-500 Hz) {c.psd_correlation:.3f} "
@@ -307,13 +305,12 @@ def evaluate_scan_file(spec: str, family: TextureFamily, path: str, second: str 
 
 
 def evaluate_model(spec: str, scan_paths: list[str], seconds: list[str] | None = None,
-                   seed: int = 0, **parameters: Any) -> list[Evaluated]:
+                   seed: int = 0) -> list[Evaluated]:
     """Each scan (the i-th its own noise draw, ``seed + i``) with its second recording."""
     if seconds and len(seconds) != len(scan_paths):
         raise UserError(f"--second: {len(seconds)} recording(s) for {len(scan_paths)} "
                         "scan(s): give --second once per scan, in the same order")
     family = load_family(spec)
-    set_render_parameters(family, **parameters)
     results = [evaluate_scan_file(spec, family, p, seconds[i] if seconds else None, seed + i)
                for i, p in enumerate(scan_paths)]
     for path, r in zip(scan_paths[1:], results[1:], strict=True):
@@ -395,8 +392,7 @@ def plot_evaluation(path: str, results: list[Evaluated]) -> None:
 
 
 def identify_models(specs: list[str], scan_paths: list[str], *, distance: str | None = None,
-                    seed: int = 0, wrap: Callable[[Iterable], Iterable] = lambda it: it,
-                    **parameters: Any
+                    seed: int = 0, wrap: Callable[[Iterable], Iterable] = lambda it: it
                     ) -> tuple[str, Identification]:
     """Every scan assigned to the model of ``specs`` (one family, one per surface) of
     nearest spectrum along the scan's stroke (``distance``: the family's default)."""
@@ -406,8 +402,6 @@ def identify_models(specs: list[str], scan_paths: list[str], *, distance: str | 
                         "one family's models per run (one confusion matrix per family)")
     kind = next(iter(kinds))
     fams = [load_family(p) for p in specs]
-    for fam in fams:
-        set_render_parameters(fam, **parameters)
     labels = [f.surface or Path(p).stem for f, p in zip(fams, specs, strict=True)]
     scans = read_scans(scan_paths)
     with warnings.catch_warnings():

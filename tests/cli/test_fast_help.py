@@ -54,22 +54,12 @@ def test_the_one_help_lines_are_the_commands_own():
     assert own == cli.COMMANDS
 
 
-def test_run_lists_the_texture_methods_there_are():
-    from fydpad.commands.run import TEXTURE_METHODS
-    from fydpad.texture.lpc.interpolation import METHODS
-
-    assert TEXTURE_METHODS == METHODS
-
-
-def test_texture_lists_the_families_and_methods_there_are():
+def test_texture_lists_the_families_there_are():
     from fydpad.commands import texture
     from fydpad.texture import families
-    from fydpad.texture.lpc import interpolation
 
     assert texture.KIND_NAMES == families.KIND_NAMES
     assert texture.FIT_KIND_NAMES == families.FIT_KIND_NAMES
-    assert texture.METHODS == interpolation.METHODS
-    assert texture.DEFAULT_METHOD == interpolation.DEFAULT_METHOD
 
 
 def test_synth_lists_the_trajectories_effects_and_videos_there_are():

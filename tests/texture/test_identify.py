@@ -58,8 +58,8 @@ def test_identify_does_not_depend_on_the_order_of_the_scans():
         models = [fit_texture([generate_scan(n, s, 3.0, seed=1) for s in (10.0, 20.0)],
                               speeds_mm_s=(10.0, 20.0)) for n in ("R1", "felt")]
         scans = [generate_scan(n, 15.0, 3.0, seed=7) for n in ("R1", "felt")]
-        a = identify(models, scans, method="stretch")
-        b = identify(models, scans[::-1], method="stretch")
+        a = identify(models, scans)
+        b = identify(models, scans[::-1])
     assert a.assignments[0]["distance_db"] == b.assignments[1]["distance_db"]
     assert a.assignments[1]["distance_db"] == b.assignments[0]["distance_db"]
     assert a.assignments[0]["distance"] == "bands"

@@ -19,7 +19,7 @@ from fydpad.texture.families import KINDS, fit_family, load_family
 from fydpad.texture.family import TickPosition, constant_stroke, save_model_json
 from fydpad.texture.lpc.family import LpcFamily
 from fydpad.texture.lpc.fit import fit_paper, fit_texture
-from fydpad.texture.lpc.interpolation import DEFAULT_METHOD, build_table
+from fydpad.texture.lpc.interpolation import build_table
 from fydpad.texture.lpc.model_file import save_model
 from fydpad.texture.lpc.synthesis import TextureRenderer
 from tests.conftest import REPO
@@ -51,7 +51,7 @@ def test_lpc_adapter_renders_what_the_renderer_does(files):
     fam.set_parameter("seed", 3)
     fb = constant_stroke(20.0, 1.0, 1000.0)
     y = fam.render(fb, "vibration")
-    r = TextureRenderer(fam.model, method=DEFAULT_METHOD, seed=3, ramp_s=1e-6)
+    r = TextureRenderer(fam.model, seed=3, ramp_s=1e-6)
     r.warmup(20.0, 0.5)
     np.testing.assert_array_equal(y, r.block(fb.speed_mm_s, fb.contact))
     fam.prepare(1000.0)
@@ -111,18 +111,24 @@ def _ticks(family, n: int = 3000) -> np.ndarray:
     return _station_ticks(family, lambda t: 5.0 + 20.0 * t, n)[1000:]
 
 
-def test_station_renders_the_evaluated_method_and_the_drive_band(files):
-    """The station's 1 kHz path renders the interpolation the commands score (the default,
-    "stretch", unless --texture-method says otherwise), and --drive-filter puts the
-    vibration in the model's drive band (165-220 Hz, Bianchi 2015 III-B)."""
+def test_station_renders_the_files_interpolation_and_the_drive_band(files, tmp_path):
+    """The station's 1 kHz path renders the interpolation the model file names (the one
+    the commands score: "stretch" for the calibrated form, "nearest" for the paper's
+    per-speed fits), and --drive-filter puts the vibration in the model's drive band
+    (165-220 Hz, Bianchi 2015 III-B)."""
     model_path = str(files / "lpc.json")
     plain = open_texture(model_path, 1000.0)
-    table = build_table(plain.model, DEFAULT_METHOD)
+    assert plain.model.interpolation == plain.tick_renderer.interpolation == "stretch"
+    table = build_table(plain.model)
     np.testing.assert_array_equal(plain.tick_renderer.table.polys, table.polys)
-    linear = open_texture(model_path, 1000.0, method="nearest")
-    assert linear.tick_renderer.method == "nearest"
-    lin = linear.tick_renderer.table  # between the fitted speeds: not the same filter
-    assert not np.allclose(lin.polys[lin.index(20.0)], table.polys[table.index(20.0)])
+    scans = [generate_scan("canvas", v, 3.0, seed=1) for v in (10.0, 30.0)]
+    save_model(fit_paper(scans, order=40), tmp_path / "paper.json")
+    per_speed = open_texture(str(tmp_path / "paper.json"), 1000.0)
+    assert per_speed.tick_renderer.interpolation == "nearest"
+    m, lin = per_speed.model, per_speed.tick_renderer.table
+    for v in (m.speeds_mm_s[0], 20.0, 20.4, m.speeds_mm_s[-1]):  # the nearest fit, unchanged
+        j = int(np.argmin(np.abs(m.speeds_mm_s - v)))
+        np.testing.assert_array_equal(lin.polys[lin.index(v)], m.poly(j))
     band = open_texture(model_path, 1000.0, drive_filter=True)
     # One noise draw through both: what differs is the filter alone.
     for family in (plain, band):
@@ -160,12 +166,12 @@ def test_lpc_options_on_another_family_are_one_line_errors(files, capsys):
     with pytest.raises(UserError, match="--drive-filter applies to LPC"):
         open_texture(str(files / "friction.json"), 1000.0, drive_filter=True)
     assert main(["run", "--synthetic", "circle", "--motors", "sim", "--texture",
-                 str(files / "grating.json"), "--texture-method", "nearest"]) == 2
+                 str(files / "grating.json"), "--drive-filter"]) == 2
     err = capsys.readouterr().err
-    assert "grating.json: --texture-method applies to LPC" in err
+    assert "grating.json: --drive-filter applies to LPC" in err
     assert err.count("\n") == 1
     assert main(["run", "--synthetic", "circle", "--drive-filter"]) == 2
-    assert "need --texture MODEL" in capsys.readouterr().err
+    assert "needs --texture MODEL" in capsys.readouterr().err
 
 
 def test_command_line_bad_model_is_one_line_exit_2(files, tmp_path):
@@ -205,21 +211,20 @@ def test_switching_stimuli_starts_the_next_from_no_speed(files):
 
 
 def test_lpc_options_reach_lpc_stimuli_and_pass_over_the_others(files):
-    """An experiment's stimuli mix families: --drive-filter and --texture-method apply to
-    its LPC models and pass over a grating (they stopped the station at start)."""
+    """An experiment's stimuli mix families: --drive-filter applies to its LPC models
+    and passes over a grating (it stopped the station at start)."""
     from fydpad.config import StationConfig
     from fydpad.station.chains import build_render_chain
     from fydpad.station.render import RenderSpec
 
     spec = RenderSpec(texture=str(files / "lpc.json"),
                       textures=(f"grating:{files / 'grating.json'}", str(files / "lpc.json")),
-                      motors="sim", config=StationConfig(), drive_filter=True,
-                      texture_method="nearest")
+                      motors="sim", config=StationConfig(), drive_filter=True)
     chain = build_render_chain(spec)
     try:
         lpc0, grating, lpc2 = (m.family for m in chain.models)
         for fam in (lpc0, lpc2):
-            assert fam.tick_renderer.method == "nearest" and fam.tick_renderer._sos is not None
+            assert fam.tick_renderer._sos is not None
         assert grating.kind == "grating"
     finally:
         chain.safe_stop()

@@ -17,7 +17,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from fydpad.texture.lpc.analysis import runs
 from fydpad.texture.lpc.dft321 import preprocess
-from fydpad.texture.lpc.interpolation import DEFAULT_METHOD
 from fydpad.texture.lpc.model_file import TextureModel
 from fydpad.texture.lpc.synthesis import synthesize
 from fydpad.texture.scan_io import Scan
@@ -183,13 +182,13 @@ def evaluation_mask(scan: Scan, model: TextureModel) -> NDArray[np.bool_]:
     return (v >= model.speeds_mm_s[0] - tol) & (v <= model.speeds_mm_s[-1] + tol)
 
 
-def evaluate_scan(model: TextureModel, scan: Scan, *, method: str = DEFAULT_METHOD, seed: int = 0,
+def evaluate_scan(model: TextureModel, scan: Scan, *, seed: int = 0,
                   mask: ArrayLike | None = None) -> tuple[Comparison, dict]:
     """Synthesize along the scan's own speed trace and compare with its DFT321 signal."""
     if abs(scan.fs_hz - model.fs_hz) > 1e-6 * model.fs_hz:
         raise ValueError(f"{scan.path}: sample rate {scan.fs_hz:g} Hz, model {model.fs_hz:g} Hz")
     rec = preprocess(scan.acc, scan.fs_hz, model.highpass_hz)
-    syn = synthesize(model, scan.speed_mm_s, seed=seed, method=method)
+    syn = synthesize(model, scan.speed_mm_s, seed=seed)
     if mask is None:
         mask = evaluation_mask(scan, model)
     c, f, pr, ps = compare(rec, syn, scan.fs_hz, mask)

@@ -24,7 +24,6 @@ from numpy.typing import NDArray
 from fydpad.errors import UserError
 from fydpad.texture.evaluation.evaluate import BAND_HZ, evaluation_mask, lsd_db, welch_psd
 from fydpad.texture.lpc.dft321 import preprocess
-from fydpad.texture.lpc.interpolation import DEFAULT_METHOD
 from fydpad.texture.lpc.model_file import TextureModel
 from fydpad.texture.lpc.synthesis import TextureRenderer
 from fydpad.texture.plots import pyplot
@@ -103,8 +102,8 @@ def tally(model_labels: Sequence[str], scans: Sequence[Scan],
     return Identification(labels, conf.tolist(), rate, assignments)
 
 
-def identify(models: Sequence[TextureModel], scans: Sequence[Scan], *, method: str = DEFAULT_METHOD,
-             distance: str = "bands", seed: int = 0,
+def identify(models: Sequence[TextureModel], scans: Sequence[Scan], *, distance: str = "bands",
+             seed: int = 0,
              wrap: Callable[[Iterable], Iterable] = lambda it: it,
              model_names: Sequence[str] | None = None) -> Identification:
     """Assign every scan to the LPC model with the nearest synthesized spectrum (one
@@ -120,7 +119,7 @@ def identify(models: Sequence[TextureModel], scans: Sequence[Scan], *, method: s
             if abs(scan.fs_hz - m.fs_hz) > 1e-6 * m.fs_hz:
                 raise UserError(f"{scan.path}: column 't_s': sample rate {scan.fs_hz:g} Hz, "
                                 f"{name}: key 'sample_rate_hz' {m.fs_hz:g} Hz")
-    renderers = [TextureRenderer(m, method=method, ramp_s=1e-6) for m in models]
+    renderers = [TextureRenderer(m, ramp_s=1e-6) for m in models]
 
     def distances(scan: Scan) -> list[float]:
         out = []

@@ -24,7 +24,7 @@ from fydpad.texture.lpc.analysis import ar_psd
 from fydpad.texture.lpc.coverage import describe, model_gaps, speed_histogram
 from fydpad.texture.lpc.dft321 import preprocess
 from fydpad.texture.lpc.fit import lines_option, modelled_speed_range
-from fydpad.texture.lpc.interpolation import METHODS, SpeedInterpolator
+from fydpad.texture.lpc.interpolation import SpeedInterpolator
 from fydpad.texture.lpc.model_file import TextureModel, model_to_json, parse_model
 from fydpad.texture.lpc.select import fit_candidate, select_model, selection_table
 from fydpad.texture.lpc.synthesis import TextureRenderer
@@ -50,21 +50,15 @@ class LpcFamily(FamilyBase):
         self.surface = model.surface
         self.channels = {"vibration": float(model.fs_hz)}
         self.highpass_hz = float(model.highpass_hz)
-        #: method: interpolation between fitted speeds (the file's own unless set);
         #: drive_filter: band-pass through the model's drive band; seed: the noise's.
-        self.parameters = {"method": model.interpolation, "drive_filter": False, "seed": None}
+        #: Between fitted speeds it renders the model file's ``interpolation``.
+        self.parameters = {"drive_filter": False, "seed": None}
         self.limit = math.inf
         self.resets = 0
         self.tick_renderer: TextureRenderer | None = None
         self._renderer: TextureRenderer | None = None
 
     def set_parameter(self, name: str, value: Any) -> None:
-        if name == "method" and value not in METHODS:
-            raise UserError(f"{self.path}: interpolation {value!r} is not one of "
-                            f"{', '.join(METHODS)}")
-        if name == "method" and value == "stretch" and self.model.free_form is None:
-            raise UserError(f"{self.path}: interpolation 'stretch' needs the calibrated "
-                            "spectrum (key 'free_form'); this model renders 'nearest'")
         super().set_parameter(name, value)
         self._renderer = self.tick_renderer = None  # rebuilt with the new value
 
@@ -81,8 +75,7 @@ class LpcFamily(FamilyBase):
         """Builds the tick renderer and measures the limiter's level."""
         self.check_rate(rate_hz)
         fs = float(self.model.fs_hz)
-        r = TextureRenderer(self.model, method=self.parameters["method"],
-                            seed=self.parameters["seed"],
+        r = TextureRenderer(self.model, seed=self.parameters["seed"],
                             drive_filter=self.parameters["drive_filter"])
         rms = 0.0
         n = int(0.5 * fs)
@@ -113,7 +106,7 @@ class LpcFamily(FamilyBase):
                                f"{finger.fs_hz:g} Hz)")
         if self._renderer is None:
             p = self.parameters
-            self._renderer = TextureRenderer(self.model, method=p["method"], seed=p["seed"],
+            self._renderer = TextureRenderer(self.model, seed=p["seed"],
                                              drive_filter=p["drive_filter"], ramp_s=1e-6)
             v0 = float(finger.speed_mm_s[0]) if finger.speed_mm_s.size else 0.0
             self._renderer.warmup(v0, 0.5)

@@ -11,27 +11,24 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.texture.lpc.analysis import is_stable
-from fydpad.texture.lpc.model_file import TextureModel
+from fydpad.texture.lpc.model_file import INTERPOLATIONS, TextureModel
 from fydpad.texture.lpc.spectrum import spectrum_of
 
 Array = NDArray[np.float64]
-METHODS = ("nearest", "stretch")
-#: What every path renders unless told otherwise: None, the model file's ``interpolation``.
-DEFAULT_METHOD: str | None = None
 
 
 class SpeedInterpolator:
-    """(A, sigma^2) at any speed from a model, by ``method`` (default: the model's)."""
+    """(A, sigma^2) at any speed from a model, by the model's ``interpolation``."""
 
-    def __init__(self, model: TextureModel, method: str | None = None):
-        method = model.interpolation if method is None else method
-        if method not in METHODS:
-            raise ValueError(f"interpolation method must be one of {METHODS}, not {method!r}")
-        if method == "stretch" and model.free_form is None:
+    def __init__(self, model: TextureModel):
+        how = model.interpolation
+        if how not in INTERPOLATIONS:
+            raise ValueError(f"interpolation must be one of {INTERPOLATIONS}, not {how!r}")
+        if how == "stretch" and model.free_form is None:
             raise ValueError(f"{model.surface}: interpolation 'stretch' needs the model's "
                              "speed-resolved spectrum (key 'free_form'); this model has none")
         self.model = model
-        self._spectrum = spectrum_of(model) if method == "stretch" else None
+        self._spectrum = spectrum_of(model) if how == "stretch" else None
 
     def __call__(self, speed_mm_s: float) -> tuple[Array, float]:
         m = self.model
@@ -59,23 +56,22 @@ class SpeedTable:
         return 0 if i < 0 else (self.h.shape[0] - 1 if i >= self.h.shape[0] else i)
 
 
-def table_range(model: TextureModel, method: str | None = None) -> tuple[float, float]:
+def table_range(model: TextureModel) -> tuple[float, float]:
     """The speeds a table covers (clamped beyond): the nearest models' fitted speeds; the
     spectrum's, every speed its fit saw, down to the renderer's fade (the slowest less the
     tolerance, at least half of it) and up to the fastest plus the tolerance."""
     lo, hi = float(model.speeds_mm_s[0]), float(model.speeds_mm_s[-1])
-    if (model.interpolation if method is None else method) == "stretch":
+    if model.interpolation == "stretch":
         tol = float(model.tolerance_mm_s)
         return max(lo - tol, 0.5 * lo), hi + tol
     return lo, hi
 
 
-def build_table(model: TextureModel, method: str | None = None, step_mm_s: float = 0.25
-                ) -> SpeedTable:
+def build_table(model: TextureModel, step_mm_s: float = 0.25) -> SpeedTable:
     """The model at every ``step_mm_s`` of :func:`table_range`, anchored at its slowest speed."""
-    interp = SpeedInterpolator(model, method)
+    interp = SpeedInterpolator(model)
     v0 = float(model.speeds_mm_s[0])
-    lo, hi = table_range(model, method)
+    lo, hi = table_range(model)
     lo = v0 - step_mm_s * math.floor((v0 - lo) / step_mm_s + 1e-9)
     n = math.floor((hi - lo) / step_mm_s + 1e-9) + 1
     grid = lo + step_mm_s * np.arange(n)

@@ -21,7 +21,7 @@ from fydpad.texture.lpc.lines import LineSpectrum
 FORMAT_VERSION = 2
 PLAIN_VERSION = 1
 READ_VERSIONS = (1, 2)
-#: Interpolations a file may name (interpolation.METHODS).
+#: Interpolations a file may name (:mod:`interpolation` renders each).
 INTERPOLATIONS = ("nearest", "stretch")
 REFIT = "refit the model with 'fydpad texture fit SCAN.csv ... --out MODEL.json'"
 Array = NDArray[np.float64]

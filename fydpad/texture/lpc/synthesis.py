@@ -57,23 +57,22 @@ class TextureRenderer:
     jump_cap = 1.0
 
     def __init__(
-        self, model: TextureModel, *, method: str | None = None, step_mm_s: float = 0.25,
-        seed: int | None = None, ramp_s: float = 0.005, drive_filter: bool = False,
-        structure: str | None = None,
+        self, model: TextureModel, *, step_mm_s: float = 0.25, seed: int | None = None,
+        ramp_s: float = 0.005, drive_filter: bool = False, structure: str | None = None,
     ):
-        """``method``: the interpolation (default the model's); ``structure``: "fir" or
-        "direct" (default "fir" for "stretch"); ``drive_filter``: band-pass the output
-        through the model's drive band (order-2 Butterworth)."""
+        """Renders by the model's ``interpolation``; ``structure``: "fir" or "direct"
+        (default "fir" for "stretch"); ``drive_filter``: band-pass the output through the
+        model's drive band (order-2 Butterworth)."""
         if model.fs_hz <= 0:
             raise ValueError("model sample rate must be positive")
         self.model = model
         self.fs_hz = float(model.fs_hz)
-        self.method = method = model.interpolation if method is None else method
-        self.table = t = build_table(model, method, step_mm_s)
+        self.interpolation = how = model.interpolation
+        self.table = t = build_table(model, step_mm_s)
         if not t.stable.all():
             bad = t.speeds_mm_s[~t.stable]
             warnings.warn(
-                f"{model.surface}: {bad.size} interpolated filters of method {method!r} are "
+                f"{model.surface}: {bad.size} interpolated filters ({how!r}) are "
                 f"unstable ({bad.min():g}-{bad.max():g} mm/s); they are replaced by the "
                 "nearest fitted model", stacklevel=2)
             for k in np.flatnonzero(~t.stable):
@@ -81,7 +80,7 @@ class TextureRenderer:
                 t.polys[k] = model.poly(j)
                 t.h[k] = model.h[j]
                 t.sigma[k] = math.sqrt(model.sigma2[j])
-        self.structure = structure or ("fir" if method == "stretch" else "direct")
+        self.structure = structure or ("fir" if how == "stretch" else "direct")
         if self.structure not in ("direct", "fir"):
             raise ValueError(f"filter structure must be 'direct' or 'fir', not {structure!r}")
         v_min = float(model.speeds_mm_s[0])
@@ -487,13 +486,13 @@ class TextureRenderer:
 
 def synthesize(
     model: TextureModel, speed_mm_s: ArrayLike, *, seed: int | None = None,
-    method: str | None = None, warmup_s: float = 0.5, n: int | None = None,
+    warmup_s: float = 0.5, n: int | None = None,
 ) -> Array:
     """Offline synthesis along a speed trace (contact throughout), after a warm-up."""
     v = np.asarray(speed_mm_s, float)
     if n is None:
         n = v.size
-    r = TextureRenderer(model, method=method, seed=seed, ramp_s=1e-6)
+    r = TextureRenderer(model, seed=seed, ramp_s=1e-6)
     r.warmup(float(np.broadcast_to(v, (max(n, 1),))[0]), warmup_s)
     return r.block(v, True, n)
 
