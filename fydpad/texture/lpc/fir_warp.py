@@ -27,8 +27,7 @@ switch to click at. phi_j is 1 over the first half of the warped lags and falls
 linearly to 0 at the last (lags 256 and 511 of ``WARP_LAGS`` = 512, or of the response's
 length when that is shorter), where the plain response's tail (at the current speed)
 takes over without a step; the responses' energy is mostly in the first 256 lags (90-99 % on the
-generator's textures). Lines that ring longer belong to the lines model, which follows
-the position exactly.
+generator's textures).
 """
 
 from __future__ import annotations

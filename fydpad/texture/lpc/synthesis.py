@@ -60,8 +60,6 @@ from fydpad.texture.lpc.fir_warp import (
     warped_responses,
 )
 from fydpad.texture.lpc.interpolation import SpeedTable, build_table
-from fydpad.texture.lpc.line_voice import LineVoice
-from fydpad.texture.lpc.lines import LineSpectrum
 from fydpad.texture.lpc.model_file import TextureModel
 from vision.speed import SpeedState, speed_update
 
@@ -150,10 +148,6 @@ class TextureRenderer:
             self._use_fir(g[:, :n_fir])  # and the per-sample views
         else:
             self._tick_views()
-        # A periodic surface's lines (model.lines), added to the process before the gain.
-        self.lines: LineVoice | None = (
-            None if model.lines is None
-            else LineVoice(LineSpectrum.from_json(model.lines, model.surface), self.fs_hz))
         band = model.drive_band_hz
         self._sos: Array | None = None
         if drive_filter:
@@ -232,14 +226,10 @@ class TextureRenderer:
         next samples depend on the seed only, not on what was rendered before)."""
         self._rng = np.random.default_rng(seed)
         self._noise_pos = _NOISE_CHUNK
-        if self.lines is not None:
-            self.lines.reset()
 
     def reset(self) -> None:
-        """Zero the filter history, the lines' phase, the gain and the drive filter."""
+        """Zero the filter history, the gain and the drive filter."""
         self._buf[:] = 0.0
-        if self.lines is not None:
-            self.lines.reset()
         if self.structure == "fir":
             self._ebuf[:] = 0.0
             self._vbuf[:] = 0.0
@@ -354,8 +344,6 @@ class TextureRenderer:
             self._buf[pos] = y
             self._buf[pos + p] = y
             self._pos = pos
-        if self.lines is not None:
-            y += self.lines.tick(speed_mm_s if speed_mm_s > 0.0 else 0.0)
         self._g += self._alpha * (self.target_gain(speed_mm_s, contact) - self._g)
         out = self._g * y
         if self._sos is not None:
@@ -439,8 +427,6 @@ class TextureRenderer:
             y = self._fir_block(e, idx, lam, starts, stops, self._history_speeds(v))
         else:
             y = self._direct_block(e, idx, starts, stops)
-        if self.lines is not None:
-            y += self.lines.block(np.where(np.isfinite(v) & (v > 0.0), v, 0.0))
         target = self.target_gains(v, c)
         g, _zf = ss.lfilter([self._alpha], [1.0, self._alpha - 1.0], target,
                            zi=[(1.0 - self._alpha) * self._g])
