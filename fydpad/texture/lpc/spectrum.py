@@ -77,7 +77,7 @@ U_MIN_CHUNKS = 1.0
 #: Beyond the end knots a level goes on along its end segment, its slope in log level per
 #: log speed bounded by this (power ~ v^+-4): a level that is not used (the floor n(v)
 #: where N0 holds the floor) drifts to 1e-13 with any slope, and continued unbounded to
-#: 5 mm/s it stood 1e13 (canvas with lines and --two-part: +98 dB at a stroke's ramps).
+#: 5 mm/s it stood 1e13 (canvas: +98 dB at a stroke's ramps).
 MAX_EXTRAPOLATION_POWER = 4.0
 
 
