@@ -1,20 +1,11 @@
-"""The texture-family contract: what every family (LPC, HaTT, friction, grating, MLP)
-declares and offers, and the finger stream it renders from.
+"""The texture-family contract every family (LPC, HaTT, friction, grating, MLP) meets,
+and the finger stream it renders from.
 
-A family declares its output ``channels`` (``"vibration"``, ``"tension"``, ``"audio"``,
-``"force"``) with their native rates, the finger inputs it ``needs``, and its render
-``parameters`` (LPC: ``method``, ``drive_filter``, ``seed``; friction: ``b_v``). Every
-family takes the same speed input: ``speed_mm_s``, the finger's speed along the surface
-(offline the block's column; in the station the centroid's speed low-passed at 10 Hz
-every tick, Bianchi 2015 III-B). Two paths:
-
-- ``render(finger, channel)``: a whole :class:`FingerBlock` in, one array out
-  (``fydpad texture synth|evaluate|identify|compare``);
-- ``tick(...)``: one step of the station's 1 kHz loop after ``prepare(rate_hz)``, no
-  allocation, returning the values of ``tick_channels`` in that order.
-
-A :class:`Kind` tells the registry (:mod:`fydpad.texture.families`) how to read and fit
-one family's model files.
+Every family takes one speed input, ``speed_mm_s``: the finger's speed along the surface
+(the centroid's speed low-passed at 10 Hz, Bianchi 2015 III-B). ``render`` takes a whole
+:class:`FingerBlock` (the ``fydpad texture`` commands); ``tick`` is one step of the
+station's 1 kHz loop after ``prepare(rate_hz)``. A :class:`Kind` tells the registry
+(:mod:`fydpad.texture.families`) how to read and fit one family's model files.
 """
 
 from __future__ import annotations
@@ -24,7 +15,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -40,9 +31,8 @@ INPUTS = ("speed_mm_s", "x_mm", "y_mm", "force_n", "force_change")
 
 
 class RateMismatch(UserError, ValueError):
-    """``render`` of a model that renders only at its own sample rate, given a finger block
-    at another: the message names the model's rate (its file's key); the caller names the
-    block's source (a scan's column 't_s')."""
+    """A finger block at another rate than the only one a model renders at: the message
+    names the model's key, the caller the block's source."""
 
 
 @dataclass(frozen=True)
@@ -65,62 +55,10 @@ class FingerBlock:
                 raise ValueError(f"FingerBlock.{name} must have shape ({n},), got {a.shape}")
 
 
-class TextureFamily(Protocol):
-    """A fitted texture model of one family, ready to render."""
-
-    #: The family's name in model files and specs ("lpc", "friction", ...).
-    kind: str
-    #: The surface the model was fitted on ("" when unknown).
-    surface: str
-    #: Declared output channels -> their native rate in Hz.
-    channels: dict[str, float]
-    #: The 1 kHz channels ``tick`` returns, in order (a subset of ``channels``).
-    tick_channels: tuple[str, ...]
-    #: The finger inputs it reads (a subset of :data:`INPUTS`).
-    needs: frozenset[str]
-    #: Where a stroke starts (mm; a position-indexed model's own origin, else 0).
-    x0_mm: float
-    #: Its render parameters and their current values (set with ``set_parameter``).
-    parameters: dict[str, Any]
-    #: The high-pass (Hz) a recording is compared through (the fit's, for LPC).
-    highpass_hz: float
-
-    def set_parameter(self, name: str, value: Any) -> None:
-        """Set a render parameter; UserError for a name not in ``parameters``."""
-
-    def check_rate(self, rate_hz: float) -> None:
-        """A UserError naming its file when it cannot tick at ``rate_hz``."""
-
-    def prepare(self, rate_hz: float) -> None:
-        """``check_rate`` and build the tick path, before the station's loop starts."""
-
-    def render(self, finger: FingerBlock, channel: str) -> Array:
-        """The signal on ``channel`` for the whole block (sampled at ``finger.fs_hz``)."""
-
-    def tick(self, t_s: float, contact: bool, x_mm: float, y_mm: float,
-             speed_mm_s: float, force_n: float) -> tuple[float, ...]:
-        """One render-loop step: the values of ``tick_channels``."""
-
-    def reset(self) -> None:
-        """Forget the signal history (a new stroke)."""
-
-    def counters(self) -> dict[str, int]:
-        """Events counted while rendering (the LPC limiter's ``limiter_resets``)."""
-
-    def covers(self, speed_mm_s: Array) -> NDArray[np.bool_]:
-        """The samples whose speed the model renders from its data (evaluation compares
-        the recording there)."""
-
-    def unscanned_speeds(self) -> list[tuple[float, float]] | None:
-        """Speed spans (mm/s) within its range that no scan of its fit went at: it
-        interpolates there. None when the model file does not record its coverage
-        (unknown, not "no gaps")."""
-
-
 @dataclass(frozen=True)
 class Kind:
-    """One family in the registry: how to build it from a parsed model file, how to fit
-    one from scans, or (HaTT) how to read its own file format."""
+    """One family in the registry: how to build it from a parsed model file, fit one from
+    scans, or (HaTT) read its own file format."""
 
     name: str
     from_json: Callable[[dict[str, Any], str], TextureFamily]
@@ -143,55 +81,85 @@ class Kind:
     title: str = ""
 
 
-class FamilyBase:
-    """Defaults of the contract for a family without parameters, counters or notes."""
+class TextureFamily:
+    """A fitted texture model of one family, ready to render: the contract, with the
+    defaults of a family without parameters, counters or speed gaps. A family sets
+    ``kind`` (its name in files and specs), ``channels`` (output channel -> native rate
+    in Hz), ``tick_channels`` (what ``tick`` returns, in order) and ``needs`` (a subset
+    of :data:`INPUTS`), and implements ``render``, ``tick`` and ``reset``."""
 
+    kind: str
+    channels: dict[str, float]
+    tick_channels: tuple[str, ...]
+    needs: frozenset[str]
+    #: The surface the model was fitted on ("" when unknown).
     surface = ""
+    #: Where a stroke starts (mm; a position-indexed model's own origin).
     x0_mm = 0.0
+    #: The high-pass (Hz) a recording is compared through (the fit's, for LPC).
     highpass_hz = 10.0
 
     def __init__(self) -> None:
+        #: Render parameters and their current values (``set_parameter``).
         self.parameters: dict[str, Any] = {}
 
     def set_parameter(self, name: str, value: Any) -> None:
+        """Set a render parameter; UserError for a name not in ``parameters``."""
         if name not in self.parameters:
-            raise UserError(f"a {self.kind} model has no render parameter {name!r} "  # type: ignore[attr-defined]
+            raise UserError(f"a {self.kind} model has no render parameter {name!r} "
                             f"(it has: {', '.join(self.parameters) or 'none'})")
         self.parameters[name] = value
 
     def check_rate(self, rate_hz: float) -> None:
-        pass
+        """A UserError naming its file when it cannot tick at ``rate_hz``."""
 
     def prepare(self, rate_hz: float) -> None:
+        """``check_rate`` and build the tick path, before the station's loop starts."""
         self.check_rate(rate_hz)
 
+    def render(self, finger: FingerBlock, channel: str) -> Array:
+        """The signal on ``channel`` for the whole block (sampled at ``finger.fs_hz``)."""
+        raise NotImplementedError
+
+    def tick(self, t_s: float, contact: bool, x_mm: float, y_mm: float,
+             speed_mm_s: float, force_n: float) -> tuple[float, ...]:
+        """One render-loop step (no allocation): the values of ``tick_channels``."""
+        raise NotImplementedError
+
+    def reset(self) -> None:
+        """Forget the signal history (a new stroke)."""
+        raise NotImplementedError
+
     def counters(self) -> dict[str, int]:
+        """Events counted while rendering (the LPC limiter's ``limiter_resets``)."""
         return {}
 
     def covers(self, speed_mm_s: Array) -> NDArray[np.bool_]:
+        """The samples whose speed the model renders from its data (evaluation compares
+        the recording there)."""
         return np.asarray(speed_mm_s, float) > 1.0
 
     def unscanned_speeds(self) -> list[tuple[float, float]] | None:
+        """Speed spans (mm/s) no scan of its fit went at (it interpolates there); None
+        when its file does not record them."""
         return []
 
     def check_channel(self, channel: str) -> None:
-        if channel not in self.channels:  # type: ignore[attr-defined]
-            raise UserError(f"a {self.kind} model renders "  # type: ignore[attr-defined]
-                            f"{', '.join(self.channels)}; not {channel!r}")  # type: ignore[attr-defined]
+        if channel not in self.channels:
+            raise UserError(f"a {self.kind} model renders {', '.join(self.channels)}; "
+                            f"not {channel!r}")
+
+
+#: The name the families subclass.
+FamilyBase = TextureFamily
 
 
 class TickPosition:
-    """The finger's x between camera frames, for position-indexed families at 1 kHz.
-
-    The station hands every tick the newest camera centroid (held between frames, ~30
-    Hz), so indexing mu(x) or a grating by it would step every 33 ms. A new centroid is
-    recognised by a change of value and stamped with the tick time (up to one tick
-    late); between frames the position is extrapolated along the velocity over the last
-    ``frames`` frames (a longer base than one frame: the 1-tick stamping jitter, 3 % of a
-    33 ms frame, shrinks ``frames`` times), for at most ``hold_s``. A centroid that has
-    not changed for ``stop_s`` (more than two frames at 10 Hz) is a finger at rest: the
-    position is then the centroid itself. No allocation.
-    """
+    """The finger's x between camera frames (~30 Hz) for position-indexed families at
+    1 kHz: a new centroid (a change of value) is stamped with the tick time, and between
+    frames x is extrapolated along the velocity over the last ``frames`` frames (a longer
+    base shrinks the 1-tick stamping jitter) for at most ``hold_s``; a centroid unchanged
+    for ``stop_s`` is a finger at rest. No allocation."""
 
     def __init__(self, hold_s: float = 0.1, frames: int = 3, stop_s: float = 0.25) -> None:
         self.hold_s = hold_s
@@ -244,9 +212,7 @@ def finger_from_scan(scan: Any, fs_hz: float | None = None) -> FingerBlock:
     """The finger stream of a scan (contact throughout; x from ``x_mm`` or the speed;
     force from ``force_n`` or 1 N)."""
     n = scan.t_s.size
-    # x_mm is attached by fydpad.texture.families.read_scans when the scan has it.
-    x = getattr(scan, "x_mm", None)
-    x = x if x is not None else np.cumsum(scan.speed_mm_s) / scan.fs_hz
+    x = scan.x_mm if scan.x_mm is not None else np.cumsum(scan.speed_mm_s) / scan.fs_hz
     force = scan.force_n if scan.force_n is not None else np.ones(n)
     fb = FingerBlock(scan.fs_hz, np.asarray(scan.t_s, float), np.ones(n, bool),
                      np.asarray(x, float), np.zeros(n), np.asarray(scan.speed_mm_s, float),

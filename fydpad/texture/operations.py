@@ -1,8 +1,6 @@
 """What ``fydpad texture`` runs, for every family through the family contract: fit,
-synthesize, evaluate against recordings (with a second recording as the ceiling),
-identify and compare. Each returns its results and the lines to print; the command
-parses arguments and prints.
-"""
+synthesize, evaluate (a second recording as the ceiling), identify and compare. Each
+returns its results and the lines to print; the command parses arguments and prints."""
 
 from __future__ import annotations
 
@@ -52,15 +50,12 @@ from fydpad.texture.plots import plot_against_ceiling, plot_spectra
 from vision.recording import CsvRowWriter
 
 Array = NDArray[np.float64]
-Wrap = Callable[[Iterable], Iterable]
 #: The lead-in rendered and dropped before a steady synthesis: filters and gates settled.
 LEAD_IN_S = 0.5
 #: The speed tolerance (mm/s) of a second recording's fairness check.
 SECOND_TOLERANCE_MM_S = 5.0
-
-
-def _no_wrap(it: Iterable) -> Iterable:
-    return it
+TARGETS = (f"correlation >= {TARGET_PSD_CORRELATION:g}, LSD <= ceiling + "
+           f"{TARGET_LSD_OVER_CEILING_DB:g} dB")
 
 
 def caught_messages(caught: list) -> list[str]:
@@ -68,7 +63,6 @@ def caught_messages(caught: list) -> list[str]:
     return list(dict.fromkeys(str(w.message) for w in caught))
 
 
-# ------------------------------------------------------------------ fit
 @dataclass
 class Fitted:
     data: dict[str, Any]
@@ -80,9 +74,8 @@ class Fitted:
 
 def fit_model(kind: str, scan_paths: list[str], options: dict[str, Any], out: str,
               plot: str | None = None, extra: dict[str, Any] | None = None) -> Fitted:
-    """Fit a ``kind`` model from the scans with the family's ``fit_options`` taken from
-    ``options``, and ``extra`` (``--set KEY=VALUE``), and write it to ``out`` (strict
-    JSON)."""
+    """Fit a ``kind`` model with the family's ``fit_options`` from ``options`` and
+    ``extra`` (``--set KEY=VALUE``), and write it to ``out`` (strict JSON)."""
     k = get_kind(kind)
     if k.fit is None:
         raise UserError(f"texture kind {kind!r} is not fitted from scans")
@@ -107,7 +100,6 @@ def fit_model(kind: str, scan_paths: list[str], options: dict[str, Any], out: st
     return Fitted(data, [f"{out}: {lines[0]}", *lines[1:]], caught_messages(caught), notes)
 
 
-# ------------------------------------------------------------------ synth
 @dataclass
 class Synthesis:
     family: TextureFamily
@@ -126,8 +118,7 @@ class Synthesis:
 
 
 def set_render_parameters(family: TextureFamily, **values: Any) -> None:
-    """The given render parameters the family has (others do not apply to it; None: not
-    given, the model's own)."""
+    """The given render parameters the family has (None: the model's own)."""
     for name, value in values.items():
         if value is not None and name in family.parameters:
             family.set_parameter(name, value)
@@ -138,8 +129,7 @@ def synthesize(spec: str, *, speed_mm_s: float, seconds: float, channel: str | N
                x0_mm: float | None = None, kind: str | None = None,
                **parameters: Any) -> Synthesis:
     """A constant-speed stroke rendered by the model of ``spec`` on ``channel`` (default
-    vibration), after a lead-in of ``LEAD_IN_S`` at the same speed; ``parameters`` set
-    the family's render parameters it has (method, drive_filter, seed)."""
+    vibration) after a lead-in of ``LEAD_IN_S``, with the render ``parameters`` it has."""
     if not (math.isfinite(speed_mm_s) and speed_mm_s >= 0):
         raise UserError(f"--speed-mm-s {speed_mm_s:g}: must be a finite speed >= 0 (mm/s)")
     if not (math.isfinite(seconds) and seconds > 0):
@@ -178,8 +168,8 @@ def synthesize(spec: str, *, speed_mm_s: float, seconds: float, channel: str | N
 
 
 def write_synthesis(out: str, syn: Synthesis, speed_mm_s: float) -> None:
-    """``.wav``: a WAV file (peak-normalised float); else CSV ``t_s,a`` for the
-    vibration (m/s^2) or ``t_s,<channel>``."""
+    """``.wav``: a WAV file (peak-normalised float); else CSV ``t_s,a`` (vibration,
+    m/s^2) or ``t_s,<channel>``."""
     if out.lower().endswith(".wav"):
         with open_channel(f"wav:{out}", syn.rate_hz) as ch:
             ch.write(np.asarray(syn.y, float))
@@ -196,7 +186,6 @@ def write_synthesis(out: str, syn: Synthesis, speed_mm_s: float) -> None:
             wr.write(t, v)
 
 
-# ------------------------------------------------------------------ evaluate
 @dataclass
 class Second:
     """``--second``: the recording's Welch spectrum and why it sets no fair ceiling."""
@@ -224,8 +213,7 @@ class Evaluated:
 
 def _second(path: str, scan: Any, scan_mask: NDArray[np.bool_], family: TextureFamily
             ) -> Second:
-    """Read and check a ``--second`` recording: its samples the family covers, the
-    family's high-pass and DFT321."""
+    """A ``--second`` recording's spectrum over the samples the family covers."""
     second = read_scans([path])[0]
     if abs(second.fs_hz - scan.fs_hz) > 1e-6 * scan.fs_hz:
         raise UserError(f"{path}: column 't_s': sample rate {second.fs_hz:g} Hz, the "
@@ -250,8 +238,7 @@ def _second(path: str, scan: Any, scan_mask: NDArray[np.bool_], family: TextureF
 
 
 def _report_ceiling(ev: Evaluated) -> None:
-    """The ceiling and the targets' verdict (none when the second recording sets no
-    fair ceiling), into the JSON and the lines."""
+    """The ceiling and the targets' verdict (none without a fair ceiling)."""
     sec, c = ev.sec, ev.c
     assert sec is not None
     ceil = ceiling(ev.recorded, sec.psd, ev.f_hz)
@@ -263,16 +250,15 @@ def _report_ceiling(ev: Evaluated) -> None:
     ev.lines.append(
         f"ceiling ({sec.path} against the scan): correlation {ceil.psd_correlation:.3f}, "
         f"LSD {ceil.lsd_db:.2f} dB; the model's LSD is {c.lsd_db - ceil.lsd_db:+.2f} dB over "
-        f"it: {verdict} (correlation >= {TARGET_PSD_CORRELATION:g}, LSD <= ceiling + "
-        f"{TARGET_LSD_OVER_CEILING_DB:g} dB)")
+        f"it: {verdict} ({TARGETS})")
     if sec.unfair:
         ev.warnings.append(f"{sec.path} sets no fair ceiling: {sec.unfair}")
 
 
 def evaluate_scan_file(spec: str, family: TextureFamily, path: str, second: str | None,
                        seed: int) -> Evaluated:
-    """The family rendered along the scan's own stroke against the scan's DFT321 signal
-    (high-passed as the family's fit), over the samples the family covers."""
+    """The family rendered along the scan's stroke against the scan's DFT321 signal
+    (high-passed as the family's fit) over the samples the family covers."""
     scan = read_scans([path])[0]
     mask = family.covers(scan.speed_mm_s)
     if mask.sum() < scan.fs_hz / 2:
@@ -344,50 +330,45 @@ def fair(results: list[Evaluated]) -> list[Evaluated]:
 
 def over_scans(spec: str, results: list[Evaluated]) -> tuple[dict, list[str]]:
     """Several scans: the means of their figures and, where second recordings set fair
-    ceilings, the targets on the means (mean correlation, mean LSD over the mean
-    ceiling): one scan against one second recording is two random draws."""
-    n = len(results)
+    ceilings, the targets on the means (one scan against one second recording is two
+    random draws)."""
     mean: dict[str, Any] = {
         "psd_correlation": float(np.mean([r.c.psd_correlation for r in results])),
         "lsd_db": float(np.mean([r.c.lsd_db for r in results]))}
-    lines = [f"mean over {n} scans: power-spectrum correlation {mean['psd_correlation']:.3f}, "
-             f"log-spectral distance {mean['lsd_db']:.2f} dB"]
+    lines = [f"mean over {len(results)} scans: power-spectrum correlation "
+             f"{mean['psd_correlation']:.3f}, log-spectral distance {mean['lsd_db']:.2f} dB"]
     if any(r.sec is not None for r in results):
         ok = fair(results)
-        mean.update(fair_pairs=len(ok), fair_psd_correlation=None, ceiling_lsd_db=None,
-                    lsd_over_ceiling_db=None, psd_correlation_se=None,
-                    lsd_over_ceiling_se_db=None, targets_met=None, verdict_decided=None)
-        if ok:
-            v = verdict_on_means([r.c.psd_correlation for r in ok],
-                                 [r.out["lsd_over_ceiling_db"] for r in ok])
-            ceil = float(np.mean([r.out["ceiling"]["lsd_db"] for r in ok]))
-            mean.update(fair_psd_correlation=v.psd_correlation, ceiling_lsd_db=ceil,
-                        lsd_over_ceiling_db=v.lsd_over_ceiling_db,
-                        psd_correlation_se=v.psd_correlation_se,
-                        lsd_over_ceiling_se_db=v.lsd_over_ceiling_se_db, targets_met=v.met,
-                        verdict_decided=v.decided if len(ok) > 1 else None)
-            se = ("" if v.lsd_over_ceiling_se_db is None else
-                  f" (standard error {v.lsd_over_ceiling_se_db:.2f})")
-            cse = ("" if v.psd_correlation_se is None else
-                   f" (standard error {v.psd_correlation_se:.3f})")
-            lines.append(
-                f"on the means of the {len(ok)} scan(s) with a fair ceiling: correlation "
-                f"{v.psd_correlation:.3f}{cse}, LSD {v.lsd_over_ceiling_db:+.2f} dB{se} "
-                f"over the mean ceiling {ceil:.2f} dB: "
-                f"{'targets met' if v.met else 'targets not met'} (correlation >= "
-                f"{TARGET_PSD_CORRELATION:g}, LSD <= ceiling + "
-                f"{TARGET_LSD_OVER_CEILING_DB:g} dB)")
-            if len(ok) > 1 and not v.decided:
-                lines.append("  within two standard errors of a limit: more strokes would "
-                             "decide it")
-        else:
+        mean.update(fair_pairs=len(ok), **dict.fromkeys((
+            "fair_psd_correlation", "ceiling_lsd_db", "lsd_over_ceiling_db",
+            "psd_correlation_se", "lsd_over_ceiling_se_db", "targets_met", "verdict_decided")))
+        if not ok:
             lines.append("no scan has a fair ceiling: no verdict")
+            return {"model": spec, "scans": [r.out for r in results], "mean": mean}, lines
+        v = verdict_on_means([r.c.psd_correlation for r in ok],
+                             [r.out["lsd_over_ceiling_db"] for r in ok])
+        ceil = float(np.mean([r.out["ceiling"]["lsd_db"] for r in ok]))
+        mean.update(fair_psd_correlation=v.psd_correlation, ceiling_lsd_db=ceil,
+                    lsd_over_ceiling_db=v.lsd_over_ceiling_db,
+                    psd_correlation_se=v.psd_correlation_se,
+                    lsd_over_ceiling_se_db=v.lsd_over_ceiling_se_db, targets_met=v.met,
+                    verdict_decided=v.decided if len(ok) > 1 else None)
+        se = ("" if v.lsd_over_ceiling_se_db is None else
+              f" (standard error {v.lsd_over_ceiling_se_db:.2f})")
+        cse = ("" if v.psd_correlation_se is None else
+               f" (standard error {v.psd_correlation_se:.3f})")
+        lines.append(
+            f"on the means of the {len(ok)} scan(s) with a fair ceiling: correlation "
+            f"{v.psd_correlation:.3f}{cse}, LSD {v.lsd_over_ceiling_db:+.2f} dB{se} over the "
+            f"mean ceiling {ceil:.2f} dB: {'targets met' if v.met else 'targets not met'} "
+            f"({TARGETS})")
+        if len(ok) > 1 and not v.decided:
+            lines.append("  within two standard errors of a limit: more strokes would decide it")
     return {"model": spec, "scans": [r.out for r in results], "mean": mean}, lines
 
 
 def plot_evaluation(path: str, results: list[Evaluated]) -> None:
-    """The spectra, and with second recordings their differences; with several scans
-    their mean spectra."""
+    """The spectra (with second recordings their differences; several scans: means)."""
     r = results[0]
     if len(results) == 1:
         f, rec, syn = r.f_hz, r.recorded, r.synthesized
@@ -413,13 +394,12 @@ def plot_evaluation(path: str, results: list[Evaluated]) -> None:
                              f"{label}: {title} (ceiling {ceil:.2f} dB)")
 
 
-# ------------------------------------------------------------------ identify, compare
 def identify_models(specs: list[str], scan_paths: list[str], *, distance: str | None = None,
-                    seed: int = 0, wrap: Wrap = _no_wrap, **parameters: Any
+                    seed: int = 0, wrap: Callable[[Iterable], Iterable] = lambda it: it,
+                    **parameters: Any
                     ) -> tuple[str, Identification]:
-    """Every scan assigned to the model of ``specs`` (one family, one per surface) whose
-    rendering along the scan's stroke has the nearest spectrum (``distance``: the
-    family's default when None)."""
+    """Every scan assigned to the model of ``specs`` (one family, one per surface) of
+    nearest spectrum along the scan's stroke (``distance``: the family's default)."""
     kinds = {spec_kind(p) for p in specs}
     if len(kinds) > 1:
         raise UserError(f"identify: the models mix kinds {', '.join(sorted(kinds))}; give "
@@ -441,8 +421,8 @@ def identify_models(specs: list[str], scan_paths: list[str], *, distance: str | 
 def compare_command(train_paths: list[str], scan_paths: list[str], kinds: list[str],
                     out_dir: Path, *, specimens: bool = False, trials: int = 3,
                     seed: int = 0) -> tuple[dict, list[str]]:
-    """``fydpad texture compare``: per family, the confusion matrix (plots in
-    ``out_dir``), and with ``specimens`` Bianchi 2015's 2 x 2."""
+    """Per family the confusion matrix (plots in ``out_dir``); with ``specimens``
+    Bianchi 2015's 2 x 2."""
     fit_kinds = [k for k in kinds if get_kind(k).fit is not None]
     unknown = [k for k in kinds if k not in fit_kinds]
     if unknown:

@@ -17,9 +17,9 @@ if TYPE_CHECKING:
 
 
 def pyplot() -> Any:
-    """matplotlib's pyplot on the Agg backend, loaded when a figure is drawn: the
-    families' modules import this one, and the station's render process never draws."""
-    # Local: matplotlib loads only when a figure is drawn (see above).
+    """matplotlib's pyplot on the Agg backend."""
+    # Local: matplotlib loads only when a figure is drawn (the families' modules import
+    # this one, and the station's render process never draws).
     import matplotlib
 
     matplotlib.use("Agg")
@@ -30,8 +30,8 @@ def pyplot() -> Any:
 
 @dataclass
 class SpeedCoverage:
-    """What the coverage panel shows: coverage.speed_histogram's (edges, seconds of
-    steady scan), the fitted speeds and the gaps (mm/s)."""
+    """The coverage panel: coverage.speed_histogram's (edges, seconds of steady scan),
+    the fitted speeds and the gaps (mm/s)."""
 
     edges_mm_s: NDArray
     seconds: NDArray
@@ -43,8 +43,8 @@ def plot_spectra(path: str | Path, panels: Sequence[tuple[str, NDArray, NDArray,
                  title: str = "", band: tuple[float, float] = (20.0, 500.0),
                  coverage: SpeedCoverage | None = None) -> Path:
     """One panel per (label, f_hz, P_recorded, P_model), dB re 1 (m/s^2)^2/Hz; with
-    ``coverage``, a last panel of where the scans went along speed (seconds per bin),
-    the fitted speeds and the gaps the model interpolates across."""
+    ``coverage``, a last panel of the scans' time per speed bin, the fitted speeds and
+    the gaps."""
     n = max(1, len(panels))
     cols = min(2, n)
     rows = (n + cols - 1) // cols
@@ -97,9 +97,8 @@ def _plot_coverage(ax: Axes, cov: SpeedCoverage) -> None:
 def plot_against_ceiling(path: str | Path, f_hz: NDArray, recorded: NDArray, model: NDArray,
                          second: NDArray, title: str = "",
                          band: tuple[float, float] = (20.0, 500.0)) -> Path:
-    """``evaluate --second``: the three spectra, and below them the model's and the second
-    recording's difference to the recording in dB (where the model strays further from
-    the recording than another recording of the surface does)."""
+    """``evaluate --second``: the three spectra, and below them the model's and the
+    second recording's difference to the recording in dB."""
     sel = (f_hz >= band[0]) & (f_hz <= band[1])
     f = f_hz[sel]
     plt = pyplot()

@@ -23,7 +23,8 @@ OPTIONAL = ("speed_mm_s", "x_mm", "y_mm", "force_n", "friction_n")
 
 @dataclass
 class Scan:
-    """One scan: evenly sampled 3-axis acceleration and the scanning speed."""
+    """One scan: evenly sampled 3-axis acceleration and the scanning speed (the optional
+    columns None when absent or with empty cells)."""
 
     path: str
     fs_hz: float
@@ -32,6 +33,8 @@ class Scan:
     speed_mm_s: Array
     force_n: Array | None = None
     meta: dict[str, str] = field(default_factory=dict)
+    x_mm: Array | None = None
+    friction_n: Array | None = None
 
     @property
     def surface(self) -> str:
@@ -101,11 +104,10 @@ def read_scan(path: str | Path, rate_tolerance: float = 0.01) -> Scan:
             f"{path}: column 'speed_mm_s' (or 'x_mm','y_mm') {why}: the scanning speed "
             "is needed to index the models"
         )
-    force = cols.get("force_n")
+    full = {k: c for k, c in cols.items() if np.isfinite(c).all()}
     fs = float(f"{1.0 / med:.9g}")  # 1/median(dt) of printed times: drop rounding noise
-    return Scan(str(path), fs, t, acc, speed,
-                force if force is not None and np.isfinite(force).all() else None,
-                read_metadata(path))
+    return Scan(str(path), fs, t, acc, speed, full.get("force_n"), read_metadata(path),
+                full.get("x_mm"), full.get("friction_n"))
 
 
 def write_scan(
@@ -114,16 +116,11 @@ def write_scan(
     meta: dict[str, str] | None = None,
 ) -> Path:
     """Write a scan CSV in the contract's column order."""
-    names = ["t_s", "ax", "ay", "az"]
-    cols: list[Array] = [t_s, acc[:, 0], acc[:, 1], acc[:, 2]]
-    for name, col in (("speed_mm_s", speed_mm_s), ("x_mm", x_mm), ("y_mm", y_mm),
-                      ("force_n", force_n)):
-        if col is not None:
-            names.append(name)
-            cols.append(col)
+    given = {"t_s": t_s, "ax": acc[:, 0], "ay": acc[:, 1], "az": acc[:, 2],
+             "speed_mm_s": speed_mm_s, "x_mm": x_mm, "y_mm": y_mm, "force_n": force_n}
+    cols = {k: c for k, c in given.items() if c is not None}
     comment = " ".join(f"{k}={v}" for k, v in (meta or {}).items()) or None
-    data = np.column_stack(cols)
-    with CsvRowWriter(path, names, comment=comment, flush_every_s=math.inf) as w:
-        for row in data:
+    with CsvRowWriter(path, tuple(cols), comment=comment, flush_every_s=math.inf) as w:
+        for row in np.column_stack(list(cols.values())):
             w.write(*(float(v) for v in row))
     return Path(path)

@@ -10,9 +10,22 @@ from fydpad.texture.lpc.fir_warp import (
     WARP_SLACK_MM_S,
     lag_fade,
     lag_speeds,
-    responses_along,
     table_position,
+    warped_responses,
 )
+
+
+def responses_along(fir: np.ndarray, v0_mm_s: float, step_mm_s: float,
+                    speeds_mm_s: np.ndarray) -> np.ndarray:
+    """Every sample's response (n, n_fir) along a speed trace, the speed before it held
+    at the first: what the renderer applies, written plainly (it computes only the warped
+    samples this way)."""
+    v = np.asarray(speeds_mm_s, float)
+    lags = min(WARP_LAGS, fir.shape[1])
+    hv = np.concatenate([np.full(lags - 1, v[0]), v])
+    recent = np.lib.stride_tricks.sliding_window_view(hv, lags)[:, ::-1]
+    u, _ = lag_speeds(recent)
+    return warped_responses(fir, v0_mm_s, step_mm_s, u)
 
 
 def _table(rows: int = 41, taps: int = 700) -> np.ndarray:

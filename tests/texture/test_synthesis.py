@@ -10,10 +10,11 @@ import scipy.signal as ss
 
 from fydpad.synth.texture_scans import generate_scan
 from fydpad.texture.lpc.analysis import ar_psd, h_from_poly, lpc_autocorrelation
-from fydpad.texture.lpc.fir_warp import WARP_SLACK_MM_S, responses_along, table_position
+from fydpad.texture.lpc.fir_warp import WARP_SLACK_MM_S, table_position
 from fydpad.texture.lpc.fit import fit_paper, fit_texture
 from fydpad.texture.lpc.model_file import TextureModel
 from fydpad.texture.lpc.synthesis import CentroidSpeed, TextureRenderer, synthesize
+from tests.texture.test_fir_warp import responses_along
 
 
 @pytest.fixture(scope="module")
@@ -269,8 +270,8 @@ def test_fir_lags_follow_the_speed_they_were_made_at():
     v = np.tile(cycle, 30)
     excess = {}
     for slack in (float("inf"), WARP_SLACK_MM_S):
-        r = TextureRenderer(model, seed=1, ramp_s=1e-6, warp_slack_mm_s=slack,
-                            structure="fir")
+        r = TextureRenderer(model, seed=1, ramp_s=1e-6, structure="fir")
+        r.warp_slack_mm_s = slack
         r.warmup(5.0)
         f, p = ss.welch(r.block(v, True), 1000.0, nperseg=250)
         expected = _expected_welch(_fir_at(r, v[::5]))

@@ -1,18 +1,12 @@
-"""Cross-family identification: one confusion matrix per family, same scans.
+"""Cross-family identification: one confusion matrix per family on the same scans.
 
-Each family is identified on the signal it renders, against the same signal observed
-in the scan:
-
-- lpc, mlp, grating: the ``vibration`` channel along each scan's own finger stream
-  (position and speed) against the scan's DFT321 acceleration, 20-500 Hz;
-- friction: the ``tension`` channel (affine in mu(x)) against the scan's measured
-  F_f / F_n, 2-100 Hz (the model is low-passed at 100 Hz at its scan speed).
-
-The scan goes to the model whose spectrum has the nearest *shape*: the RMS of the dB
-difference after removing its mean and its linear trend in log frequency, since the
-families' levels and spectral tilts are set by gains and by what they model (a grating
-renders a force, the scan holds an acceleration: f^2 apart), while their lines and
-bands are what identifies a surface.
+Each family is compared on the signal it renders with that signal in the scan: the
+``vibration`` along the scan's own finger stream against its DFT321 acceleration
+(20-500 Hz), and friction's ``tension`` (affine in mu(x)) against the measured F_f / F_n
+(2-100 Hz). The scan goes to the model of nearest spectral *shape*: the RMS of the dB
+difference less its mean and linear trend in log frequency, since gains and what a
+family models set levels and tilts (a grating renders a force, the scan holds an
+acceleration: f^2 apart), while lines and bands identify a surface.
 """
 
 from __future__ import annotations
@@ -28,7 +22,13 @@ from fydpad.motors.drive import build_drive
 from fydpad.motors.sim import indenter_press
 from fydpad.softness import SPECIMENS, fit_through_origin
 from fydpad.texture.evaluation.evaluate import BAND_HZ, welch_psd
-from fydpad.texture.evaluation.identify import DISTANCES, Identification
+from fydpad.texture.evaluation.identify import (
+    DISTANCES,
+    Identification,
+    scored_samples,
+    tally,
+    too_short,
+)
 from fydpad.texture.families import get_kind
 from fydpad.texture.families.friction import friction_coefficient
 from fydpad.texture.family import RateMismatch, finger_from_scan
@@ -54,10 +54,9 @@ def shape_distance_db(p1: np.ndarray, p2: np.ndarray, f: np.ndarray | None = Non
 def observe(scan, what: str, highpass_hz: float = 10.0) -> np.ndarray:
     """The scan's signal a family is compared with (see the module docstring)."""
     if what == "friction":
-        ff = getattr(scan, "friction_n", None)
-        if ff is None or scan.force_n is None:
+        if scan.friction_n is None or scan.force_n is None:
             raise ValueError(f"{scan.path}: no friction_n/force_n columns")
-        mu = friction_coefficient(ff, scan.force_n)
+        mu = friction_coefficient(scan.friction_n, scan.force_n)
         return np.nan_to_num(mu - np.nanmean(mu))
     return preprocess(scan.acc, scan.fs_hz, highpass_hz)
 
@@ -69,33 +68,28 @@ def identify_families(models: Sequence, labels: Sequence[str], scans: Sequence, 
     """Assign each scan to the nearest model (all of one family, one per surface).
 
     ``distance``: "shape" (the module docstring; over each scan's moving samples) or
-    :mod:`fydpad.texture.evaluation.identify`'s "bands"/"lsd" (levels of the vibration against the
+    :mod:`~fydpad.texture.evaluation.identify`'s "bands"/"lsd" (the vibration against the
     acceleration high-passed as the family's fit, over the samples each model covers).
-    A family that synthesizes noise (LPC, HaTT: a ``seed`` parameter) draws it from
-    ``seed`` for every scan, so a run is reproducible."""
+    A family with a ``seed`` parameter (LPC, HaTT) draws its noise from ``seed`` for
+    every scan, so a run is reproducible."""
     if distance != "shape" and distance not in DISTANCES:
         raise ValueError(f"distance {distance!r}: expected shape or one of "
                          f"{', '.join(DISTANCES)}")
-    names = list(dict.fromkeys(list(labels) + [s.surface for s in scans]))
     where = list(model_names) if model_names is not None else list(labels)
-    conf = np.zeros((len(names), len(names)), int)
-    assignments = []
     channel, band, what = (OBSERVABLES.get(models[0].kind, DEFAULT_OBSERVABLE)
                            if distance == "shape" else DEFAULT_OBSERVABLE)
-    for scan in wrap(scans):
+
+    def distances(scan) -> list[float]:
         finger = finger_from_scan(scan)
         dists = []
         for m, name in zip(models, where, strict=True):
             mask = scan.speed_mm_s > 1.0
             if distance != "shape":
-                covered = m.covers(scan.speed_mm_s)
-                mask = covered if covered.sum() >= scan.fs_hz / 2 else mask
+                mask = scored_samples(scan, m.covers(scan.speed_mm_s))
             try:
                 f, pr = welch_psd(observe(scan, what, m.highpass_hz), scan.fs_hz, mask)
             except ValueError as exc:
-                raise UserError(f"{scan.path}: too short to identify ({scan.t_s.size} rows, "
-                                f"{int(mask.sum())} of them scanning by column "
-                                f"'speed_mm_s'): {exc}") from None
+                raise too_short(scan, mask, exc) from None
             if "seed" in m.parameters:
                 m.set_parameter("seed", seed)
             m.reset()
@@ -113,15 +107,10 @@ def identify_families(models: Sequence, labels: Sequence[str], scans: Sequence, 
             else:
                 _, ps = welch_psd(syn, scan.fs_hz, mask)
                 dists.append(DISTANCES[distance](f, pr, ps))
-        j = int(np.argmin(dists))
-        conf[names.index(scan.surface), names.index(labels[j])] += 1
-        key = "shape_distance_db" if distance == "shape" else "distance_db"
-        assignments.append({"scan": scan.path, "label": scan.surface, "predicted": labels[j],
-                            "distance": distance,
-                            key: {lab: round(d, 3) for lab, d in
-                                  zip(labels, dists, strict=True)}})
-    rate = float(np.trace(conf) / max(1, conf.sum()))
-    return Identification(names, conf.tolist(), rate, assignments)
+        return dists
+
+    key = "shape_distance_db" if distance == "shape" else "distance_db"
+    return tally(labels, scans, distances, distance, wrap, key)
 
 
 # --------------------------------------------------------------- the cross-family run
@@ -148,11 +137,9 @@ def fit_per_surface(kind: str, train: dict[str, list], **options) -> tuple[list,
     return models, labels
 
 
-def compare_families(train: Sequence, test: Sequence, kinds: Sequence[str],
-                     wrap: Callable[[Iterable], Iterable] = lambda it: it, seed: int = 0
+def compare_families(train: Sequence, test: Sequence, kinds: Sequence[str], seed: int = 0
                      ) -> dict[str, Identification | str]:
-    """Per family: fit one model per training surface, identify every test scan (noise
-    drawn from ``seed``: :func:`identify_families`)."""
+    """Per family one model per training surface, and every test scan identified."""
     out: dict[str, Identification | str] = {}
     groups = by_surface(train)
     for kind in kinds:
@@ -161,14 +148,14 @@ def compare_families(train: Sequence, test: Sequence, kinds: Sequence[str],
         except Exception as exc:  # a family that cannot fit these scans is reported
             out[kind] = f"not fitted: {exc}"
             continue
-        out[kind] = identify_families(models, labels, test, wrap=wrap, seed=seed)
+        out[kind] = identify_families(models, labels, test, seed=seed)
     return out
 
 
 # --------------------------------------------------------------- Bianchi 2015 Table I
 def press_stiffness(drive, k_n_per_mm: float, rng: np.random.Generator) -> float:
-    """Render ``k_n_per_mm`` on the simulated fabric and measure it as the paper's
-    indenter does: press 0.5-10 mm (noisy force and depth), fit F = k delta."""
+    """``k_n_per_mm`` rendered on the simulated fabric and measured as the paper's
+    indenter does: presses of 0.5-10 mm (noisy force and depth), F = k delta fitted."""
     drive.set_stiffness(k_n_per_mm)
 
     def hold(ticks: int = 5) -> None:
@@ -182,16 +169,12 @@ def press_stiffness(drive, k_n_per_mm: float, rng: np.random.Generator) -> float
 
 def specimen_experiment(kind: str, train: dict[str, list], test: dict[str, list],
                         reference: dict[str, list], trials: int = 3, seed: int = 0) -> dict:
-    """Bianchi 2015's 2 x 2 (S1/S2 x R1/R2, specimens SS1..SS4) with the pad simulated.
-
-    Each trial renders a specimen: its roughness by the family's model of R1 or R2 along
-    a test stroke (vibration channel), its softness by the simulated motors holding the
-    specimen's stiffness, measured by a simulated indenter press. The identifier knows
-    the real specimens: their roughness scans (``reference``, spectra) and stiffness
-    (Table I). Spectra alone cannot separate SS1 from SS3 (both R1): they get the same
-    reference spectrum. With the stiffness feature the nearest specimen uses both,
-    each distance scaled by its spread over the specimens.
-    """
+    """Bianchi 2015's 2 x 2 (S1/S2 x R1/R2, specimens SS1..SS4) with the pad simulated:
+    each trial renders a specimen's roughness by the family's model of R1 or R2 along a
+    test stroke and its softness on the simulated motors, measured by an indenter press.
+    The identifier knows the specimens' roughness scans (``reference``) and stiffness
+    (Table I); spectra alone cannot separate SS1 from SS3 (both R1), spectra and
+    stiffness (each distance scaled by its spread over the specimens) can."""
     names = sorted(SPECIMENS)
     rough = {n: "R1" if abs(SPECIMENS[n].period_mm - 3.90) < 0.01 else "R2" for n in names}
     models, labels = fit_per_surface(kind, {r: train[r] for r in ("R1", "R2")})
@@ -205,7 +188,7 @@ def specimen_experiment(kind: str, train: dict[str, list], test: dict[str, list]
             ps.append(p)
         ref_psd[r] = np.mean(ps, axis=0)
     sel = (f >= band[0]) & (f <= band[1])
-    drive = build_drive(_sim_motors())  # its softness table measured on the plant
+    drive = build_drive(replace(MotorConfig(), backend="sim"))  # its softness table
     drive.start()
     rng = np.random.default_rng(seed)
     conf = {"spectra": np.zeros((4, 4), int), "spectra+stiffness": np.zeros((4, 4), int)}
@@ -216,6 +199,8 @@ def specimen_experiment(kind: str, train: dict[str, list], test: dict[str, list]
                 r = rough[n]
                 stroke = test[r][k % len(test[r])]
                 m = fam[r]
+                if "seed" in m.parameters:  # the same seed, the same confusion matrix
+                    m.set_parameter("seed", seed + k)
                 m.reset()
                 syn = m.render(finger_from_scan(stroke), channel)
                 _, ps = welch_psd(syn - syn.mean(), stroke.fs_hz, stroke.speed_mm_s > 1)
@@ -240,7 +225,3 @@ def specimen_experiment(kind: str, train: dict[str, list], test: dict[str, list]
         "rate": {key: float(np.trace(c) / c.sum()) for key, c in conf.items()},
         "confusion": {key: c.tolist() for key, c in conf.items()}, "rows": rows,
     }
-
-
-def _sim_motors() -> MotorConfig:
-    return replace(MotorConfig(), backend="sim")

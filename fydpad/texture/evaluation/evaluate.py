@@ -1,15 +1,10 @@
-"""Comparing synthesized with recorded texture signals (paper IV-A; the targets below).
-
-All metrics are on the DFT321, 10 Hz high-passed signal, before any drive filter:
-
-- ``psd_correlation``: Pearson correlation of the two Welch power spectra (4 Hz bins,
-  20-500 Hz), linear power: the paper's "correlation in frequency" (0.681);
-  ``psd_correlation_db`` the same on dB spectra (stricter: weak bands count too);
-- ``lsd_db``: log-spectral distance, RMS over the band of the dB difference;
-- ``band_energy``: power per band in (m/s^2)^2 for both signals;
-- ``time_correlation``: the paper's time correlation (0.263). Independent realisations
-  of a random process are not expected to correlate sample by sample, so this figure
-  is near 0 for any correct model; it is reported for comparison only.
+"""Synthesized against recorded texture signals (Bianchi 2015 IV-A), on the DFT321
+signal high-passed at 10 Hz, before any drive filter: ``psd_correlation``, the Pearson
+correlation of the Welch power spectra (4 Hz bins, 20-500 Hz; the paper's "correlation
+in frequency", 0.681), ``psd_correlation_db`` the same on dB spectra; ``lsd_db``, the
+RMS over the band of their dB difference; ``band_energy`` per band in (m/s^2)^2; and
+``time_correlation`` (the paper's 0.263), near 0 for independent realisations of any
+correct model, reported for comparison only.
 """
 
 from __future__ import annotations
@@ -106,9 +101,8 @@ TARGET_LSD_OVER_CEILING_DB = 0.25
 
 @dataclass
 class Ceiling:
-    """A second recording of the same surface, at the same speed and about as long,
-    scored against the scan as a model is: the reference of the target (what two
-    realisations of the texture score against each other)."""
+    """A second recording of the surface scored against the scan as a model is: what
+    two realisations of the texture score against each other."""
 
     psd_correlation: float
     lsd_db: float
@@ -120,7 +114,7 @@ class Ceiling:
 def ceiling(recorded_psd: Array, second_psd: Array, f_hz: Array,
             band: tuple[float, float] = BAND_HZ) -> Ceiling:
     """The ceiling from the two recordings' Welch spectra (each over its own samples
-    within the model's speeds, so the recordings may differ in length)."""
+    within the model's speeds)."""
     sel = _band(f_hz, band)
     return Ceiling(psd_correlation(recorded_psd[sel], second_psd[sel]),
                    lsd_db(recorded_psd[sel], second_psd[sel]))
@@ -129,10 +123,9 @@ def ceiling(recorded_psd: Array, second_psd: Array, f_hz: Array,
 def unfair_ceiling(scan_speeds_mm_s: Array, second_speeds_mm_s: Array, fs_hz: float,
                    tolerance_mm_s: float, scan_surface: str | None = None,
                    second_surface: str | None = None) -> str | None:
-    """Why a second recording (its samples within the model's speeds) sets no fair
-    ceiling for the scan, or None: another surface (when both name theirs), a median
-    speed further than the tolerance from the scan's (another spectrum), or less than
-    half the scan's duration (its spectrum scatters more, which raises the ceiling)."""
+    """Why a second recording sets no fair ceiling for the scan, or None: another
+    surface, a median speed beyond the tolerance from the scan's, or less than half the
+    scan's duration (its spectrum scatters more, raising the ceiling)."""
     if scan_surface and second_surface and scan_surface != second_surface:
         return f"it is of {second_surface!r}, the scan of {scan_surface!r}"
     v1, v2 = float(np.median(scan_speeds_mm_s)), float(np.median(second_speeds_mm_s))
@@ -153,8 +146,7 @@ def meets_targets(c: Comparison, ceil: Ceiling) -> bool:
 
 @dataclass(frozen=True)
 class MeansVerdict:
-    """The targets judged on the means of several strokes (each against its own
-    second recording): :func:`verdict_on_means`."""
+    """The targets judged on the means of several strokes: :func:`verdict_on_means`."""
 
     psd_correlation: float
     lsd_over_ceiling_db: float
@@ -165,11 +157,9 @@ class MeansVerdict:
 
 
 def verdict_on_means(corr: ArrayLike, lsd_over_ceiling_db: ArrayLike) -> MeansVerdict:
-    """Mean correlation >= 0.95 and mean LSD - ceiling <= 0.25 dB over the strokes. One
-    stroke against one second recording is a comparison of two draws; the means are
-    steadier, and a verdict within two standard errors of a limit is the draw's: met is
-    decided when both means clear their limits by two standard errors, a miss when one
-    of them misses by two (docs/texture.md, "The targets on several strokes per cell")."""
+    """Mean correlation >= 0.95 and mean LSD - ceiling <= 0.25 dB over the strokes (each
+    against its own second recording: one pair is two random draws). Decided: both
+    means clear their limits by two standard errors (met), or one misses by two."""
     c = np.asarray(corr, float)
     d = np.asarray(lsd_over_ceiling_db, float)
     corr_mean, gap = float(np.mean(c)), float(np.mean(d))
@@ -187,11 +177,9 @@ def verdict_on_means(corr: ArrayLike, lsd_over_ceiling_db: ArrayLike) -> MeansVe
     return MeansVerdict(corr_mean, gap, c_se, g_se, met, decided)
 
 
-def evaluation_mask(scan: Scan, model: TextureModel, tolerance_mm_s: float | None = None
-                    ) -> NDArray[np.bool_]:
+def evaluation_mask(scan: Scan, model: TextureModel) -> NDArray[np.bool_]:
     """Samples within the model's speed range (widened by its tolerance)."""
-    tol = model.tolerance_mm_s if tolerance_mm_s is None else tolerance_mm_s
-    v = scan.speed_mm_s
+    tol, v = model.tolerance_mm_s, scan.speed_mm_s
     return (v >= model.speeds_mm_s[0] - tol) & (v <= model.speeds_mm_s[-1] + tol)
 
 
@@ -210,11 +198,9 @@ def evaluate_scan(model: TextureModel, scan: Scan, *, method: str = DEFAULT_METH
 
 def compare_recordings(scan: Scan, other: Scan, model: TextureModel,
                        mask: ArrayLike | None = None) -> Comparison:
-    """Another recording of the surface scored against ``scan`` as the model is by
-    :func:`evaluate_scan` (a second recording: the target's ceiling; a third in the
-    model's place: what a replica meets): both DFT321 signals high-passed as the model's,
-    over ``mask`` (default the scan's samples within the model's speeds) and the other's
-    samples within them."""
+    """Another recording of the surface scored against ``scan`` as :func:`evaluate_scan`
+    scores the model (the ceiling), over ``mask`` (default: within the model's speeds)
+    and the other's samples within the model's speeds."""
     if mask is None:
         mask = evaluation_mask(scan, model)
     c, *_ = compare(preprocess(scan.acc, scan.fs_hz, model.highpass_hz),

@@ -1,30 +1,15 @@
-"""Objective analogue of the paper's Table I: which surface does each model sound like?
+"""Which surface does each model sound like (an objective analogue of Bianchi 2015's
+Table I)? Every model is rendered along each scan's own speed trace and the scan goes to
+the model whose spectrum (Welch, 4 Hz bins, 20-500 Hz, over the same samples) is
+nearest; confusion[i][j] counts scans of label i assigned to model label j.
 
-Every model is synthesized along each scan's own speed trace (the renderer follows the
-scan's speed, as it would follow a finger); the scan is assigned to the model whose
-synthesized dB spectrum (Welch 4 Hz bins, 20-500 Hz, over the same samples) is nearest.
-confusion[i][j] counts scans of label i assigned to model label j; the rate is the
-fraction on the diagonal.
-
-Distances (``distance=``):
-
-- ``"bands"`` (default): the band-level distance. Each spectrum is reduced to its levels
-  in third-octave bands (edges 20 * 2^(k/3) Hz, 14 bands over 20-500 Hz),
-  L_b = 10 log10(mean of P over the band's bins), and the distance is the RMS over the
-  bands of L_rec,b - L_syn,b in dB. Why, two reasons, both measured (docs/texture.md):
-  (1) weight per octave, not per hertz: 4 Hz bins over 20-500 Hz put three quarters of
-  the weight above 140 Hz, where most textures are the sensor floor and where the
-  models' steep edges sit a few bins off between modelled speeds (the generator's
-  sandpaper_p80 at 15 mm/s: a 40 dB cliff at 190-220 Hz that its model, interpolated
-  between 10 and 20 mm/s, puts 30 dB high at 220-260 Hz, so its own model scored worse
-  than brick's, wrong by 5-15 dB below 200 Hz); third-octave bands put 7 of 14 bands
-  below 100 Hz, where a surface's content is. (2) Within a band the model is judged on
-  its power, not on where each comb line sits to a 4 Hz bin (mesh_steel: odd
-  harmonics of v / 0.6 mm that wander with the hand). A third of an octave (26 %) is
-  also about the Weber fraction of vibrotactile frequency discrimination; the paper's
-  Table I is a human's identification.
-- ``"lsd"``: the log-spectral distance on the 4 Hz bins, sqrt(mean d^2) with
-  d = 10 log10(P_rec / P_syn) (evaluate's metric; the distance used before).
+Distances: ``"bands"`` (default), the RMS over third-octave bands (edges 20 * 2^(k/3)
+Hz, 14 bands) of the level difference in dB, L_b = 10 log10(mean P over band b): weight
+per octave, where a surface's content is (4 Hz bins put three quarters of the weight
+above 140 Hz, mostly the sensor floor), and each band judged on its power rather than
+on where a comb line sits to a bin; a third of an octave is also about the Weber
+fraction of vibrotactile frequency discrimination. ``"lsd"``: the log-spectral distance
+on the 4 Hz bins (evaluate's metric).
 """
 
 from __future__ import annotations
@@ -89,65 +74,71 @@ DISTANCES: dict[str, Callable[[Array, Array, Array], float]] = {
     "bands": band_level_distance_db, "lsd": _bin_lsd_db}
 
 
-def identify(models: Sequence[TextureModel], scans: Sequence[Scan], *, method: str = DEFAULT_METHOD,
-             distance: str = "bands", seed: int = 0,
-             wrap: Callable[[Iterable], Iterable] = lambda it: it,
-             model_names: Sequence[str] | None = None) -> Identification:
-    """Assign every scan to the model with the nearest synthesized spectrum (``distance``:
-    ``"bands"`` or ``"lsd"``, module docstring). ``model_names`` (the model files) name
-    the models in errors; a scan at another rate than a model, or too short for one
-    spectrum, is a UserError naming the scan."""
-    if distance not in DISTANCES:
-        raise ValueError(f"distance {distance!r}: expected one of {', '.join(DISTANCES)}")
-    names = list(model_names) if model_names is not None else [
-        f"model '{m.surface}'" for m in models]
-    _check_rates(models, names, scans)
-    dist_fn = DISTANCES[distance]
-    model_labels = [m.surface for m in models]
-    labels = list(dict.fromkeys(model_labels + [s.surface for s in scans]))
+def scored_samples(scan: Scan, covered: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """The samples a model covers, or where too few (half a second), every moving one."""
+    return covered if covered.sum() >= scan.fs_hz / 2 else scan.speed_mm_s > 1.0
+
+
+def too_short(scan: Scan, mask: NDArray[np.bool_], exc: Exception) -> UserError:
+    return UserError(f"{scan.path}: too short to identify ({scan.t_s.size} rows, "
+                     f"{int(mask.sum())} of them scanning by column 'speed_mm_s'): {exc}")
+
+
+def tally(model_labels: Sequence[str], scans: Sequence[Scan],
+          distances: Callable[[Scan], list[float]], distance: str,
+          wrap: Callable[[Iterable], Iterable], key: str = "distance_db") -> Identification:
+    """Every scan assigned to the model of least ``distances(scan)`` (one per model)."""
+    labels = list(dict.fromkeys(list(model_labels) + [s.surface for s in scans]))
     conf = np.zeros((len(labels), len(labels)), int)
     assignments = []
-    renderers = [TextureRenderer(m, method=method, ramp_s=1e-6) for m in models]
     for scan in wrap(scans):
-        dists = []
-        for m, r in zip(models, renderers, strict=True):
-            mask = evaluation_mask(scan, m)
-            if mask.sum() < scan.fs_hz / 2:
-                mask = scan.speed_mm_s > 1.0
-            rec = preprocess(scan.acc, scan.fs_hz, m.highpass_hz)
-            try:
-                f, pr = welch_psd(rec, scan.fs_hz, mask)
-            except ValueError as exc:  # the synthesis has the same mask: one check
-                raise UserError(f"{scan.path}: too short to identify ({scan.t_s.size} rows, "
-                                f"{int(mask.sum())} of them scanning by column "
-                                f"'speed_mm_s'): {exc}") from None
-            r.reset()
-            r.reseed(seed)  # each scan's synthesis independent of the scans before it
-            r.warmup(float(scan.speed_mm_s[0]), 0.5)
-            syn = r.block(scan.speed_mm_s, True)
-            _, ps = welch_psd(syn, scan.fs_hz, mask)
-            dists.append(dist_fn(f, pr, ps))
+        dists = distances(scan)
         j = int(np.argmin(dists))
         conf[labels.index(scan.surface), labels.index(model_labels[j])] += 1
         assignments.append({"scan": scan.path, "label": scan.surface,
-                            "predicted": model_labels[j],
-                            "distance": distance,
-                            "distance_db": {lab: round(d, 3) for lab, d in
-                                            zip(model_labels, dists, strict=True)}})
+                            "predicted": model_labels[j], "distance": distance,
+                            key: {lab: round(d, 3) for lab, d in
+                                  zip(model_labels, dists, strict=True)}})
     rate = float(np.trace(conf) / max(1, conf.sum()))
     return Identification(labels, conf.tolist(), rate, assignments)
 
 
-def _check_rates(models: Sequence[TextureModel], names: Sequence[str],
-                 scans: Sequence[Scan]) -> None:
-    """The synthesis runs at the model's rate along the scan's samples: at another rate
-    its spectrum is stretched (a 2 kHz model on 1 kHz scans: an octave down), so the
-    scores would mean nothing; evaluate_scan refuses it the same way."""
-    for scan in scans:
+def identify(models: Sequence[TextureModel], scans: Sequence[Scan], *, method: str = DEFAULT_METHOD,
+             distance: str = "bands", seed: int = 0,
+             wrap: Callable[[Iterable], Iterable] = lambda it: it,
+             model_names: Sequence[str] | None = None) -> Identification:
+    """Assign every scan to the LPC model with the nearest synthesized spectrum (one
+    renderer per model, reseeded with ``seed`` for every scan). ``model_names`` (the
+    model files) name the models in errors; a scan at another rate than a model, or too
+    short for one spectrum, is a UserError naming the scan."""
+    if distance not in DISTANCES:
+        raise ValueError(f"distance {distance!r}: expected one of {', '.join(DISTANCES)}")
+    names = list(model_names) if model_names is not None else [
+        f"model '{m.surface}'" for m in models]
+    for scan in scans:  # at another rate the synthesis's spectrum would be stretched
         for m, name in zip(models, names, strict=True):
             if abs(scan.fs_hz - m.fs_hz) > 1e-6 * m.fs_hz:
                 raise UserError(f"{scan.path}: column 't_s': sample rate {scan.fs_hz:g} Hz, "
                                 f"{name}: key 'sample_rate_hz' {m.fs_hz:g} Hz")
+    renderers = [TextureRenderer(m, method=method, ramp_s=1e-6) for m in models]
+
+    def distances(scan: Scan) -> list[float]:
+        out = []
+        for m, r in zip(models, renderers, strict=True):
+            mask = scored_samples(scan, evaluation_mask(scan, m))
+            try:
+                f, pr = welch_psd(preprocess(scan.acc, scan.fs_hz, m.highpass_hz),
+                                  scan.fs_hz, mask)
+            except ValueError as exc:  # the synthesis has the same mask: one check
+                raise too_short(scan, mask, exc) from None
+            r.reset()
+            r.reseed(seed)  # each scan's synthesis independent of the scans before it
+            r.warmup(float(scan.speed_mm_s[0]), 0.5)
+            _, ps = welch_psd(r.block(scan.speed_mm_s, True), scan.fs_hz, mask)
+            out.append(DISTANCES[distance](f, pr, ps))
+        return out
+
+    return tally([m.surface for m in models], scans, distances, distance, wrap)
 
 
 def plot_confusion(path: str, ident: Identification, title: str = "") -> None:

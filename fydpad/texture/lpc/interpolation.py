@@ -1,12 +1,6 @@
-"""The LPC model between its fitted speeds (paper III-B: "the two closest entries in speed").
-
-Two methods, named by the model file's ``interpolation``:
-
-- ``"nearest"``: the model of the nearest fitted speed, unchanged (the paper's per-speed
-  fits on a 1 mm/s speed grid: no coefficients are interpolated);
-- ``"stretch"``: the model's speed-resolved spectrum S(f, v) (:mod:`spectrum`) at the
-  speed, as a two-stage all-pole fit; stable, as a Levinson fit to a positive spectrum.
-"""
+"""The LPC model between its fitted speeds, as the model file's ``interpolation`` names:
+``"nearest"``, the nearest fitted model unchanged (the paper's per-speed fits, III-B);
+``"stretch"``, the all-pole fit of the calibrated spectrum S(f, v) at the speed."""
 
 from __future__ import annotations
 
@@ -37,8 +31,6 @@ class SpeedInterpolator:
             raise ValueError(f"{model.surface}: interpolation 'stretch' needs the model's "
                              "speed-resolved spectrum (key 'free_form'); this model has none")
         self.model = model
-        self.method = method
-        self.polys = np.vstack([model.poly(i) for i in range(len(model.speeds_mm_s))])
         self._spectrum = spectrum_of(model) if method == "stretch" else None
 
     def __call__(self, speed_mm_s: float) -> tuple[Array, float]:
@@ -46,16 +38,13 @@ class SpeedInterpolator:
         if self._spectrum is not None:
             return self._spectrum.ar(speed_mm_s, m.order, m.fs_hz)
         i = int(np.argmin(np.abs(m.speeds_mm_s - speed_mm_s)))
-        return self.polys[i].copy(), float(m.sigma2[i])
+        return m.poly(i), float(m.sigma2[i])
 
 
 @dataclass
 class SpeedTable:
-    """Filters precomputed on a fine speed grid, so the 1 kHz loop only looks them up.
-
-    ``h[i]`` and ``sigma[i]`` (standard deviation of e, eq. 5) belong to speed
-    ``speeds_mm_s[i]``; ``stable[i]`` is the check of each entry.
-    """
+    """Filters on a fine speed grid, so the 1 kHz loop only looks them up: ``h[i]``,
+    ``sigma[i]`` (the std of e, eq. 5) and ``stable[i]`` at ``speeds_mm_s[i]``."""
 
     speeds_mm_s: Array
     polys: Array
@@ -71,14 +60,11 @@ class SpeedTable:
 
 
 def table_range(model: TextureModel, method: str | None = None) -> tuple[float, float]:
-    """The speeds a table covers (clamped beyond). The speed-resolved spectrum is
-    rendered at every speed its fit saw: down to where the renderer starts fading (the
-    slowest speed less the fit tolerance, at least half of it) and up to the fastest plus
-    the tolerance (the spectrum *at* 10 mm/s held down to 5 put felt 2.1 dB further from
-    the ceiling). The nearest-model grid: its slowest and fastest models, held beyond."""
+    """The speeds a table covers (clamped beyond): the nearest models' fitted speeds; the
+    spectrum's, every speed its fit saw, down to the renderer's fade (the slowest less the
+    tolerance, at least half of it) and up to the fastest plus the tolerance."""
     lo, hi = float(model.speeds_mm_s[0]), float(model.speeds_mm_s[-1])
-    method = model.interpolation if method is None else method
-    if method == "stretch":
+    if (model.interpolation if method is None else method) == "stretch":
         tol = float(model.tolerance_mm_s)
         return max(lo - tol, 0.5 * lo), hi + tol
     return lo, hi
@@ -86,8 +72,7 @@ def table_range(model: TextureModel, method: str | None = None) -> tuple[float, 
 
 def build_table(model: TextureModel, method: str | None = None, step_mm_s: float = 0.25
                 ) -> SpeedTable:
-    """Interpolate the model at every ``step_mm_s`` over :func:`table_range` (the grid is
-    anchored at the slowest fitted speed)."""
+    """The model at every ``step_mm_s`` of :func:`table_range`, anchored at its slowest speed."""
     interp = SpeedInterpolator(model, method)
     v0 = float(model.speeds_mm_s[0])
     lo, hi = table_range(model, method)
@@ -100,5 +85,3 @@ def build_table(model: TextureModel, method: str | None = None, step_mm_s: float
         polys[k], s2[k] = interp(float(v))
     stable = np.array([is_stable(a) for a in polys])
     return SpeedTable(grid, polys, -polys[:, 1:], np.sqrt(s2), stable, step_mm_s)
-
-

@@ -1,47 +1,21 @@
-"""The calibrated form's speed-resolved spectrum: a two-part base S_two(f, v) (a fixed
-part and a surface part) times a correction measured at each fitted speed.
+"""The calibrated form's speed-resolved spectrum (docs/texture.md): a two-part base
 
-A tool scanning a surface at speed v records (docs/texture.md, "Two-part model")
+    S_two(f, v) = T(f) U(f / v) g(v) + N(f) n(v) + N0(f)
 
-    S(f, v) = T(f) * U(f / v) * g(v) + N(f) * n(v) + N0(f)
+times a correction C_i measured at each fitted speed v_i. U(k), a function of spatial
+frequency k = f / v, is the surface's part (a grating's comb, a roughness band's edge) and
+slides with speed; T(f), the tool's resonance and contact filter it is seen through, does
+not; N(f) n(v) is a fixed additive part (stick-slip through the tool mode) and N0(f) the
+accelerometer's own floor. The levels g, n are linear in log v (a power law) between knots
+every 5 mm/s that have ``KNOT_MIN_CHUNKS`` chunks of data, so a gap between strokes is
+bridged by the knots on either side. All factors are fitted jointly on every 0.5 s chunk
+at its samples' speeds by IS-NMF multiplicative updates (Fevotte et al. 2009).
 
-- ``U(k)``: the surface's part, a function of spatial frequency k = f / v (cycles/mm):
-  a grating's comb, a roughness band's edge. It slides along f with speed.
-- ``T(f)``: what the surface part is seen through and does not move: the tool's
-  resonance, the contact filter, the 10 Hz high-pass.
-- ``N(f)``: a fixed additive part: the sensor floor and vibration that does not follow
-  the surface (stick-slip through the tool mode), with its own level per speed n(v).
-- ``N0(f)``: a floor whose level does not depend on speed: the accelerometer's own
-  noise. Without it the sensor floor had to come from N n(v) or from U at spatial
-  frequencies only the slowest chunks see, and either rose or fell 20-30 dB between
-  the strokes' speeds.
-- ``g(v)``, ``n(v)``: levels per speed, linear in log v between knots every 5 mm/s (a
-  power law, what a spatial process's level is, is then exact between knots); a knot
-  with less than ``KNOT_MIN_CHUNKS`` chunks of data within half a step is dropped, so a
-  gap between strokes' speeds is bridged by the knots on either side, not by a knot
-  that the gap's edges alone set. Kept on a 1 mm/s grid.
-- ``U(k)`` at spatial frequencies no chunk sees in earnest (less than
-  ``U_MIN_CHUNKS`` of weight: above f_max over the slowest speed with data) holds the
-  nearest seen value instead of its start value.
-
-All factors are nonnegative and each enters S linearly, so they are fitted jointly on
-every training run at its measured speed by multiplicative updates minimising the
-Itakura-Saito divergence (the maximum-likelihood fit of periodograms; Fevotte et al.
-2009, IS-NMF). Each periodogram chunk (0.5 s) is predicted as the mean of S over the
-speeds of its samples, so a hand's wander within a chunk is modelled, not smeared into
-the model. Rendering at speed v computes S(f, v) and fits an all-pole model of the
-texture's order to it (``analysis.ar_from_log_psd``), at start-up for every entry of
-the renderer's speed table: the 1 kHz path is unchanged.
-
-The calibrated spectrum (docs/texture.md, "Speed-resolved spectra") is
-S = S_two(f, v) * C(f, v). At each fitted speed v_i, C_i = (the mean periodogram of the
-runs segmented near v_i) / (S_two averaged over those runs' own sample speeds, with the
-render's +-1 mm/s average). A held-out stroke whose speeds wander as the training
-strokes' did then gets the recorded spectrum on average (combs, whose lines the
-factorisation misplaces), while S_two still follows the finger's speed within the
-stroke. log C is weighted by a tent of half-width ``TAPER_MM_S`` around each v_i (at
-most ``TAPER_PER_SPACING`` x the distance to the next v_i), so between the speeds S
-leans back towards S_two.
+C_i = (the mean periodogram of the runs near v_i) / (S_two averaged over those runs' own
+speeds): a held-out stroke that wanders as the training strokes did gets the recorded
+spectrum on average (combs the factorisation misplaces); log C_i is weighted by a tent
+around v_i, so between the speeds S leans back to S_two. The renderer fits an all-pole
+model to S at every entry of its speed table at start-up (``CalibratedSpectrum.ar``).
 """
 
 from __future__ import annotations
@@ -63,22 +37,27 @@ from fydpad.texture.lpc.model_file import TextureModel
 Array = NDArray[np.float64]
 CHUNK = 512  # samples per periodogram (2 Hz bins at 1 kHz)
 SPEED_STEP_MM_S = 1.0  # grid of the level functions g, n and of the chunks' speed mixes
+KNOT_STEP_MM_S = 5.0
 ITERATIONS = 600
-RENDER_SMEAR_MM_S = 1.0  # see TwoPartSpectrum.ar
+#: S is rendered averaged over v +- this: the FIR mixes table entries 0.25 mm/s apart, whose
+#: narrow comb lines would otherwise cancel (R2 at 20 mm/s: -3 dB at 20-100 Hz).
+RENDER_SMEAR_MM_S = 1.0
 PREWHITEN_ORDER = 8  # of the two-stage all-pole fit (ar_two_stage)
 FACTORS = ("f_hz", "k_per_mm", "tool", "surface", "floor", "v_mm_s", "g", "n")
 STEP = 0.5  # MU exponent: 1/2 is the IS divergence's majorisation (monotone)
-#: A level knot needs this many chunks' worth of data within half a knot step (8: about
-#: 2 s of a stroke; 2 kept a knot at 15 mm/s between the 10 and 20 mm/s strokes, set by
-#: their edges alone, and put felt's spectrum there 1 dB high; docs/texture.md).
+#: Chunks of data a level knot needs within half a knot step (about 2 s of a stroke; 2 let
+#: the edges of the 10 and 20 mm/s strokes set a knot at 15 and put felt 1 dB high there).
 KNOT_MIN_CHUNKS = 8.0
-#: A spatial frequency node needs this much chunk-bin weight to be fitted (module doc).
+#: Chunk-bin weight a spatial frequency needs to be fitted; those seen less (above f_max
+#: over the slowest speed) hold the nearest seen value.
 U_MIN_CHUNKS = 1.0
-#: Beyond the end knots a level goes on along its end segment, its slope in log level per
-#: log speed bounded by this (power ~ v^+-4): a level that is not used (the floor n(v)
-#: where N0 holds the floor) drifts to 1e-13 with any slope, and continued unbounded to
-#: 5 mm/s it stood 1e13 (canvas: +98 dB at a stroke's ramps).
+#: Bound on a level's slope (log level per log speed) beyond the end knots: an unused level
+#: drifts to 1e-13 and, continued unbounded to 5 mm/s, stood at +98 dB (canvas).
 MAX_EXTRAPOLATION_POWER = 4.0
+TAPER_MM_S = 7.5  # half-width of each correction's tent (chosen on the generator's set C)
+#: ... at most this times the distance to the next fitted speed (7.5 mm/s tents at 5 mm/s
+#: steps summed three corrections at every speed).
+TAPER_PER_SPACING = 0.75
 
 
 @dataclass
@@ -96,8 +75,7 @@ class TwoPartSpectrum:
     fixed: Array  # N0(f)
 
     def psd(self, speed_mm_s: float) -> Array:
-        """S(f, v) on ``f_hz`` (power per bin, the chunk periodograms' scale: mean = power);
-        levels held outside the fitted speeds."""
+        """S_two(f, v) on ``f_hz`` (power per bin: mean = power), levels held beyond."""
         v = float(np.clip(speed_mm_s, self.v_mm_s[0], self.v_mm_s[-1]))
         g = np.exp(np.interp(v, self.v_mm_s, np.log(self.g)))
         n = np.exp(np.interp(v, self.v_mm_s, np.log(self.n)))
@@ -109,33 +87,13 @@ class TwoPartSpectrum:
         """The ``weights``-weighted mean of :meth:`psd` over ``speeds_mm_s``, in one pass."""
         v = np.clip(np.atleast_1d(np.asarray(speeds_mm_s, float)).ravel(), self.v_mm_s[0],
                     self.v_mm_s[-1])
-        w = np.ones(v.size) if weights is None else np.atleast_1d(
-            np.asarray(weights, float)).ravel()
-        if w.shape != v.shape or not (np.all(np.isfinite(w)) and np.all(w >= 0.0)
-                                      and w.sum() > 0.0):
-            raise ValueError(f"mean_psd: {w.size} weights for {v.size} speeds; they must be "
-                             "finite, >= 0 and not all 0")
+        w = np.ones(v.size) if weights is None else np.asarray(weights, float)
         w = w / w.sum()
         g = np.exp(np.interp(v, self.v_mm_s, np.log(self.g)))
         n = np.exp(np.interp(v, self.v_mm_s, np.log(self.n)))
         u = _resampled(self.surface, self.k_per_mm, self.f_hz, v)
         s = self.tool * ((w * g) @ u) + self.floor * float(w @ n)
         return s + self.fixed
-
-    def ar(self, speed_mm_s: float, order: int, fs_hz: float) -> tuple[Array, float]:
-        """All-pole (A, sigma^2) of ``order`` with the spectrum S(f, v) averaged over
-        v +- ``RENDER_SMEAR_MM_S``, and its power.
-
-        Why the average: at its exact speed a grating's spectrum is a comb of narrow
-        lines, and the renderer's FIR structure mixes the impulse responses of two table
-        entries 0.25 mm/s apart, whose lines sit ~1 Hz apart at 80 Hz: the mix cancels
-        part of their power (measured on R2 at 20 mm/s: -3 dB at 20-100 Hz). Lines
-        widened by f * smear / v overlap from one entry to the next.
-        """
-        p = self.mean_psd(speed_mm_s + RENDER_SMEAR_MM_S * np.linspace(-1.0, 1.0, 5))
-        f = np.arange(NFFT // 2 + 1) * fs_hz / NFFT
-        log_p = np.interp(f, self.f_hz, np.log(np.maximum(p, 1e-300)))
-        return ar_two_stage(log_p, order)
 
     def to_json(self) -> dict:
         d = {k: [float(x) for x in getattr(self, k)] for k in FACTORS}
@@ -149,10 +107,9 @@ class TwoPartSpectrum:
 
 
 def ar_two_stage(log_p: Array, order: int) -> tuple[Array, float]:
-    """All-pole fit to a log spectrum in two stages: an order-``PREWHITEN_ORDER`` P
-    flattens the tilt, the rest of the order is fitted to the flattened spectrum,
-    A = A2 * P. One stage over-fills the valleys of a 50-60 dB spectrum (measured on
-    felt's two-part spectrum: +3 dB at 350-500 Hz)."""
+    """All-pole fit A = A2 P to a log spectrum: an order-``PREWHITEN_ORDER`` P flattens
+    the tilt, A2 fits the rest. One stage over-fills the valleys of a 50-60 dB spectrum
+    (felt: +3 dB at 350-500 Hz)."""
     q = min(PREWHITEN_ORDER, order - 1)
     if q == 0:
         return ar_from_log_psd(log_p, order)
@@ -162,32 +119,28 @@ def ar_two_stage(log_p: Array, order: int) -> tuple[Array, float]:
     return np.convolve(a2, pre), s2
 
 
-def chunk_periodograms(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
-                       chunk: int = CHUNK) -> tuple[Array, list[Array]]:
-    """Hann periodograms (mean = power) of 50 %-overlapping chunks, with each chunk's
+def chunk_periodograms(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float
+                       ) -> tuple[Array, list[Array]]:
+    """Hann periodograms (mean = power) of 50 %-overlapping chunks, and each chunk's
     sample speeds."""
-    w = np.hanning(chunk)
+    w = np.hanning(CHUNK)
     norm = np.dot(w, w)
     ps, vs = [], []
     for x, v in zip(runs, speeds, strict=True):
-        for a in range(0, x.size - chunk + 1, chunk // 2):
-            ps.append(np.abs(np.fft.rfft(x[a:a + chunk] * w)) ** 2 / norm)
-            vs.append(np.asarray(v[a:a + chunk], float))
-    return (np.vstack(ps) if ps else np.zeros((0, chunk // 2 + 1))), vs
+        for a in range(0, x.size - CHUNK + 1, CHUNK // 2):
+            ps.append(np.abs(np.fft.rfft(x[a:a + CHUNK] * w)) ** 2 / norm)
+            vs.append(np.asarray(v[a:a + CHUNK], float))
+    return (np.vstack(ps) if ps else np.zeros((0, CHUNK // 2 + 1))), vs
 
 
 class TooLittleData(ValueError):
-    """The scans hold no 0.5 s chunk within the modelled speeds (or no run that long):
-    a spectral model cannot be fitted on them, the pooled per-speed fit still can."""
+    """No 0.5 s chunk within the modelled speeds: no spectral model (the per-speed fit can)."""
 
 
 def _resample_matrix(f_hz: Array, v: float, k: Array, sub: int = 8) -> sp.csr_matrix:
-    """Rows: f bins; columns: k nodes; U(f / v) averaged over each bin's width.
-
-    Averaging (not point sampling) constrains every node a bin covers: at a slow speed
-    one 2 Hz bin spans several k nodes, and nodes skipped by point sampling would keep
-    their initial value and make S(f, v) flicker from one speed to the next.
-    """
+    """Rows f bins, columns k nodes: U(f / v) averaged over each bin's width, so every node
+    a slow speed's 2 Hz bin covers is constrained (point sampling left some at their start
+    value and S flickered from one speed to the next)."""
     df = f_hz[1] - f_hz[0]
     off = (np.arange(sub) + 0.5) / sub - 0.5
     x = ((f_hz[:, None] + df * off) / v).ravel()
@@ -200,9 +153,8 @@ def _resample_matrix(f_hz: Array, v: float, k: Array, sub: int = 8) -> sp.csr_ma
 
 
 def _resampled(u: Array, k: Array, f_hz: Array, v: float | Array, sub: int = 8) -> Array:
-    """``_resample_matrix(f_hz, v, k) @ u`` without building the matrix: U(f / v) averaged
-    over each bin's width (the render's table asks for S at hundreds of speeds); a row per
-    speed if ``v`` is an array."""
+    """U(f / v) as :func:`_resample_matrix` gives it, without the matrix (the render's
+    table asks at hundreds of speeds); a row per speed if ``v`` is an array."""
     df = f_hz[1] - f_hz[0]
     off = (np.arange(sub) + 0.5) / sub - 0.5
     v = np.asarray(v, float)[..., None, None]
@@ -216,12 +168,9 @@ def _threadpools() -> ThreadpoolController:
 
 @contextlib.contextmanager
 def one_blas_thread() -> Iterator[None]:
-    """BLAS held to one thread while the block runs in the main thread: the fits'
-    products are small, and a threaded BLAS on a loaded machine spends 10x their cost in
-    thread hand-offs (measured: 14 ms against 2 ms per iteration); single-threaded BLAS
-    is 2.7-3.8x faster than einsum's loops on them. The limit is the process's (with
-    some BLAS builds the calling thread's), so only the main thread sets and restores
-    it: a fit in another thread runs with BLAS as it is, and cannot leave it changed."""
+    """BLAS held to one thread for the block: the fit's products are small, and threaded
+    BLAS on a loaded machine spends 10x their cost in hand-offs. The limit is the
+    process's, so only the main thread sets and restores it."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -230,9 +179,8 @@ def one_blas_thread() -> Iterator[None]:
 
 
 def _hats(x: Array, nodes: Array, clamp: bool = True) -> Array:
-    """Linear-interpolation weights of the points ``x`` on ``nodes``: (len(x), len(nodes));
-    held at the end nodes beyond them, or with ``clamp=False`` continued along the end
-    segments (extrapolation)."""
+    """Linear-interpolation weights (len(x), len(nodes)) of ``x`` on ``nodes``: held at the
+    end nodes, or with ``clamp=False`` continued along the end segments."""
     out = np.zeros((np.size(x), nodes.size))
     j = np.clip(np.searchsorted(nodes, x) - 1, 0, nodes.size - 2)
     t = (x - nodes[j]) / (nodes[j + 1] - nodes[j])
@@ -245,9 +193,8 @@ def _hats(x: Array, nodes: Array, clamp: bool = True) -> Array:
 
 
 def _node_levels(log_levels: Array, log_v: Array, log_knots: Array, phi: Array) -> Array:
-    """Log levels at the speed nodes from the knots' (a column per level function if
-    2-D): linear in log v between knots (``phi``), beyond the end knots along the end
-    segments with their slopes bounded by ``MAX_EXTRAPOLATION_POWER``."""
+    """Log levels at the speed nodes from the knots' (a column per level if 2-D): linear in
+    log v (``phi``), beyond the end knots with slopes bounded by MAX_EXTRAPOLATION_POWER."""
     out = phi @ log_levels
     if log_knots.size < 2:
         return out
@@ -262,34 +209,26 @@ def _node_levels(log_levels: Array, log_v: Array, log_knots: Array, phi: Array) 
 
 def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
                  speed_range_mm_s: tuple[float, float], iterations: int = ITERATIONS,
-                 chunk: int = CHUNK, knot_step_mm_s: float = 5.0,
                  wrap: Callable[[Iterable], Iterable] = lambda it: it) -> TwoPartSpectrum:
-    """Fit the module's S(f, v) to preprocessed runs ``runs`` with speed traces ``speeds``.
-
-    Chunks whose speeds leave ``speed_range_mm_s`` are not used. The levels g and n are
-    log-linear (in log v) between knots every ``knot_step_mm_s`` that have data (a hand
-    gives few chunks at any one speed: a free level per 1 mm/s would follow the noise).
-    ``wrap`` wraps the iterations (a progress bar).
-    """
+    """S_two fitted to preprocessed ``runs`` with speed traces ``speeds``, on the chunks
+    within ``speed_range_mm_s``; ``wrap`` wraps the iterations (a progress bar)."""
     lo, hi = speed_range_mm_s
-    p_all, v_all = chunk_periodograms(runs, speeds, fs_hz, chunk)
+    p_all, v_all = chunk_periodograms(runs, speeds, fs_hz)
     keep = [i for i, v in enumerate(v_all) if v.min() >= lo and v.max() <= hi]
     if not keep:
         raise TooLittleData("no 0.5 s chunk of the scans stays within the modelled speeds")
     p = p_all[keep][:, 1:]  # no DC
-    f = np.fft.rfftfreq(chunk, 1.0 / fs_hz)[1:]
+    f = np.fft.rfftfreq(CHUNK, 1.0 / fs_hz)[1:]
     vgrid = np.arange(np.floor(lo), np.ceil(hi) + SPEED_STEP_MM_S / 2, SPEED_STEP_MM_S)
     # Mixing weights: chunk c's share of samples at each speed node.
     w = np.vstack([_hats(v_all[i], vgrid).mean(axis=0) for i in keep])
     rho = w.sum(axis=0)  # data at each speed node
-    knots = np.arange(vgrid[0], vgrid[-1] + knot_step_mm_s, knot_step_mm_s)
-    near = np.array([rho[np.abs(vgrid - kn) <= knot_step_mm_s / 2].sum() for kn in knots])
+    knots = np.arange(vgrid[0], vgrid[-1] + KNOT_STEP_MM_S, KNOT_STEP_MM_S)
+    near = np.array([rho[np.abs(vgrid - kn) <= KNOT_STEP_MM_S / 2].sum() for kn in knots])
     if np.count_nonzero(near >= KNOT_MIN_CHUNKS) >= 2:
         knots = knots[near >= KNOT_MIN_CHUNKS]
-    # Levels linear in log v (a power law), continued along the end segments beyond the
-    # end knots (held flat, the level at 10 mm/s put a stroke's ramps 3-5 dB high); log v
-    # kept finite at a standstill. The nodes' update ratios pool onto the knots with the
-    # clamped weights: a node beyond the end knots counts for the nearest one.
+    # Levels continue along the end segments beyond the end knots (held flat, a stroke's
+    # ramps stood 3-5 dB high); the nodes' update ratios pool onto the nearest knots.
     log_v, log_knots = np.log(np.maximum(vgrid, 0.25)), np.log(np.maximum(knots, 0.25))
     phi = _hats(log_v, log_knots, clamp=False)  # speed node <- knots
     pool = _hats(log_v, log_knots)
@@ -308,11 +247,10 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     floor = np.full(nf, 0.05 * mean_p.min() + 1e-30)
     lg = np.full(knots.size, np.log(float(np.median(mean_p))))
     ln = np.zeros(knots.size)
-    # N0 starts at half the quietest tenth of the chunks: a floor present at every speed
-    # (started as low as N, U's start value took the floor's place and kept it).
+    # N0 starts at half the quietest tenth of the chunks (started as low as N, U took the
+    # floor's place and kept it).
     fixed = 0.5 * np.percentile(p, 10, axis=0) + 1e-30
     eps = 1e-300
-
     # The speed nodes' MU ratios pool onto the knots (weighted geometric mean).
     pool_w = pool * rho[:, None]
     pool_w /= np.maximum(pool_w.sum(0), eps)
@@ -332,7 +270,6 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
             np.multiply(p, grad[:, 1] ** 2, out=grad[:, 0])
             # Per speed node, the gradient's positive and negative parts: (nodes, 2, f).
             gnp = (wt @ grad.reshape(nc, 2 * nf)).reshape(nv, 2, nf)
-            # Multiplicative updates (exponent 1/2: the IS divergence's majorisation).
             num = bbig_t @ (gnp[:, 0] * tg).ravel()
             den = bbig_t @ (gnp[:, 1] * tg).ravel()
             surface *= np.where(den > 0, num / np.maximum(den, eps), 1.0) ** STEP
@@ -358,9 +295,6 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
             floor /= c
             levels[:, 1] += np.log(c)
     lg, ln = levels[:, 0].copy(), levels[:, 1].copy()
-    # Spatial frequencies the chunks barely see (beyond f_max / the slowest speed with
-    # data) would keep their start value and stand 30 dB over the floor at the speeds
-    # that read them (cork at 6 mm/s): they hold the nearest well-seen value instead.
     seen = bbig_t @ np.repeat(rho, nf) >= U_MIN_CHUNKS
     if seen.any():
         surface = np.interp(k, k[seen], surface[seen])
@@ -372,13 +306,6 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
                            np.exp(_node_levels(ln, log_v, log_knots, phi)), fixed)
 
 
-# ------------------------------------------------ the calibrated spectrum
-TAPER_MM_S = 7.5  # chosen on the scan generator's seed set C (docs/texture.md)
-#: ... and at most this times the distance to the next fitted speed (7.5 mm/s tents at
-#: 5 mm/s steps summed three corrections at every speed).
-TAPER_PER_SPACING = 0.75
-
-
 @dataclass
 class CalibratedSpectrum:
     """S(f, v) = S_two(f, v) exp(sum_i w_i(v) log C_i(f)) (module docstring)."""
@@ -388,10 +315,6 @@ class CalibratedSpectrum:
     log_c: Array  # (speeds, f)
     taper_mm_s: float = TAPER_MM_S
 
-    @property
-    def f_hz(self) -> Array:
-        return self.two.f_hz
-
     def weights(self, speed_mm_s: float) -> Array:
         """w_i(v): a tent of half-width :attr:`half_widths_mm_s` around each v_i (speeds
         clamped to the fitted range)."""
@@ -400,8 +323,7 @@ class CalibratedSpectrum:
 
     @property
     def half_widths_mm_s(self) -> Array:
-        """Each correction's tent: ``taper_mm_s``, at most TAPER_PER_SPACING x the
-        distance to the next fitted speed (7.5 mm/s at the paper's 10 mm/s steps)."""
+        """``taper_mm_s``, at most TAPER_PER_SPACING x the distance to the next v_i."""
         if self.v_mm_s.size < 2:
             return np.full(self.v_mm_s.size, float(self.taper_mm_s))
         gap = np.diff(self.v_mm_s)
@@ -412,35 +334,33 @@ class CalibratedSpectrum:
         return self.two.psd(speed_mm_s) * np.exp(self.weights(speed_mm_s) @ self.log_c)
 
     def ar(self, speed_mm_s: float, order: int, fs_hz: float) -> tuple[Array, float]:
-        """All-pole (A, sigma^2) of S averaged over v +- RENDER_SMEAR_MM_S, as
-        :meth:`TwoPartSpectrum.ar`."""
+        """All-pole (A, sigma^2) of S averaged over v +- RENDER_SMEAR_MM_S."""
         vs = speed_mm_s + RENDER_SMEAR_MM_S * np.linspace(-1.0, 1.0, 5)
         p = np.mean([self.psd(float(v)) for v in vs], axis=0)
         f = np.arange(NFFT // 2 + 1) * fs_hz / NFFT
-        return ar_two_stage(np.interp(f, self.f_hz, np.log(np.maximum(p, 1e-300))), order)
+        return ar_two_stage(np.interp(f, self.two.f_hz, np.log(np.maximum(p, 1e-300))), order)
 
     def to_json(self) -> dict:
-        return {"form": "calibrated", "f_hz": [float(x) for x in self.f_hz],
+        return {"form": "calibrated", "f_hz": [float(x) for x in self.two.f_hz],
                 "v_mm_s": [float(x) for x in self.v_mm_s],
                 "log_c": [[float(x) for x in row] for row in self.log_c],
                 "taper_mm_s": self.taper_mm_s}
 
 
 def fit_calibrated(runs_by_speed: dict[float, list[tuple[Array, Array]]], fs_hz: float,
-                   two: TwoPartSpectrum, *, chunk: int = CHUNK, grid_mm_s: float = 0.25
-                   ) -> CalibratedSpectrum:
+                   two: TwoPartSpectrum) -> CalibratedSpectrum:
     """C_i for each fitted speed v_i from its segmented runs ``runs_by_speed[v_i] =
-    [(x, speed trace), ...]`` (module docstring); runs shorter than a chunk are skipped."""
+    [(x, speed trace), ...]``; runs shorter than a chunk are skipped."""
     speeds, rows = [], []
     smear = RENDER_SMEAR_MM_S * np.linspace(-1.0, 1.0, 5)
     for s, rv in sorted(runs_by_speed.items()):
-        rv = [(x, v) for x, v in rv if x.size >= chunk]
+        rv = [(x, v) for x, v in rv if x.size >= CHUNK]
         if not rv:
             continue
-        p, _ = chunk_periodograms([x for x, _ in rv], [v for _, v in rv], fs_hz, chunk)
-        # S_two averaged over the runs' sample speeds: a histogram on a fine grid.
+        p, _ = chunk_periodograms([x for x, _ in rv], [v for _, v in rv], fs_hz)
+        # S_two averaged over the runs' sample speeds: a histogram on a 0.25 mm/s grid.
         allv = np.concatenate([v for _, v in rv])
-        edges = np.arange(allv.min(), allv.max() + 2 * grid_mm_s, grid_mm_s)
+        edges = np.arange(allv.min(), allv.max() + 2 * 0.25, 0.25)
         hist, _ = np.histogram(allv, edges)
         mid = 0.5 * (edges[:-1] + edges[1:])[hist > 0]
         e = two.mean_psd((mid[:, None] + smear).ravel(), np.repeat(hist[hist > 0], smear.size))
