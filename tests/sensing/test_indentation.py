@@ -206,8 +206,8 @@ def test_rest_distances_resolve_finer_than_one_adc_step():
 
 def test_indentation_target_on_a_non_planar_fabric():
     """RMSE <= 0.6 mm over 0-50 mm against the true depth (measured 0.43; the paper's
-    plane reports 2.88 mm), across the whole 100 x 70 mm workspace; the correction is fitted on one set of presses and
-    scored on another."""
+    plane reports 2.88 mm), across the whole 100 x 70 mm workspace; the correction is
+    fitted on one set of presses and scored on another."""
     rng = np.random.default_rng(4)
     fabric = MembraneFabric()
     est = IndentationEstimator(baseline_mm=BASELINE_MM)

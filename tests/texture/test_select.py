@@ -16,7 +16,7 @@ from fydpad.texture.lpc.analysis import ar_psd, autocorrelation
 from fydpad.texture.lpc.dft321 import preprocess
 from fydpad.texture.lpc.fit import fit_paper
 from fydpad.texture.lpc.model_file import load_model, model_to_json, save_model
-from fydpad.texture.lpc.select import CANDIDATES, select_model
+from fydpad.texture.lpc.select import CANDIDATES, CandidateScore, select_model
 from fydpad.texture.scan_io import write_scan
 from tests.texture.lpc_polys import poly_to_lsf, reflection_to_poly
 from tests.texture_families.helpers import run_cli
@@ -122,3 +122,10 @@ def test_cli_fit_validates_and_synth_uses_the_models_interpolation(stroke, tmp_p
     assert run_cli("synth", str(out), "--speed-mm-s", "25", "--seconds", "1",
                    "--out", str(syn)) == 0
     assert "method=nearest" in syn.read_text().splitlines()[0]
+
+
+def test_between_blocks_weigh_as_much_as_the_time_blocks():
+    """8 time blocks and 2 between-plateau blocks: each kind is half the score."""
+    c = CandidateScore("paper", [1.0] * 8, [3.0, 5.0])
+    assert c.mean_lsd_db == pytest.approx(0.5 * 1.0 + 0.5 * 4.0)
+    assert CandidateScore("paper", [1.0, 2.0], []).mean_lsd_db == pytest.approx(1.5)

@@ -124,11 +124,13 @@ def test_station_renders_the_evaluated_method_and_the_drive_band(files):
     lin = linear.tick_renderer.table  # between the fitted speeds: not the same filter
     assert not np.allclose(lin.polys[lin.index(20.0)], table.polys[table.index(20.0)])
     band = open_texture(model_path, 1000.0, drive_filter=True)
+    # One noise draw through both: what differs is the filter alone.
+    for family in (plain, band):
+        family.set_parameter("seed", 7)
+        family.prepare(1000.0)
     lo, hi = plain.model.drive_band_hz
-    # Power through the drive filter against without it, per band (dB). The share of power
-    # in band depends on the model's spectrum on the filter's skirts (0.70-0.82 with the
-    # calibrated spectrum, noise draw to noise draw); the
-    # filter's own work does not: measured -31 to -35 dB out of band, -1.8 to +0.7 in it.
+    # Power through the drive filter against without it, per band (dB), on the same draw:
+    # the filter's own work (measured -30 and -32 dB out of band, -0.8 in it).
     f, p_plain = ss.welch(_ticks(plain), fs=1000.0, nperseg=256)
     _, p_band = ss.welch(_ticks(band), fs=1000.0, nperseg=256)
 
@@ -137,7 +139,7 @@ def test_station_renders_the_evaluated_method_and_the_drive_band(files):
         return float(10 * np.log10(p_band[m].sum() / p_plain[m].sum()))
 
     gains = {"below": gain_db(20, 120), "in": gain_db(lo, hi), "above": gain_db(300, 500)}
-    assert abs(gains["in"]) < 3.0 and gains["below"] < -20 and gains["above"] < -20, gains
+    assert abs(gains["in"]) < 2.0 and gains["below"] < -25 and gains["above"] < -25, gains
 
 
 def test_station_texture_falls_silent_when_the_finger_stops(files):

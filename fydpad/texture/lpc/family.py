@@ -82,6 +82,7 @@ class LpcFamily(FamilyBase):
         self.check_rate(rate_hz)
         fs = float(self.model.fs_hz)
         r = TextureRenderer(self.model, method=self.parameters["method"],
+                            seed=self.parameters["seed"],
                             drive_filter=self.parameters["drive_filter"])
         rms = 0.0
         n = int(0.5 * fs)

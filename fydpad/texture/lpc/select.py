@@ -1,8 +1,9 @@
 """Choosing the LPC model form on the user's own scans by held-out validation
 (docs/texture.md, "How fit chooses"): time blocks of each speed plateau and whole inner
 plateaus held out in turn; each candidate fitted on the rest is scored by the
-log-spectral distance of its synthesis along each held-out block's own speed; the
-simplest candidate within the noise of the best is refitted on all the scans."""
+log-spectral distance of its synthesis along each held-out block's own speed (the time
+blocks and the between blocks half each); the simplest candidate within the noise of the
+best is refitted on all the scans."""
 
 from __future__ import annotations
 
@@ -43,8 +44,18 @@ class CandidateScore:
         return np.asarray(self.block_lsd_db + self.between_lsd_db)
 
     @property
+    def weights(self) -> NDArray[np.float64]:
+        """Each block's weight in the score: the time blocks and the between-plateau
+        blocks count half each (a finger meets the speeds between the plateaus as often as
+        the plateaus'; by count the between blocks were 2 of 10)."""
+        nb, nt = len(self.block_lsd_db), len(self.between_lsd_db)
+        if nb == 0 or nt == 0:
+            return np.full(nb + nt, 1.0 / (nb + nt))
+        return np.r_[np.full(nb, 0.5 / nb), np.full(nt, 0.5 / nt)]
+
+    @property
     def mean_lsd_db(self) -> float:
-        return float(np.mean(self.scores))
+        return float(self.weights @ self.scores)
 
     @property
     def spread_db(self) -> float:
@@ -188,8 +199,9 @@ def select_model(
     best = min(table, key=lambda t: t.mean_lsd_db)
     noise = {}
     for t in table:
-        d = t.scores - best.scores
-        noise[t.name] = float(np.std(d, ddof=1) / np.sqrt(d.size)) if d.size > 1 else 0.0
+        d = t.scores - best.scores  # the weighted mean's standard error
+        noise[t.name] = (float(np.sqrt(np.sum(t.weights ** 2) * np.var(d, ddof=1)))
+                         if d.size > 1 else 0.0)
     winner = next(t for t in table if t.mean_lsd_db - best.mean_lsd_db <= noise[t.name])
     reason = (f"lowest held-out LSD within the noise, simplest first "
               f"({len(folds)} folds, {best.scores.size} held-out blocks)")
