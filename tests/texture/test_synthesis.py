@@ -201,7 +201,7 @@ def test_fir_spectrum_along_a_hands_stroke_has_no_switching_leak(sandpaper):
 
 def _line_model(r: float = 0.99, period_mm: float = 2.5) -> TextureModel:
     """A purely spatial line, f = v / period, over a faint white floor: the narrow,
-    gliding resonance of a ribbed surface (corduroy) without its lines model, fitted at
+    gliding resonance of a ribbed surface (corduroy) as an all-pole process, fitted at
     every table speed (0.25 mm/s) on the same noise, so the nearest model glides."""
     e = np.random.default_rng(1).standard_normal((2, 20000))
     speeds = np.arange(10.0, 40.01, 0.25)

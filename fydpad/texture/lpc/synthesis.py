@@ -32,8 +32,6 @@ from scipy.ndimage import maximum_filter1d, minimum_filter1d
 from fydpad.texture.lpc import fir_warp
 from fydpad.texture.lpc.analysis import energy_length, impulse_responses
 from fydpad.texture.lpc.interpolation import build_table
-from fydpad.texture.lpc.line_voice import LineVoice
-from fydpad.texture.lpc.lines import LineSpectrum
 from fydpad.texture.lpc.model_file import TextureModel
 
 Array = NDArray[np.float64]
@@ -112,10 +110,6 @@ class TextureRenderer:
                             for s, a in zip(t.sigma, t.polys, strict=True)])
             self._cap2 = (self.history_cap * rms) ** 2 * p
             self._cap2_jump = (self.jump_cap * rms) ** 2 * p
-        # A periodic surface's lines (model.lines), added to the process before the gain.
-        self.lines: LineVoice | None = (
-            None if model.lines is None
-            else LineVoice(LineSpectrum.from_json(model.lines, model.surface), self.fs_hz))
         self._sos: Array | None = None
         if drive_filter:
             if model.drive_band_hz is None:
@@ -166,13 +160,9 @@ class TextureRenderer:
         samples then depend on the seed only)."""
         self._rng = np.random.default_rng(seed)
         self._noise_pos = _NOISE_CHUNK
-        if self.lines is not None:
-            self.lines.reset()
 
     def reset(self) -> None:
-        """Zero the filter history, the lines' phase, the gain and the drive filter."""
-        if self.lines is not None:
-            self.lines.reset()
+        """Zero the filter history, the gain and the drive filter."""
         if self.structure == "fir":
             self._ebuf[:] = 0.0
             self._vbuf[:] = 0.0
@@ -281,8 +271,6 @@ class TextureRenderer:
             self._buf[pos] = y
             self._buf[pos + p] = y
             self._pos = pos
-        if self.lines is not None:
-            y += self.lines.tick(speed_mm_s if speed_mm_s > 0.0 else 0.0)
         self._g += self._alpha * (self.target_gain(speed_mm_s, contact) - self._g)
         out = self._g * y
         if self._sos is not None:
@@ -344,8 +332,6 @@ class TextureRenderer:
                           0, t.h.shape[0] - 1)
             idx[~np.isfinite(v)] = 0
             y = self._direct_block(e, idx)
-        if self.lines is not None:
-            y += self.lines.block(np.where(np.isfinite(v) & (v > 0.0), v, 0.0))
         target = self.target_gains(v, c)
         g, _zf = ss.lfilter([self._alpha], [1.0, self._alpha - 1.0], target,
                            zi=[(1.0 - self._alpha) * self._g])
