@@ -46,10 +46,9 @@ def main() -> None:
           f"({t_base / t_fit:.1f}x); + high-pass and DFT321 of the 3 axes {t_pre * 1e3:.1f} ms")
 
     sc = list(scans.values())
-    # The two forms on the whole signal (canvas is periodic: lines_benchmark has the lines).
     t_paper = best(lambda: fit_paper(sc), 3)
-    t_cal = best(lambda: fit_texture(sc, lines="off"), 3)
-    models = {"paper": fit_paper(sc), "calibrated": fit_texture(sc, lines="off")}
+    t_cal = best(lambda: fit_texture(sc), 3)
+    models = {"paper": fit_paper(sc), "calibrated": fit_texture(sc)}
     print(f"  fit a whole texture (4 speeds x 11 s, incl. preprocessing): calibrated "
           f"{t_cal * 1e3:.0f} ms, the paper's per-speed fits {t_paper * 1e3:.0f} ms "
           f"({t_cal / t_paper:.1f}x)")
@@ -115,50 +114,6 @@ def main() -> None:
         print(f"  [{what}] per-sample tick (speed changing every tick): "
               f"{t_tick * 1e6:.2f} us/sample (target <= 20 us); naive loop "
               f"{t_naive / 1000 * 1e6:.0f} us/sample ({t_naive / 1000 / t_tick:.0f}x slower)")
-
-
-    lines_benchmark(best)
-
-
-def lines_benchmark(best) -> None:
-    """A periodic surface's lines (fit --lines, the default): the fit, and the renderer
-    with its wavetable against the same model without lines, in the same run."""
-    from fydpad.texture.lpc.lines import fit_lines
-
-    train = [generate_scan("R1", s, 10.0, seed=1 + j) for s in (10.0, 20.0, 30.0, 40.0)
-             for j in range(2)]
-    one = [generate_scan("R1", 20.0, 11.0, seed=1)]
-    t_fit = best(lambda: fit_texture(train), 3)
-    t_off = best(lambda: fit_texture(train, lines="off"), 3)
-    t_one = best(lambda: fit_lines([preprocess(s.acc, 1000.0) for s in one],
-                                   [s.speed_mm_s for s in one], 1000.0, (15.0, 25.0)), 3)
-    model = fit_texture(train)
-    plain = fit_texture(train)
-    plain.lines = None
-    n_h = len(model.lines["phase_rad"])
-    print(f"  [lines] R1 ({n_h} harmonics, period {model.lines['period_mm']:.4f} mm): fit a "
-          f"whole texture (8 strokes of 10 s) {t_fit:.2f} s, without lines {t_off:.2f} s; "
-          f"the lines alone of one speed from 11 s {t_one * 1e3:.0f} ms")
-    hand = generate_scan("R1", 25.0, 24.0, seed=50).speed_mm_s[2000:22000]
-    for label, m in (("with lines", model), ("without", plain)):
-        # Consecutive seconds of one stroke (as the main benchmark), by block then by tick.
-        r = TextureRenderer(m, seed=0)
-        r.warmup(float(hand[0]))
-        pieces = iter(np.array_split(hand, 20))
-        t_block = best(lambda r=r, pieces=pieces: r.block(next(pieces), True), 20)
-        r.warmup(float(hand[0]))
-        tick_pieces = iter(np.array_split(hand, 20))
-
-        def ticks(r=r, pieces=tick_pieces) -> None:
-            for s in next(pieces):
-                r.tick(float(s), True)
-
-        t_tick = best(ticks, 5) / 1000
-        extra = "" if r.lines is None else (f"; wavetable {r.lines.table.shape[0]} x "
-                                            f"{r.lines.table.shape[1]}, "
-                                            f"{r.lines.table.nbytes / 1e6:.1f} MB")
-        print(f"  [lines] R1 {label}: block along a hand's stroke 1 s {t_block * 1e3:.2f} ms"
-              f" = {1 / t_block:.0f}x real time; tick {t_tick * 1e6:.2f} us/sample{extra}")
 
 
 def quality(textures: list[str] | None = None) -> None:

@@ -197,9 +197,9 @@ def main(argv: list[str] | None = None) -> int:
                                                                           for r in rows)}
     print(f"default better than paper in {int((d < p).sum())} of {d.size} cells; "
           f"validation chose {', '.join(f'{k} on {v}' for k, v in wins.items())}")
-    print("surface                 winner      default  paper  ceiling  (mean LSD dB)")
+    print(f"{'surface':<26}winner      default  paper  ceiling  (mean LSD dB)")
     for r, dd, pp, cc in zip(rows, d, p, cells("ceiling", "lsd_db"), strict=True):
-        print(f"{r['surface']:<24}{r['winner']:<10}{dd.mean():9.2f}{pp.mean():7.2f}"
+        print(f"{r['surface']:<26}{r['winner']:<10}{dd.mean():9.2f}{pp.mean():7.2f}"
               f"{cc.mean():9.2f}")
     if args.json:
         args.json.write_text(json.dumps({"surfaces": rows, "elapsed_s": elapsed}, indent=1,

@@ -120,14 +120,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "interpolation); 'calibrated': the speed-resolved spectrum, the two-"
                    "part S(f,v) times a correction measured at each target speed (needs two "
                    "or more)")
-    f.add_argument("--lines", default="auto", metavar="auto|off|PERIOD_MM",
-                   help="a periodic surface's harmonics (a grating, mesh, weave, knurl) as "
-                   "lines at n v / period that follow the finger, beside the LPC model of "
-                   "the rest: 'auto' (default) finds the period in the scans' spatial "
-                   "spectrum and keeps the lines if they hold 5 %% of the power or more; a "
-                   "number is the period in mm (refined within 2 %%, kept whatever their "
-                   "share); 'off' fits none (Bianchi 2015's model). Needs each scan's speed "
-                   "column (or positions) to integrate the position (docs/texture.md)")
     f.add_argument("--surface", help="surface label (default: the scans' # surface= or name)")
     f.add_argument("--drive-band", type=_floats, default=[165.0, 220.0], metavar="LO,HI",
                    help="output drive filter band stored in the model (default 165,220 Hz)")

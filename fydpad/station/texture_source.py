@@ -12,7 +12,7 @@ from __future__ import annotations
 from fydpad.errors import UserError
 from fydpad.texture.families import load_family
 from fydpad.texture.family import TextureFamily
-from fydpad.texture.lpc.synthesis import CentroidSpeed
+from vision.speed import CentroidSpeed
 
 
 def tick_speed() -> CentroidSpeed:

@@ -186,6 +186,9 @@ def test_bad_free_form_block_names_the_key(scan_model):
     (lambda d: [d.pop("free_form"), d.pop("two_part")], "the pooled form"),
     (lambda d: d["provenance"].update(speed_normalised={"beta": 1.0, "gamma": 0.0}),
      "the speed-normalised form"),
+    (lambda d: d.update(format_version=2, lines={"period_mm": 2.15, "v_mm_s": [10.0],
+                                                 "amplitude": [[0.1]], "phase_rad": [0.0]}),
+     "key 'lines' (a periodic surface's line model"),
 ])
 def test_a_model_of_a_removed_form_fails_in_one_line_naming_it(scan_model, change, form):
     data = json.loads(json.dumps(model_to_json(scan_model)))
@@ -245,10 +248,8 @@ def target_figures():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for name in ("R1", "R2", "felt", "glass"):
-            # The calibrated form on the whole signal (lines off: R1 and R2 would get
-            # their lines and the form would model only what they leave).
-            model = fit_texture([generate_scan(name, s, 8.0, seed=1) for s in SPEEDS],
-                                lines="off")
+            # The calibrated form on the whole signal.
+            model = fit_texture([generate_scan(name, s, 8.0, seed=1) for s in SPEEDS])
             for v in (20.0, 25.0):
                 held, mask, ceil = held_out(name, v, model)
                 c, _ = evaluate_scan(model, held, mask=mask)

@@ -17,7 +17,6 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.lpc.lines import MAX_SPEED_RATE
 
 #: Speed bins of the coverage histogram (mm/s): the render smears +-1 mm/s anyway.
 BIN_MM_S = 0.5
@@ -29,9 +28,10 @@ MIN_GAP_MM_S = 1.0
 #: Slower is a finger at rest, not a scan (the renderer is silent below 1 mm/s).
 STILL_MM_S = 1.0
 #: A sample counts only where its speed changes by less than this share of itself per
-#: second over RATE_WINDOW_S (the lines fit's rule): a stroke's start and end sweep
-#: every slower speed in a few ms per bin, which over many strokes would add up.
-STEADY_RATE_PER_S = MAX_SPEED_RATE
+#: second over RATE_WINDOW_S (a hand's sway is 0.5 /s at most, a stroke's start 3 /s and
+#: more): a stroke's start and end sweep every slower speed in a few ms per bin, which
+#: over many strokes would add up.
+STEADY_RATE_PER_S = 1.5
 RATE_WINDOW_S = 0.1
 #: Faster than any finger (10 m/s): left out (a corrupt sample would make the histogram
 #: enormous).

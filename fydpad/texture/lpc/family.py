@@ -23,7 +23,7 @@ from fydpad.texture.family import Array, FamilyBase, FingerBlock, Kind, RateMism
 from fydpad.texture.lpc.analysis import ar_psd
 from fydpad.texture.lpc.coverage import describe, model_gaps, speed_histogram
 from fydpad.texture.lpc.dft321 import preprocess
-from fydpad.texture.lpc.fit import lines_option, modelled_speed_range
+from fydpad.texture.lpc.fit import modelled_speed_range
 from fydpad.texture.lpc.interpolation import SpeedInterpolator
 from fydpad.texture.lpc.model_file import TextureModel, model_to_json, parse_model
 from fydpad.texture.lpc.select import fit_candidate, select_model, selection_table
@@ -140,7 +140,7 @@ def _fit(scans: list, **options: Any) -> dict[str, Any]:
 
 #: The ``fydpad texture fit`` options the LPC fit takes.
 FIT_OPTIONS = ("order", "speeds", "tolerance", "min_seconds", "highpass_hz", "surface",
-               "drive_band", "lines", "form", "wrap_iterations")
+               "drive_band", "form", "wrap_iterations")
 
 
 def check_fit_options(opts: dict[str, Any], fs_hz: float) -> None:
@@ -185,8 +185,7 @@ def fit_command(scan_paths: list[str], opts: dict[str, Any], out: str,
                      "own, or name the mix with --surface")
     kw = dict(order=opts["order"], tolerance_mm_s=opts["tolerance"],
               highpass_hz=opts["highpass_hz"], surface=opts["surface"],
-              drive_band_hz=tuple(opts["drive_band"]), min_seconds=opts["min_seconds"],
-              lines=lines_option(opts["lines"], "--lines"))
+              drive_band_hz=tuple(opts["drive_band"]), min_seconds=opts["min_seconds"])
     wrap = opts.get("wrap_iterations", lambda it: it)
     if opts["form"] == "auto":
         model, sel = select_model(scans, speeds_mm_s=opts["speeds"], wrap=wrap, **kw)
@@ -202,10 +201,6 @@ def fit_command(scan_paths: list[str], opts: dict[str, Any], out: str,
         head += f", calibrated spectrum on its two-part base ({prov['two_part_iterations']} " \
                 "iterations)"
     lines = [head]
-    if prov.get("lines") is not None:
-        lines.append(f"  lines: {prov['lines']['note']}" + (
-            "; the LPC models are fitted on what they leave" if model.lines is not None
-            else ""))
     gaps = model_gaps(prov, out) or []
     if gaps:
         middles = ", ".join(f"{round(a + b) / 2:g}" for a, b in gaps)  # to 0.5 mm/s
@@ -221,8 +216,7 @@ def fit_command(scan_paths: list[str], opts: dict[str, Any], out: str,
 def plot_fit(path: str, scans: list[Scan], model: TextureModel, opts: dict[str, Any],
              gaps: list) -> None:
     """Recorded spectrum at each target speed (its samples within the tolerance) against
-    the model rendered there (the all-pole part; a periodic surface's lines apart), and
-    the scans' speed coverage."""
+    the model rendered there, and the scans' speed coverage."""
     interp = SpeedInterpolator(model)
     x = np.concatenate([preprocess(sc.acc, sc.fs_hz, model.highpass_hz) for sc in scans])
     v = np.concatenate([sc.speed_mm_s for sc in scans])

@@ -22,7 +22,6 @@ from fydpad.texture.lpc.analysis import (
 )
 from fydpad.texture.lpc.coverage import gaps_within, scanned_spans
 from fydpad.texture.lpc.dft321 import preprocess
-from fydpad.texture.lpc.lines import LineFit, fit_lines
 from fydpad.texture.lpc.model_file import TextureModel
 from fydpad.texture.lpc.spectrum import ITERATIONS, PREWHITEN_ORDER, fit_calibrated, fit_two_part
 from fydpad.texture.scan_io import Scan
@@ -61,41 +60,25 @@ def fit_texture(
     scans: Iterable[Scan], *, order: int = 200, speeds_mm_s: Sequence[float] = DEFAULT_SPEEDS_MM_S,
     tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S, highpass_hz: float = 10.0,
     min_seconds: float = 0.25, surface: str | None = None,
-    lines: str | float | None = "auto",
     drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
     wrap_iterations: Callable[[Iterable], Iterable] = lambda it: it,
 ) -> TextureModel:
     """The calibrated form (:mod:`spectrum`): the two-part spectrum S_two(f, v) fitted on
     every 0.5 s chunk within the modelled speeds, times a correction measured at each
     target speed on the runs (of ``min_seconds`` or more) within ``tolerance_mm_s`` of
-    it; each speed's (h, sigma^2) is the all-pole fit of S there. A periodic surface's
-    lines (:mod:`lines`; ``lines`` "auto", "off"/None or a period in mm) are fitted first
-    and the spectrum on what they leave. Needs two or more target speeds with data.
+    it; each speed's (h, sigma^2) is the all-pole fit of S there. Needs two or more
+    target speeds with data.
     ``wrap_iterations`` wraps the two-part fit's iterations (a progress bar)."""
     scans = list(scans)
     fs, prepared = _prepare(scans, highpass_hz)
-    period = lines_option(lines)
-    signals = [x for x, _ in prepared]
-    if period is None or period == "off":
-        line_fit = LineFit.none(signals, "not fitted (lines off)")
-    else:
-        line_fit = fit_lines(signals, [v for _, v in prepared], fs,
-                             modelled_speed_range(speeds_mm_s, tolerance_mm_s),
-                             period_mm=None if period == "auto" else float(period))
     by: dict[float, list[tuple[Array, Array]]] = {float(s): [] for s in speeds_mm_s}
     whole: list[tuple[Array, Array]] = []
     min_len = max(1, round(min_seconds * fs))  # shorter: too little for a spectrum
-    for i, (x, v) in enumerate(prepared):
-        pieces = [(0, x.size)]
-        if line_fit.spectrum is not None:
-            # What the lines leave, where they could be taken out (see lines.fit_lines).
-            x = line_fit.residuals[i]
-            pieces = runs(line_fit.keep[i], 1)
-        for a, b in pieces:
-            whole.append((x[a:b], v[a:b]))
-            for s, segs in by.items():
-                segs.extend((x[a + r0:a + r1], v[a + r0:a + r1])
-                            for r0, r1 in runs(np.abs(v[a:b] - s) <= tolerance_mm_s, min_len))
+    for x, v in prepared:
+        whole.append((x, v))
+        for s, segs in by.items():
+            segs.extend((x[r0:r1], v[r0:r1])
+                        for r0, r1 in runs(np.abs(v - s) <= tolerance_mm_s, min_len))
     counts: dict[float, int] = {}
     short: list[str] = []  # speeds with data, too little for the order
     for s, segs in by.items():
@@ -145,29 +128,9 @@ def fit_texture(
         },
         two_part=two.to_json(), free_form=spec.to_json(),
     )
-    if lines not in (None, "off"):  # what the fit found, lines or not
-        model.provenance["lines"] = {
-            "period_mm": line_fit.period_mm, "share": round(line_fit.share, 4),
-            "note": line_fit.note}
-    if line_fit.spectrum is not None:
-        model.lines = line_fit.spectrum.to_json()
     model.provenance["spectral_model"] = "free-form"
     model.provenance["two_part_iterations"] = ITERATIONS
     return model
-
-
-def lines_option(lines: str | float | None, name: str = "lines") -> str | float | None:
-    """The ``lines`` option checked: ``"auto"``, ``"off"``/None, or a period in mm (a
-    number, or text that is one); a one-line error naming ``name`` otherwise."""
-    if lines is None or lines in ("auto", "off"):
-        return lines
-    try:
-        period = float(lines)
-    except (TypeError, ValueError):
-        raise UserError(f"{name} {lines}: 'auto', 'off' or a period in mm") from None
-    if not (math.isfinite(period) and period > 0):
-        raise UserError(f"{name} {lines}: the period must be a number of mm > 0")
-    return period
 
 
 def modelled_speed_range(speeds_mm_s: Sequence[float], tolerance_mm_s: float

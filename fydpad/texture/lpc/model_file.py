@@ -14,13 +14,9 @@ from fydpad.errors import UserError, read_json
 from fydpad.texture.family import FORMAT, save_model_json
 from fydpad.texture.lpc.analysis import is_stable, poly_from_h
 from fydpad.texture.lpc.coverage import check_provenance
-from fydpad.texture.lpc.lines import LineSpectrum
 
-#: With a ``lines`` block (models[] alone would render a periodic surface without its
-#: lines: an older reader must refuse it); ``PLAIN_VERSION`` without, read by every reader.
-FORMAT_VERSION = 2
-PLAIN_VERSION = 1
-READ_VERSIONS = (1, 2)
+#: Version 2 added a periodic surface's line model (key 'lines'), no longer rendered.
+FORMAT_VERSION = 1
 #: Interpolations a file may name (:mod:`interpolation` renders each).
 INTERPOLATIONS = ("nearest", "stretch")
 REFIT = "refit the model with 'fydpad texture fit SCAN.csv ... --out MODEL.json'"
@@ -45,9 +41,6 @@ class TextureModel:
     #: The calibrated form's two-part base and calibration (spectrum.py's to_json()).
     two_part: dict[str, Any] | None = None
     free_form: dict[str, Any] | None = None
-    #: A periodic surface's harmonics (lines.LineSpectrum.to_json()), rendered beside
-    #: the process of models[] (then fitted on what the lines leave).
-    lines: dict[str, Any] | None = None
     #: How the renderer goes between ``models[]``: "nearest" (the paper's per-speed fits
     #: on a speed grid) or "stretch" (the calibrated spectrum).
     interpolation: str = "nearest"
@@ -65,10 +58,10 @@ class TextureModel:
 
 def model_to_json(model: TextureModel) -> dict[str, Any]:
     optional = {"two_part": model.two_part, "free_form": model.free_form,
-                "lines": model.lines, "selection": model.selection}
+                "selection": model.selection}
     return {
         "format": FORMAT,
-        "format_version": PLAIN_VERSION if model.lines is None else FORMAT_VERSION,
+        "format_version": FORMAT_VERSION,
         "surface": model.surface, "sample_rate_hz": model.fs_hz, "order": model.order,
         "highpass_hz": model.highpass_hz, "fit_band_hz": list(model.fit_band_hz),
         "drive_band_hz": None if model.drive_band_hz is None else list(model.drive_band_hz),
@@ -100,10 +93,13 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise UserError(f"{where}: not a fydpad texture model (key 'format' must be '{FORMAT}')")
     version = data.get("format_version")
-    if isinstance(version, bool) or version not in READ_VERSIONS:
+    if "lines" in data:
+        raise UserError(f"{where}: key 'lines' (a periodic surface's line model, format_version "
+                        f"2) is a form this fydpad no longer renders; {REFIT}")
+    if isinstance(version, bool) or version != FORMAT_VERSION:
         raise UserError(
-            f"{where}: key 'format_version' is {version!r}; this fydpad reads versions "
-            f"{', '.join(map(str, READ_VERSIONS))} (refit the model with 'fydpad texture fit')"
+            f"{where}: key 'format_version' is {version!r}; this fydpad reads version "
+            f"{FORMAT_VERSION} (refit the model with 'fydpad texture fit')"
         )
     fs, head = _header(data, where)
     _removed_form(data, where)
@@ -141,18 +137,13 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
         raise UserError(f"{where}: key 'models' has two models at the same speed")
     two_part = _two_part(data.get("two_part"), where)
     free_form = _free_form(data.get("free_form"), data.get("two_part"), where)
-    selection, lines = data.get("selection"), data.get("lines")
-    if lines is not None:  # a line spectrum (lines.py): only in a version-2 file
-        if version < FORMAT_VERSION:
-            raise UserError(f"{where}: key 'lines' needs 'format_version' {FORMAT_VERSION}, "
-                            f"the file says {version}")
-        LineSpectrum.from_json(lines, where)
+    selection = data.get("selection")
     if selection is not None and not isinstance(selection, dict):
         raise UserError(f"{where}: key 'selection' must be an object, not {_short(selection)}")
     return TextureModel(
         surface=str(data.get("surface", "")), fs_hz=fs, speeds_mm_s=np.asarray(speeds)[order],
         h=np.vstack(hs)[order], sigma2=np.asarray(sig)[order], **head, two_part=two_part,
-        free_form=free_form, lines=None if lines is None else dict(lines), selection=selection,
+        free_form=free_form, selection=selection,
     )
 
 

@@ -90,11 +90,11 @@ def fit_candidate(name: str, scans: Sequence[Scan], speeds_mm_s: Sequence[float]
                   order: int = 200, tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S,
                   highpass_hz: float = 10.0, surface: str | None = None,
                   drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
-                  lines: str | float | None = "auto", min_seconds: float = 0.25,
-                  wrap_iterations: Callable[[Iterable], Iterable] = lambda it: it,
+                  min_seconds: float = 0.25,
+                  wrap_iterations: Callable[[Iterable], Iterable] = lambda it: it
                   ) -> TextureModel:
-    """One candidate form fitted on ``scans`` (``lines``, ``min_seconds``: the calibrated
-    form's, :func:`fit.fit_texture`)."""
+    """One candidate form fitted on ``scans`` (``min_seconds``: the calibrated form's,
+    :func:`fit.fit_texture`)."""
     if name == "paper":
         return fit_paper(scans, order=order, window_mm_s=tolerance_mm_s,
                          highpass_hz=highpass_hz, surface=surface, drive_band_hz=drive_band_hz)
@@ -103,8 +103,7 @@ def fit_candidate(name: str, scans: Sequence[Scan], speeds_mm_s: Sequence[float]
     model = fit_texture(scans, order=order, speeds_mm_s=speeds_mm_s,
                         tolerance_mm_s=tolerance_mm_s, highpass_hz=highpass_hz,
                         min_seconds=min_seconds, surface=surface,
-                        drive_band_hz=drive_band_hz, lines=lines,
-                        wrap_iterations=wrap_iterations)
+                        drive_band_hz=drive_band_hz, wrap_iterations=wrap_iterations)
     model.provenance["form"] = name
     return model
 

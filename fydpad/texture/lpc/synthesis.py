@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft as sfft
@@ -33,10 +32,7 @@ from scipy.ndimage import maximum_filter1d, minimum_filter1d
 from fydpad.texture.lpc import fir_warp
 from fydpad.texture.lpc.analysis import energy_length, impulse_responses
 from fydpad.texture.lpc.interpolation import build_table
-from fydpad.texture.lpc.line_voice import LineVoice
-from fydpad.texture.lpc.lines import LineSpectrum
 from fydpad.texture.lpc.model_file import TextureModel
-from vision.speed import SpeedState, speed_update
 
 Array = NDArray[np.float64]
 _NOISE_CHUNK = 4096
@@ -113,10 +109,6 @@ class TextureRenderer:
                             for s, a in zip(t.sigma, t.polys, strict=True)])
             self._cap2 = (self.history_cap * rms) ** 2 * p
             self._cap2_jump = (self.jump_cap * rms) ** 2 * p
-        # A periodic surface's lines (model.lines), added to the process before the gain.
-        self.lines: LineVoice | None = (
-            None if model.lines is None
-            else LineVoice(LineSpectrum.from_json(model.lines, model.surface), self.fs_hz))
         self._sos: Array | None = None
         if drive_filter:
             if model.drive_band_hz is None:
@@ -167,13 +159,9 @@ class TextureRenderer:
         samples then depend on the seed only)."""
         self._rng = np.random.default_rng(seed)
         self._noise_pos = _NOISE_CHUNK
-        if self.lines is not None:
-            self.lines.reset()
 
     def reset(self) -> None:
-        """Zero the filter history, the lines' phase, the gain and the drive filter."""
-        if self.lines is not None:
-            self.lines.reset()
+        """Zero the filter history, the gain and the drive filter."""
         if self.structure == "fir":
             self._ebuf[:] = 0.0
             self._vbuf[:] = 0.0
@@ -282,8 +270,6 @@ class TextureRenderer:
             self._buf[pos] = y
             self._buf[pos + p] = y
             self._pos = pos
-        if self.lines is not None:
-            y += self.lines.tick(speed_mm_s if speed_mm_s > 0.0 else 0.0)
         self._g += self._alpha * (self.target_gain(speed_mm_s, contact) - self._g)
         out = self._g * y
         if self._sos is not None:
@@ -345,8 +331,6 @@ class TextureRenderer:
                           0, t.h.shape[0] - 1)
             idx[~np.isfinite(v)] = 0
             y = self._direct_block(e, idx)
-        if self.lines is not None:
-            y += self.lines.block(np.where(np.isfinite(v) & (v > 0.0), v, 0.0))
         target = self.target_gains(v, c)
         g, _zf = ss.lfilter([self._alpha], [1.0, self._alpha - 1.0], target,
                            zi=[(1.0 - self._alpha) * self._g])
@@ -495,68 +479,3 @@ def synthesize(
     r = TextureRenderer(model, seed=seed, ramp_s=1e-6)
     r.warmup(float(np.broadcast_to(v, (max(n, 1),))[0]), warmup_s)
     return r.block(v, True, n)
-
-
-@dataclass
-class CentroidSpeed:
-    """Finger speed for every 1 kHz tick from the camera-rate contact centroid.
-
-    ``position(t_s, x_mm, y_mm, contact)`` at each camera frame differentiates the
-    centroid (``vision.speed.speed_update``, whose own low-pass we bypass with a high
-    cutoff); ``tick(dt_s)`` at 1 kHz holds that raw velocity between frames (i.e. it
-    extrapolates the position linearly) and applies the paper's 10 Hz low-pass at the
-    tick rate, so the speed is smooth rather than a 30 Hz staircase.
-
-    ``sample(t_s, x_mm, y_mm, contact)`` takes the newest centroid at every tick (held
-    between frames, as the station's render loop sees it): a changed one is a new frame,
-    differentiated once; one unchanged for ``rest_after_s`` is a finger at rest (without
-    that, ``tick`` would hold the last frame's velocity for ever).
-    """
-
-    cutoff_hz: float = 10.0
-    #: Longer than a frame period at the slowest vision rate (the paper's 10 Hz).
-    rest_after_s: float = 0.25
-    contact: bool = False
-    _last_x_mm: float = math.nan
-    _last_y_mm: float = math.nan
-    _last_contact: bool = False
-    _t_new_s: float = -math.inf
-    _state: SpeedState | None = None
-    _vx: float = 0.0
-    _vy: float = 0.0
-    _fx: float = 0.0
-    _fy: float = 0.0
-
-    def position(self, t_s: float, x_mm: float, y_mm: float, contact: bool) -> None:
-        state = self._state or SpeedState()
-        was = self.contact and math.isfinite(state.x_mm)
-        _, new = speed_update(state, t_s, x_mm, y_mm, contact, cutoff_hz=1e9)
-        self._state = new
-        self.contact = bool(contact)
-        if not contact:
-            self._vx = self._vy = self._fx = self._fy = 0.0
-        elif was:
-            self._vx, self._vy = new.vx_mm_s, new.vy_mm_s
-
-    def sample(self, t_s: float, x_mm: float, y_mm: float, contact: bool) -> None:
-        """The newest centroid at a tick: :meth:`position` once per new frame; a zero
-        velocity once it has stayed put for ``rest_after_s``."""
-        # Without contact the position is NaN: only the change to "no contact" is news.
-        if contact != self._last_contact or (
-                contact and (x_mm != self._last_x_mm or y_mm != self._last_y_mm)):
-            self.position(t_s, x_mm, y_mm, contact)
-            self._last_x_mm, self._last_y_mm, self._last_contact = x_mm, y_mm, contact
-            self._t_new_s = t_s
-        elif contact and t_s - self._t_new_s >= self.rest_after_s:
-            # At rest; the next frame is still differentiated from the last real one (a
-            # new time base here would divide its step by too short a time).
-            self._vx = self._vy = 0.0
-
-    def tick(self, dt_s: float = 1e-3) -> float:
-        """Advance the low-pass by ``dt_s``; the filtered speed in mm/s (0 without contact)."""
-        if not self.contact:
-            return 0.0
-        a = 1.0 - math.exp(-2.0 * math.pi * self.cutoff_hz * dt_s)
-        self._fx += a * (self._vx - self._fx)
-        self._fy += a * (self._vy - self._fy)
-        return math.hypot(self._fx, self._fy)
