@@ -26,33 +26,12 @@ from numpy.typing import NDArray
 from fydpad.errors import UserError
 from fydpad.texture.families.penn.toolkit import PennModelSet, barycentric_weights, read_penn
 from fydpad.texture.family import FamilyBase, FingerBlock, Kind, hold_finite
+from fydpad.texture.lpc.lsf import lsf_to_poly as lsf_to_poly_rows
 
 Array = NDArray[np.float64]
 _NOISE_TICKS = 512  # ticks of noise drawn at once
 #: Largest tick-matrix table (bytes); the grid shrinks to fit it for high orders.
 _TABLE_BYTES = 32 << 20
-
-
-def lsf_to_poly_rows(lsf: Array) -> Array:
-    """``lpc.lsf.lsf_to_poly`` of every row (k, p) -> (k, p + 1), on an FFT grid."""
-    lsf = np.sort(np.atleast_2d(np.asarray(lsf, float)), axis=1)
-    k, order = lsf.shape
-    if order == 0:
-        return np.ones((k, 1))
-    n = 1 << int(np.ceil(np.log2(order + 2)) + 1)
-    z1 = np.exp(-2j * np.pi * np.arange(n) / n)
-    pf, qf = np.ones((k, n), complex), np.ones((k, n), complex)
-    for i in range(order):
-        f = pf if i % 2 == 0 else qf  # interlacing: 1st, 3rd, ... zeros are P's
-        f *= 1.0 - 2.0 * np.cos(lsf[:, i:i + 1]) * z1 + z1 * z1
-    if order % 2 == 0:
-        pf *= 1.0 + z1
-        qf *= 1.0 - z1
-    else:
-        qf *= 1.0 - z1 * z1
-    a = 0.5 * (np.fft.ifft(pf, axis=1).real + np.fft.ifft(qf, axis=1).real)[:, :order + 1]
-    a[:, 0] = 1.0
-    return a
 
 
 def decimation_sos(ratio: int, rate_hz: float) -> Array:
