@@ -80,7 +80,7 @@ def main() -> None:
         # A hand's stroke: the speed trace of a generated 25 mm/s scan (wander, sway),
         # ~17 table entries a second; the same stroke by tick as the baseline.
         # Consecutive seconds of one stroke: repeating one second would jump the speed
-        # back to its start each time, a start the FIR warps (fir_warp) as a hand's does.
+        # back to its start each time, a start the FIR warps (lag_speeds) as a hand's does.
         pieces = iter(np.array_split(hand_long, 20))
         r.warmup(float(hand_long[0]))
         t_hand = best(lambda r=r, pieces=pieces: r.block(next(pieces), True), 20)

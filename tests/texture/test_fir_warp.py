@@ -1,11 +1,11 @@
-"""fir_warp: each FIR lag at the mean speed over it, beyond a slack (docs/texture.md,
+"""The FIR structure's warp: each lag at the mean speed over it, beyond a slack (docs/texture.md,
 "Speed changes in the FIR structure")."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from fydpad.texture.lpc.fir_warp import (
+from fydpad.texture.lpc.synthesis import (
     WARP_LAGS,
     WARP_SLACK_MM_S,
     lag_fade,
@@ -25,7 +25,10 @@ def responses_along(fir: np.ndarray, v0_mm_s: float, step_mm_s: float,
     hv = np.concatenate([np.full(lags - 1, v[0]), v])
     recent = np.lib.stride_tricks.sliding_window_view(hv, lags)[:, ::-1]
     u, _ = lag_speeds(recent)
-    return warped_responses(fir, v0_mm_s, step_mm_s, u)
+    k, w = table_position(v, v0_mm_s, step_mm_s, fir.shape[0])
+    g = (1.0 - w[:, None]) * fir[k] + w[:, None] * fir[k + 1]  # the tail: u ends at v
+    g[:, :lags] = warped_responses(fir[:, :lags], v0_mm_s, step_mm_s, u)
+    return g
 
 
 def _table(rows: int = 41, taps: int = 700) -> np.ndarray:

@@ -10,10 +10,14 @@ import scipy.signal as ss
 
 from fydpad.synth.texture_scans import generate_scan
 from fydpad.texture.lpc.analysis import ar_psd, h_from_poly, lpc_autocorrelation
-from fydpad.texture.lpc.fir_warp import WARP_SLACK_MM_S, table_position
 from fydpad.texture.lpc.fit import fit_paper, fit_texture
 from fydpad.texture.lpc.model_file import TextureModel
-from fydpad.texture.lpc.synthesis import TextureRenderer, synthesize
+from fydpad.texture.lpc.synthesis import (
+    WARP_SLACK_MM_S,
+    TextureRenderer,
+    synthesize,
+    table_position,
+)
 from tests.texture.test_fir_warp import responses_along
 
 
@@ -132,7 +136,7 @@ def test_switching_at_the_speed_rate_stays_bounded(sandpaper, structure):
 
 def _fir_at(r: TextureRenderer, v: np.ndarray, warped: bool = False) -> np.ndarray:
     """The FIR each sample used: linear between the two table entries around its speed
-    (``warped``: each lag's at its own speed, fir_warp; the history before ``v`` held at
+    (``warped``: each lag's at its own speed, lag_speeds; the history before ``v`` held at
     v[0], as after a warm-up)."""
     t = r.table
     if warped:
@@ -221,7 +225,7 @@ def test_fir_lags_follow_the_speed_they_were_made_at():
     20-100 Hz beyond its floor, so the output there must be the filters' average. The
     plain FIR (the filter of now applied to noise up to 0.5 s old) sprays the line there:
     measured +5.0-5.4 dB (noise seeds 1-3); each lag at the mean speed over it
-    (fir_warp, 512 lags): +1.2-1.5 dB."""
+    (lag_speeds, 512 lags): +1.2-1.5 dB."""
     model = _line_model()
     cycle = np.concatenate([np.linspace(5, 30, 50), np.full(250, 30.0),
                             np.linspace(30, 5, 50), np.full(250, 5.0)])

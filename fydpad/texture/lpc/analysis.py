@@ -1,11 +1,7 @@
-"""Linear prediction for the LPC family (Bianchi 2015 eq. 4: autocorrelation method,
-Levinson-Durbin, stability), all-pole fits to a log spectrum, and the runs of a mask
-(III-B: where a scan's speed stays near a target speed).
-
-The paper's predictor ``a(k) = e(k) + h^T [a(k-1) .. a(k-p)]`` (eq. 5) is the all-pole
-filter ``1 / A`` with ``A = [1, -h_1, ..., -h_p]`` (scipy.signal's denominator): this
-module works on ``A``, the "polynomial", and ``h = -A[1:]``.
-"""
+"""Linear prediction (Bianchi 2015 eq. 4: autocorrelation method, Levinson-Durbin,
+stability), all-pole fits to a log spectrum, and the runs of a mask (III-B). The predictor
+``a(k) = e(k) + h^T [a(k-1) .. a(k-p)]`` (eq. 5) is the all-pole filter 1 / A with the
+"polynomial" ``A = [1, -h_1, ..., -h_p]`` (scipy.signal's denominator)."""
 
 from __future__ import annotations
 
@@ -102,24 +98,6 @@ def ar_psd(a: ArrayLike, sigma2: float, freqs_hz: ArrayLike, fs_hz: float) -> Ar
     w = 2 * np.pi * np.asarray(freqs_hz, float) / fs_hz
     resp = np.exp(-1j * np.outer(w, np.arange(a.size))) @ a
     return 2.0 * sigma2 / fs_hz / np.abs(resp) ** 2
-
-
-def impulse_responses(polys: ArrayLike, gains: ArrayLike, n: int, nfft: int | None = None
-                      ) -> Array:
-    """First ``n`` samples of each row's impulse response gain / A(z), by inverse FFT
-    (default grid 4n, at least 8192: a texture model keeps under 1e-4 of its energy
-    past ~2000 samples, so what wraps round is below double precision)."""
-    nfft = nfft or max(8192, 1 << int(np.ceil(np.log2(4 * n))))
-    a = np.atleast_2d(np.asarray(polys, float))
-    g = np.asarray(gains, float).reshape(-1, 1)
-    return np.fft.irfft(g / np.fft.rfft(a, nfft, axis=1), nfft, axis=1)[:, :n]
-
-
-def energy_length(responses: ArrayLike, share: float = 1e-4) -> int:
-    """Samples after which every row's remaining energy is below ``share`` of its total."""
-    g2 = np.atleast_2d(np.asarray(responses, float)) ** 2
-    tail = np.cumsum(g2[:, ::-1], axis=1)[:, ::-1] / np.maximum(g2.sum(1, keepdims=True), 1e-300)
-    return int((tail > share).sum(1).max())
 
 
 def ar_from_log_psd(log_p: Array, order: int) -> tuple[Array, float]:

@@ -1,21 +1,21 @@
-"""Texture synthesis at the output rate (Bianchi 2015 eq. 5, Fig. 9):
+"""The LPC renderer (Bianchi 2015 eq. 5, Fig. 9; docs/texture.md, "The render path"):
 
     a(k) = e(k) + h^T [a(k-1) ... a(k-p)],   e ~ N(0, sigma^2)
 
-with (h, sigma) looked up in a speed table at the finger's speed. Two filter structures:
-``"direct"``, eq. 5 itself (the default for the paper's ``"nearest"`` fits), and ``"fir"``
-(the default for ``"stretch"``), the same process as its moving average
-a(k) = sum_j g_v(j) e(k - j), g_v the impulse response of sigma / A(z) at the speed (linear
-between table entries), truncated where less than 1e-4 of its energy remains. A direct
-recursion whose resonances glide with speed pumps energy (2-7x its stationary RMS on a
-hand's strokes); the FIR's output variance is the current filter's whatever the switching,
-and its lags follow the speed they were made at (:mod:`fir_warp`).
+with (h, sigma) from a speed table. ``"direct"`` runs eq. 5 itself (the default for the
+paper's ``"nearest"`` fits); ``"fir"`` (for ``"stretch"``) runs the same process as its
+moving average a(k) = sum_j g_v(j) e(k - j), g_v the impulse response of sigma / A(z) at
+the speed (linear between table entries), whose variance is the current filter's whatever
+the switching (a gliding direct recursion pumps 2-7x its RMS on a hand's strokes). In it a
+line at f = v / lambda made j samples ago rings at the wrong frequency when the speed
+changes fast, so lag j takes the filter of the mean speed over it beyond a slack:
 
-``tick`` (the 1 kHz loop: no allocation, a table lookup) and ``block`` (offline: lfilter
-over runs of one filter with its zi rebuilt from the history, or FFT convolution) share one
-state and one noise stream and give the same samples. Silence without contact or below
-``STILL_MM_S``; below the slowest model's range a linear fade, above the fastest's a
-clamp (warned once); the gain follows its target through a one-pole ramp.
+    u_j = v(k) + phi_j (d_j - clip(d_j, -slack, slack)),   d_j = mean(v(k-j) .. v(k)) - v(k)
+
+exact for a purely spatial response, unchanged at a constant speed or a hand's wander,
+continuous in the speeds; phi_j is 1 over the first half of the lags, then falls linearly
+to 0 (the plain tail). ``tick`` (1 kHz, no allocation) and ``block`` (offline) share one
+state and one noise stream and give the same samples.
 """
 
 from __future__ import annotations
@@ -29,8 +29,6 @@ import scipy.signal as ss
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import maximum_filter1d, minimum_filter1d
 
-from fydpad.texture.lpc import fir_warp
-from fydpad.texture.lpc.analysis import energy_length, impulse_responses
 from fydpad.texture.lpc.interpolation import build_table
 from fydpad.texture.lpc.model_file import TextureModel
 
@@ -40,14 +38,53 @@ _DIRECT_MAX = 48  # an entry used on fewer samples of a block chunk: dot product
 _HISTORY_MAX_MM_S = 1e4  # the warp's speed history clamp (a mean of 1e306s overflows)
 STILL_MM_S = 1.0  # slower is a finger at rest: silence
 FIR_MAX = 4096  # longest FIR response (taps)
+WARP_LAGS = 512  # lags whose speed is warped; the response's energy is mostly in the first 256
+#: A hand's wander stays within it over 0.5 s (dv/dt ~ 10 mm/s^2), a stroke's start does not.
+WARP_SLACK_MM_S = 3.0
+
+
+def lag_fade(lags: int) -> Array:
+    """phi_j: 1 over the first half of the lags, then linearly to 0 at the last."""
+    half = lags // 2
+    return np.concatenate([np.ones(half), np.linspace(1.0, 0.0, lags - half)])
+
+
+def lag_speeds(recent_mm_s: Array, slack_mm_s: float = WARP_SLACK_MM_S,
+               fade: Array | None = None) -> tuple[Array, NDArray[np.bool_]]:
+    """u_j (module docstring) from the newest speeds, newest first on the last axis, and
+    whether any lag is warped (else the plain FIR applies exactly)."""
+    n = recent_mm_s.shape[-1]
+    d = np.cumsum(recent_mm_s, axis=-1)
+    d *= 1.0 / np.arange(1.0, n + 1.0)
+    d -= recent_mm_s[..., :1]
+    warped = (d.max(axis=-1) > slack_mm_s) | (d.min(axis=-1) < -slack_mm_s)
+    u = d - np.clip(d, -slack_mm_s, slack_mm_s)
+    u *= lag_fade(n) if fade is None else fade
+    u += recent_mm_s[..., :1]
+    return u, warped
+
+
+def table_position(speed_mm_s: Array, v0_mm_s: float, step_mm_s: float, rows: int
+                   ) -> tuple[NDArray[np.int64], Array]:
+    """The table's lower entry for each speed and the weight of the upper (clamped)."""
+    x = np.clip((speed_mm_s - v0_mm_s) / step_mm_s, 0.0, rows - 1.0)
+    k = np.minimum(x.astype(np.int64), rows - 2)
+    return k, x - k
+
+
+def warped_responses(fir: Array, v0_mm_s: float, step_mm_s: float, u_mm_s: Array) -> Array:
+    """Each sample's first L taps (..., L) from its lag speeds (..., L): tap j from the
+    table ``fir`` (entries x taps) at u_j."""
+    k, w = table_position(u_mm_s, v0_mm_s, step_mm_s, fir.shape[0])
+    j = np.arange(u_mm_s.shape[-1])
+    return (1.0 - w) * fir[k, j] + w * fir[k + 1, j]
 
 
 class TextureRenderer:
     """Eq. 5 for one texture model (module docstring)."""
 
     #: At a filter change the direct form's history holds at most this times the new
-    #: filter's stationary RMS: switching between stable high-gain filters pumps energy
-    #: (1e60 within 10 s with a jump every 25 ms); a hand's smooth speed never triggers it.
+    #: filter's stationary RMS (switching stable filters pumps energy: 1e60 within 10 s).
     history_cap = 3.0
     #: The cap at a jump of more than one table step (a tracking glitch, a new contact).
     jump_cap = 1.0
@@ -56,9 +93,9 @@ class TextureRenderer:
         self, model: TextureModel, *, step_mm_s: float = 0.25, seed: int | None = None,
         ramp_s: float = 0.005, drive_filter: bool = False, structure: str | None = None,
     ):
-        """Renders by the model's ``interpolation``; ``structure``: "fir" or "direct"
-        (default "fir" for "stretch"); ``drive_filter``: band-pass the output through the
-        model's drive band (order-2 Butterworth)."""
+        """``structure``: "fir" or "direct" (default "fir" for "stretch" models);
+        ``drive_filter``: band-pass the output through the model's drive band (order-2
+        Butterworth)."""
         if model.fs_hz <= 0:
             raise ValueError("model sample rate must be positive")
         self.model = model
@@ -90,7 +127,7 @@ class TextureRenderer:
         self._noise_pos = _NOISE_CHUNK
         self._g = 0.0
         self.clamped = False
-        self.warp_slack_mm_s = fir_warp.WARP_SLACK_MM_S  # inf: the plain FIR
+        self.warp_slack_mm_s = WARP_SLACK_MM_S  # inf: the plain FIR
         # The per-sample path's rows and history windows: views made once, none per tick.
         self._v0 = float(t.speeds_mm_s[0])
         self._inv_step = 1.0 / float(t.step_mm_s)
@@ -120,9 +157,18 @@ class TextureRenderer:
             self._zs = [[0.0, 0.0] for _ in self._sos_rows]
 
     def _init_fir(self) -> None:
-        """The table's responses (entries x taps), the FIR state and the tick's scratch."""
-        g = impulse_responses(self.table.polys, self.table.sigma, FIR_MAX)
-        n_fir = min(max(energy_length(g, 1e-4), 16), FIR_MAX)
+        """The table's responses sigma / A(z) (entries x taps), the FIR state and the tick's
+        scratch."""
+        # By inverse FFT on 4 FIR_MAX points: a texture model keeps under 1e-4 of its energy
+        # past ~2000 samples, so what wraps round is below double precision.
+        t, nfft = self.table, 4 * FIR_MAX
+        g = np.fft.irfft(t.sigma[:, None] / np.fft.rfft(t.polys, nfft, axis=1), nfft, axis=1)
+        g = g[:, :FIR_MAX]
+        # Truncated where every entry has less than 1e-4 of its energy left.
+        g2 = g**2
+        tail = np.cumsum(g2[:, ::-1], axis=1)[:, ::-1] / np.maximum(g2.sum(1, keepdims=True),
+                                                                    1e-300)
+        n_fir = min(max(int((tail > 1e-4).sum(1).max()), 16), FIR_MAX)
         if g.shape[0] == 1:  # one model: two equal rows keep the interpolation uniform
             g = np.vstack([g, g])
         self.fir = fir = np.ascontiguousarray(g[:, :n_fir])
@@ -134,12 +180,12 @@ class TextureRenderer:
         self._gspec_ok = np.zeros(rows, bool)
         self._ebuf = np.zeros(2 * n_fir)  # noise, newest first, written twice
         self._epos = 0
-        self._lags = lags = min(fir_warp.WARP_LAGS, n_fir)
+        self._lags = lags = min(WARP_LAGS, n_fir)
         self._vbuf = np.zeros(2 * lags)  # the last speeds, newest first, written twice
         self._vpos = 0
         self._v_last = 0.0  # the last finite speed (what a lost track holds)
         self._inv_count = 1.0 / np.arange(1.0, lags + 1.0)
-        self._fade = fir_warp.lag_fade(lags)
+        self._fade = lag_fade(lags)
         self._fade_per_step = self._fade / float(self.table.step_mm_s)
         # A warped tick's scratch: lag deviations, clipped, upper weights, the two taps.
         self._vdev, self._vclip, self._ww, self._g0, self._g1 = np.empty((5, lags))
@@ -155,8 +201,7 @@ class TextureRenderer:
         self._vwin = [self._vbuf[k:k + lags] for k in range(lags)]
 
     def reseed(self, seed: int | None) -> None:
-        """Restart the noise e(k) from ``seed``, dropping the pre-drawn chunk (the next
-        samples then depend on the seed only)."""
+        """Restart the noise e(k) from ``seed`` (the pre-drawn chunk dropped)."""
         self._rng = np.random.default_rng(seed)
         self._noise_pos = _NOISE_CHUNK
 
@@ -191,7 +236,7 @@ class TextureRenderer:
         return self.gain
 
     def target_gains(self, v: Array, c: Array) -> Array:
-        """Vectorised :meth:`target_gain`."""
+        """:meth:`target_gain` of arrays."""
         on = c & np.isfinite(v) & (v >= STILL_MM_S)  # as tick: no speed, no contact
         g = np.where(on, self.gain * np.minimum(v / self.fade_below_mm_s, 1.0), 0.0)
         fast = on & (v > self.clamp_above_mm_s)
@@ -229,8 +274,7 @@ class TextureRenderer:
             self._ebuf[pos] = e
             self._ebuf[pos + n_fir] = e
             self._epos = pos
-            # Each lag's speed (fir_warp.lag_speeds, the same operations): the mean of the
-            # newest speeds, its deviation from this one.
+            # Each lag's d_j (lag_speeds, the same operations).
             lags = self._lags
             vpos = (self._vpos or lags) - 1
             if finite:
@@ -281,14 +325,14 @@ class TextureRenderer:
         return out
 
     def _warped_head(self, d: Array, speed_mm_s: float, pos: int) -> float:
-        """sum_{j < lags} g_{u_j}(j) e(k - j) for the lag deviations ``d``: fir_warp's
-        lag_speeds and warped_responses in preallocated buffers."""
+        """sum_{j < lags} g_{u_j}(j) e(k - j) for the lag deviations ``d``: lag_speeds and
+        warped_responses in preallocated buffers."""
         slack = self.warp_slack_mm_s
         # ufuncs, not np.clip: its Python wrapper costs ~2 us a call here
         u = np.maximum(d, -slack, out=self._vclip)
         np.minimum(u, slack, out=u)
         np.subtract(d, u, out=u)
-        # The table position (u - v0) / step with the fade folded in (fir_warp's up to rounding)
+        # The table position (u - v0) / step with the fade folded in (equal up to rounding)
         u *= self._fade_per_step
         u += (speed_mm_s - self._v0) * self._inv_step
         np.maximum(u, 0.0, out=u)
@@ -310,21 +354,19 @@ class TextureRenderer:
 
     def block(self, speed_mm_s: ArrayLike, contact: ArrayLike = True,
               n: int | None = None) -> Array:
-        """``n`` samples for per-sample (or constant) speed and contact; same as ``tick``."""
-        v = np.asarray(speed_mm_s, float)
-        c = np.asarray(contact, bool)
-        if n is None:
-            n = max(v.size, c.size)
+        """``n`` samples (default: the inputs' length) for per-sample or constant speed and
+        contact, as ``tick`` gives them."""
+        v, c = np.asarray(speed_mm_s, float), np.asarray(contact, bool)
+        n = max(v.size, c.size) if n is None else n
         if n == 0:
             return np.zeros(0)
-        v = np.broadcast_to(v, (n,))
-        c = np.broadcast_to(c, (n,))
+        v, c = np.broadcast_to(v, (n,)), np.broadcast_to(c, (n,))
         t = self.table
         e = self._take_noise(n)
         if self.structure == "fir":
             # A speed that is not finite is no speed (as in tick): the first entry.
             v_ok = np.where(np.isfinite(v), v, self._v0)
-            idx, lam = fir_warp.table_position(v_ok, self._v0, t.step_mm_s, self._n_fir_rows)
+            idx, lam = table_position(v_ok, self._v0, t.step_mm_s, self._n_fir_rows)
             y = self._fir_block(e, idx, lam, self._history_speeds(v))
         else:
             idx = np.clip(((v - t.speeds_mm_s[0]) / t.step_mm_s + 0.5).astype(np.int64),
@@ -402,8 +444,8 @@ class TextureRenderer:
     def _warp_block(self, y: Array, full: Array, v: Array, idx: NDArray[np.int64],
                     lam: Array) -> None:
         """Replace, in place, the plain first ``_lags`` taps by the warped ones on the
-        samples :func:`fir_warp.lag_speeds` warps: of those whose last ``_lags`` history
-        speeds ``v`` reach beyond the slack from the current one (else no lag mean can)."""
+        samples :func:`lag_speeds` warps: of those whose last ``_lags`` history speeds
+        ``v`` reach beyond the slack from the current one (else no lag mean can)."""
         lags, n_fir = self._lags, self._n_fir
         vpos = self._vpos
         hv = np.concatenate([self._vbuf[vpos:vpos + lags - 1][::-1], v])
@@ -420,14 +462,14 @@ class TextureRenderer:
         noise = np.lib.stride_tricks.sliding_window_view(full[n_fir - lags:], lags)
         for a in range(0, cand.size, 512):  # (512, lags) taps at a time
             i = cand[a:a + 512]
-            u, warped = fir_warp.lag_speeds(windows[i, ::-1], slack, self._fade)
+            u, warped = lag_speeds(windows[i, ::-1], slack, self._fade)
             i, u = i[warped], u[warped]
             if i.size:
                 # The warped taps less the plain ones (the tails are the same: u ends at v).
                 k, w = idx[i], lam[i, None]
                 plain = (1.0 - w) * self.fir[k, :lags] + w * self.fir[k + 1, :lags]
-                dg = fir_warp.warped_responses(self.fir[:, :lags], self._v0,
-                                               self.table.step_mm_s, u) - plain
+                dg = warped_responses(self.fir[:, :lags], self._v0, self.table.step_mm_s,
+                                      u) - plain
                 y[i] += np.einsum("ij,ij->i", dg, noise[i, ::-1])
 
     def _direct_block(self, e: Array, idx: NDArray[np.int64]) -> Array:
