@@ -1,21 +1,12 @@
-"""The calibrated form's speed-resolved spectrum (docs/texture.md): a two-part base
+"""The calibrated form's speed-resolved spectrum (docs/texture.md, "The calibrated
+spectrum"): a two-part base
 
     S_two(f, v) = T(f) U(f / v) g(v) + N(f) n(v) + N0(f)
 
-times a correction C_i measured at each fitted speed v_i. U(k), a function of spatial
-frequency k = f / v, is the surface's part (a grating's comb, a roughness band's edge) and
-slides with speed; T(f), the tool's resonance and contact filter it is seen through, does
-not; N(f) n(v) is a fixed additive part (stick-slip through the tool mode) and N0(f) the
-accelerometer's own floor. The levels g, n are linear in log v (a power law) between knots
-every 5 mm/s that have ``KNOT_MIN_CHUNKS`` chunks of data, so a gap between strokes is
-bridged by the knots on either side. All factors are fitted jointly on every 0.5 s chunk
-at its samples' speeds by IS-NMF multiplicative updates (Fevotte et al. 2009).
-
-C_i = (the mean periodogram of the runs near v_i) / (S_two averaged over those runs' own
-speeds): a held-out stroke that wanders as the training strokes did gets the recorded
-spectrum on average (combs the factorisation misplaces); log C_i is weighted by a tent
-around v_i, so between the speeds S leans back to S_two. The renderer fits an all-pole
-model to S at every entry of its speed table at start-up (``CalibratedSpectrum.ar``).
+(T the tool, U the surface in spatial frequency, N n a fixed additive part, N0 the sensor's
+floor; g, n linear in log v between knots), fitted jointly on every 0.5 s chunk at its
+samples' speeds by IS-NMF multiplicative updates (Fevotte et al. 2009), times a correction
+C_i measured at each fitted speed v_i, log C_i weighted by a tent around v_i.
 """
 
 from __future__ import annotations
@@ -39,25 +30,17 @@ CHUNK = 512  # samples per periodogram (2 Hz bins at 1 kHz)
 SPEED_STEP_MM_S = 1.0  # grid of the level functions g, n and of the chunks' speed mixes
 KNOT_STEP_MM_S = 5.0
 ITERATIONS = 600
-#: S is rendered averaged over v +- this: the FIR mixes table entries 0.25 mm/s apart, whose
-#: narrow comb lines would otherwise cancel (R2 at 20 mm/s: -3 dB at 20-100 Hz).
+#: S is rendered averaged over v +- this (the FIR mixes table entries 0.25 mm/s apart).
 RENDER_SMEAR_MM_S = 1.0
 PREWHITEN_ORDER = 8  # of the two-stage all-pole fit (ar_two_stage)
+_SUB = 8  # points across each f bin where U(f / v) is averaged
 FACTORS = ("f_hz", "k_per_mm", "tool", "surface", "floor", "v_mm_s", "g", "n")
 STEP = 0.5  # MU exponent: 1/2 is the IS divergence's majorisation (monotone)
-#: Chunks of data a level knot needs within half a knot step (about 2 s of a stroke; 2 let
-#: the edges of the 10 and 20 mm/s strokes set a knot at 15 and put felt 1 dB high there).
-KNOT_MIN_CHUNKS = 8.0
-#: Chunk-bin weight a spatial frequency needs to be fitted; those seen less (above f_max
-#: over the slowest speed) hold the nearest seen value.
-U_MIN_CHUNKS = 1.0
-#: Bound on a level's slope (log level per log speed) beyond the end knots: an unused level
-#: drifts to 1e-13 and, continued unbounded to 5 mm/s, stood at +98 dB (canvas).
-MAX_EXTRAPOLATION_POWER = 4.0
-TAPER_MM_S = 7.5  # half-width of each correction's tent (chosen on the generator's set C)
-#: ... at most this times the distance to the next fitted speed (7.5 mm/s tents at 5 mm/s
-#: steps summed three corrections at every speed).
-TAPER_PER_SPACING = 0.75
+KNOT_MIN_CHUNKS = 8.0  # chunks a level knot needs within half a knot step (~2 s of a stroke)
+U_MIN_CHUNKS = 1.0  # chunk weight a spatial frequency needs; those seen less hold the nearest
+MAX_EXTRAPOLATION_POWER = 4.0  # bound on a level's log-log slope beyond the end knots
+TAPER_MM_S = 7.5  # half-width of each correction's tent ...
+TAPER_PER_SPACING = 0.75  # ... at most this times the distance to the next fitted speed
 
 
 @dataclass
@@ -74,26 +57,25 @@ class TwoPartSpectrum:
     n: Array  # n(v)
     fixed: Array  # N0(f)
 
+    def _levels(self, v: float | Array) -> tuple[Array, Array, Array]:
+        """The speeds clipped to the level grid, and g and n there (linear in log v)."""
+        v = np.clip(v, self.v_mm_s[0], self.v_mm_s[-1])
+        g = np.exp(np.interp(v, self.v_mm_s, np.log(self.g)))
+        return v, g, np.exp(np.interp(v, self.v_mm_s, np.log(self.n)))
+
     def psd(self, speed_mm_s: float) -> Array:
         """S_two(f, v) on ``f_hz`` (power per bin: mean = power), levels held beyond."""
-        v = float(np.clip(speed_mm_s, self.v_mm_s[0], self.v_mm_s[-1]))
-        g = np.exp(np.interp(v, self.v_mm_s, np.log(self.g)))
-        n = np.exp(np.interp(v, self.v_mm_s, np.log(self.n)))
-        s = self.tool * _resampled(self.surface, self.k_per_mm, self.f_hz, v) * g \
-            + self.floor * n
-        return s + self.fixed
+        v, g, n = self._levels(float(speed_mm_s))
+        u = _resampled(self.surface, self.k_per_mm, self.f_hz, v)
+        return self.tool * u * g + self.floor * n + self.fixed
 
     def mean_psd(self, speeds_mm_s: ArrayLike, weights: ArrayLike | None = None) -> Array:
         """The ``weights``-weighted mean of :meth:`psd` over ``speeds_mm_s``, in one pass."""
-        v = np.clip(np.atleast_1d(np.asarray(speeds_mm_s, float)).ravel(), self.v_mm_s[0],
-                    self.v_mm_s[-1])
+        v, g, n = self._levels(np.ravel(np.asarray(speeds_mm_s, float)))
         w = np.ones(v.size) if weights is None else np.asarray(weights, float)
         w = w / w.sum()
-        g = np.exp(np.interp(v, self.v_mm_s, np.log(self.g)))
-        n = np.exp(np.interp(v, self.v_mm_s, np.log(self.n)))
         u = _resampled(self.surface, self.k_per_mm, self.f_hz, v)
-        s = self.tool * ((w * g) @ u) + self.floor * float(w @ n)
-        return s + self.fixed
+        return self.tool * ((w * g) @ u) + self.floor * float(w @ n) + self.fixed
 
     def to_json(self) -> dict:
         d = {k: [float(x) for x in getattr(self, k)] for k in FACTORS}
@@ -108,8 +90,7 @@ class TwoPartSpectrum:
 
 def ar_two_stage(log_p: Array, order: int) -> tuple[Array, float]:
     """All-pole fit A = A2 P to a log spectrum: an order-``PREWHITEN_ORDER`` P flattens
-    the tilt, A2 fits the rest. One stage over-fills the valleys of a 50-60 dB spectrum
-    (felt: +3 dB at 350-500 Hz)."""
+    the tilt, A2 fits the rest (one stage over-fills the valleys of a 50-60 dB spectrum)."""
     q = min(PREWHITEN_ORDER, order - 1)
     if q == 0:
         return ar_from_log_psd(log_p, order)
@@ -137,28 +118,30 @@ class TooLittleData(ValueError):
     """No 0.5 s chunk within the modelled speeds: no spectral model (the per-speed fit can)."""
 
 
-def _resample_matrix(f_hz: Array, v: float, k: Array, sub: int = 8) -> sp.csr_matrix:
-    """Rows f bins, columns k nodes: U(f / v) averaged over each bin's width, so every node
-    a slow speed's 2 Hz bin covers is constrained (point sampling left some at their start
-    value and S flickered from one speed to the next)."""
-    df = f_hz[1] - f_hz[0]
-    off = (np.arange(sub) + 0.5) / sub - 0.5
-    x = ((f_hz[:, None] + df * off) / v).ravel()
+def _bin_k(f_hz: Array, v: float | Array) -> Array:
+    """k = f / v at ``_SUB`` points across each f bin (f, _SUB), a block per speed if ``v`` is
+    an array: U is averaged over each bin's width, so every node a slow speed's 2 Hz bin
+    covers is constrained (point sampling left some at their start value and S flickered
+    from one speed to the next)."""
+    off = (np.arange(_SUB) + 0.5) / _SUB - 0.5
+    return (f_hz[:, None] + (f_hz[1] - f_hz[0]) * off) / np.asarray(v, float)[..., None, None]
+
+
+def _resample_matrix(f_hz: Array, v: float, k: Array) -> sp.csr_matrix:
+    """U(f / v) on the f bins as a matrix (f bins x k nodes), for the fit."""
+    x = _bin_k(f_hz, v).ravel()
     j = np.clip(np.searchsorted(k, x) - 1, 0, k.size - 2)
     t = np.clip((x - k[j]) / (k[j + 1] - k[j]), 0.0, 1.0)
-    rows = np.repeat(np.arange(f_hz.size), 2 * sub)
+    rows = np.repeat(np.arange(f_hz.size), 2 * _SUB)
     cols = np.stack([j, j + 1], axis=1).ravel()
-    vals = np.stack([1 - t, t], axis=1).ravel() / sub
+    vals = np.stack([1 - t, t], axis=1).ravel() / _SUB
     return sp.csr_matrix((vals, (rows, cols)), shape=(f_hz.size, k.size))
 
 
-def _resampled(u: Array, k: Array, f_hz: Array, v: float | Array, sub: int = 8) -> Array:
-    """U(f / v) as :func:`_resample_matrix` gives it, without the matrix (the render's
-    table asks at hundreds of speeds); a row per speed if ``v`` is an array."""
-    df = f_hz[1] - f_hz[0]
-    off = (np.arange(sub) + 0.5) / sub - 0.5
-    v = np.asarray(v, float)[..., None, None]
-    return np.interp((f_hz[:, None] + df * off) / v, k, u).mean(axis=-1)
+def _resampled(u: Array, k: Array, f_hz: Array, v: float | Array) -> Array:
+    """U(f / v) on the f bins without the matrix (the render's table asks at hundreds of
+    speeds); a row per speed if ``v`` is an array."""
+    return np.interp(_bin_k(f_hz, v), k, u).mean(axis=-1)
 
 
 @functools.cache
@@ -168,9 +151,9 @@ def _threadpools() -> ThreadpoolController:
 
 @contextlib.contextmanager
 def one_blas_thread() -> Iterator[None]:
-    """BLAS held to one thread for the block: the fit's products are small, and threaded
-    BLAS on a loaded machine spends 10x their cost in hand-offs. The limit is the
-    process's, so only the main thread sets and restores it."""
+    """BLAS held to one thread for the block (the fit's products are small: threaded BLAS
+    on a loaded machine spends 10x their cost in hand-offs); the main thread's only, as the
+    limit is the process's."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -245,8 +228,6 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     tool = np.ones(nf)
     surface = np.ones(k.size)
     floor = np.full(nf, 0.05 * mean_p.min() + 1e-30)
-    lg = np.full(knots.size, np.log(float(np.median(mean_p))))
-    ln = np.zeros(knots.size)
     # N0 starts at half the quietest tenth of the chunks (started as low as N, U took the
     # floor's place and kept it).
     fixed = 0.5 * np.percentile(p, 10, axis=0) + 1e-30
@@ -255,7 +236,9 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     pool_w = pool * rho[:, None]
     pool_w /= np.maximum(pool_w.sum(0), eps)
     pool_wt = np.ascontiguousarray(pool_w.T)
-    levels = np.stack([lg, ln], axis=1)  # (knots, 2): log g and log n, updated together
+    # (knots, 2): log g and log n, updated together
+    levels = np.stack([np.full(knots.size, np.log(float(np.median(mean_p)))),
+                       np.zeros(knots.size)], axis=1)
     nc = p.shape[0]
     grad = np.empty((nc, 2, nf))  # p / s^2 and 1 / s per chunk: the IS gradient's parts
     with one_blas_thread():
@@ -294,13 +277,11 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
             c = floor.max()
             floor /= c
             levels[:, 1] += np.log(c)
-    lg, ln = levels[:, 0].copy(), levels[:, 1].copy()
     seen = bbig_t @ np.repeat(rho, nf) >= U_MIN_CHUNKS
     if seen.any():
         surface = np.interp(k, k[seen], surface[seen])
     # Knots without data take their neighbours' log-linear level.
-    lg = np.interp(knots, knots[kw_ok], lg[kw_ok])
-    ln = np.interp(knots, knots[kw_ok], ln[kw_ok])
+    lg, ln = (np.interp(knots, knots[kw_ok], lv[kw_ok]) for lv in levels.T)
     return TwoPartSpectrum(f, k, tool, surface, floor, vgrid,
                            np.exp(_node_levels(lg, log_v, log_knots, phi)),
                            np.exp(_node_levels(ln, log_v, log_knots, phi)), fixed)

@@ -245,6 +245,7 @@ class TextureRenderer:
         return g
 
     def _take_noise(self, n: int) -> Array:
+        """The next ``n`` samples of the tick's noise stream."""
         out = np.empty(n)
         k = 0
         while k < n:
@@ -261,7 +262,7 @@ class TextureRenderer:
         """One output sample (m/s^2) for the current speed and contact: eq. 5. A speed that
         is not finite (NaN, inf) is no speed: silence, as a lost track."""
         finite = math.isfinite(speed_mm_s)
-        if not finite:  # else the table index raises (NaN, inf)
+        if not finite:
             speed_mm_s, contact = 0.0, False
         if self._noise_pos >= _NOISE_CHUNK:
             self._rng.standard_normal(out=self._noise)
@@ -384,12 +385,10 @@ class TextureRenderer:
         return out
 
     def _fir_block(self, e: Array, idx: NDArray[np.int64], lam: Array, v: Array) -> Array:
-        """a(k) = sum_j g_v(j) e(k-j), the noise history in front, g_v linear between the
-        entries ``idx`` and ``idx + 1`` by ``lam``; then the warped samples corrected.
-
-        Per chunk of nfft - n_fir + 1 samples, entry by entry: one used on few samples (a
-        fast sweep) by dot products, one used on more by FFT with its cached spectrum (a
-        hand's second uses ~20 entries on 40-120 samples each)."""
+        """a(k) = sum_j g_v(j) e(k-j), g_v linear between the entries ``idx`` and ``idx + 1``
+        by ``lam``, then the warped samples corrected. Per chunk, entry by entry: one used
+        on few samples (a fast sweep) by dot products, one used on more by FFT with its
+        cached spectrum (a hand's second uses ~20 entries on 40-120 samples each)."""
         n_fir = self._n_fir
         nfft = self._nfft
         step = nfft - n_fir + 1
@@ -501,7 +500,7 @@ class TextureRenderer:
 
     def warmup(self, speed_mm_s: float, seconds: float = 0.5) -> None:
         """Run the filter unheard into the stationary process at this speed (the FIR's
-        speed history held at it too: 0.5 s is shorter than its 512 lags)."""
+        speed history held at it too)."""
         if seconds > 0:
             self.block(speed_mm_s, True, round(seconds * self.fs_hz))
         if self.structure == "fir" and math.isfinite(speed_mm_s):
