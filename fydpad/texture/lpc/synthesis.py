@@ -515,8 +515,7 @@ def synthesize(
 ) -> Array:
     """Offline synthesis along a speed trace (contact throughout), after a warm-up."""
     v = np.asarray(speed_mm_s, float)
-    if n is None:
-        n = v.size
+    n = v.size if n is None else n
     r = TextureRenderer(model, seed=seed, ramp_s=1e-6)
     r.warmup(float(np.broadcast_to(v, (max(n, 1),))[0]), warmup_s)
     return r.block(v, True, n)
