@@ -32,6 +32,7 @@ KNOT_STEP_MM_S = 5.0
 ITERATIONS = 600
 #: S is rendered averaged over v +- this (the FIR mixes table entries 0.25 mm/s apart).
 RENDER_SMEAR_MM_S = 1.0
+_SMEAR_MM_S = RENDER_SMEAR_MM_S * np.linspace(-1.0, 1.0, 5)  # the offsets S is averaged at
 PREWHITEN_ORDER = 8  # of the two-stage all-pole fit (ar_two_stage)
 _SUB = 8  # points across each f bin where U(f / v) is averaged
 FACTORS = ("f_hz", "k_per_mm", "tool", "surface", "floor", "v_mm_s", "g", "n")
@@ -305,8 +306,6 @@ class CalibratedSpectrum:
     @property
     def half_widths_mm_s(self) -> Array:
         """``taper_mm_s``, at most TAPER_PER_SPACING x the distance to the next v_i."""
-        if self.v_mm_s.size < 2:
-            return np.full(self.v_mm_s.size, float(self.taper_mm_s))
         gap = np.diff(self.v_mm_s)
         near = np.minimum(np.r_[np.inf, gap], np.r_[gap, np.inf])
         return np.minimum(float(self.taper_mm_s), TAPER_PER_SPACING * near)
@@ -316,8 +315,7 @@ class CalibratedSpectrum:
 
     def ar(self, speed_mm_s: float, order: int, fs_hz: float) -> tuple[Array, float]:
         """All-pole (A, sigma^2) of S averaged over v +- RENDER_SMEAR_MM_S."""
-        vs = speed_mm_s + RENDER_SMEAR_MM_S * np.linspace(-1.0, 1.0, 5)
-        p = np.mean([self.psd(float(v)) for v in vs], axis=0)
+        p = np.mean([self.psd(float(v)) for v in speed_mm_s + _SMEAR_MM_S], axis=0)
         f = np.arange(NFFT // 2 + 1) * fs_hz / NFFT
         return ar_two_stage(np.interp(f, self.two.f_hz, np.log(np.maximum(p, 1e-300))), order)
 
@@ -333,7 +331,6 @@ def fit_calibrated(runs_by_speed: dict[float, list[tuple[Array, Array]]], fs_hz:
     """C_i for each fitted speed v_i from its segmented runs ``runs_by_speed[v_i] =
     [(x, speed trace), ...]``; runs shorter than a chunk are skipped."""
     speeds, rows = [], []
-    smear = RENDER_SMEAR_MM_S * np.linspace(-1.0, 1.0, 5)
     for s, rv in sorted(runs_by_speed.items()):
         rv = [(x, v) for x, v in rv if x.size >= CHUNK]
         if not rv:
@@ -344,7 +341,8 @@ def fit_calibrated(runs_by_speed: dict[float, list[tuple[Array, Array]]], fs_hz:
         edges = np.arange(allv.min(), allv.max() + 2 * 0.25, 0.25)
         hist, _ = np.histogram(allv, edges)
         mid = 0.5 * (edges[:-1] + edges[1:])[hist > 0]
-        e = two.mean_psd((mid[:, None] + smear).ravel(), np.repeat(hist[hist > 0], smear.size))
+        e = two.mean_psd((mid[:, None] + _SMEAR_MM_S).ravel(),
+                         np.repeat(hist[hist > 0], _SMEAR_MM_S.size))
         rows.append(np.log(np.maximum(p[:, 1:].mean(axis=0), 1e-300) / np.maximum(e, 1e-300)))
         speeds.append(s)
     if not speeds:
