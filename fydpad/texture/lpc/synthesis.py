@@ -29,6 +29,7 @@ import scipy.signal as ss
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import maximum_filter1d, minimum_filter1d
 
+from fydpad.texture.family import hold_finite
 from fydpad.texture.lpc.interpolation import build_table
 from fydpad.texture.lpc.model_file import TextureModel
 
@@ -432,11 +433,7 @@ class TextureRenderer:
 
     def _history_speeds(self, v: Array) -> Array:
         """The tick's speed history over a block: not finite holds the last finite speed."""
-        ok = np.isfinite(v)
-        h = np.clip(np.where(ok, v, 0.0), 0.0, _HISTORY_MAX_MM_S)
-        if not ok.all():
-            last = np.maximum.accumulate(np.where(ok, np.arange(v.size), -1))
-            h = np.where(last >= 0, h[np.maximum(last, 0)], self._v_last)
+        h = np.clip(hold_finite(v, self._v_last), 0.0, _HISTORY_MAX_MM_S)
         self._v_last = float(h[-1])
         return h
 
