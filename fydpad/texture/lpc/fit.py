@@ -7,6 +7,7 @@ import datetime as _dt
 import math
 import warnings
 from collections.abc import Callable, Iterable, Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,7 +21,7 @@ from fydpad.texture.lpc.analysis import (
     lpc_autocorrelation,
     runs,
 )
-from fydpad.texture.lpc.coverage import gaps_within, scanned_spans
+from fydpad.texture.lpc.coverage import Span, gaps_within, scanned_spans
 from fydpad.texture.lpc.dft321 import preprocess
 from fydpad.texture.lpc.model_file import TextureModel
 from fydpad.texture.lpc.spectrum import ITERATIONS, PREWHITEN_ORDER, fit_calibrated, fit_two_part
@@ -39,21 +40,36 @@ def _prepare(scans: list[Scan], highpass_hz: float) -> tuple[float, list[tuple[A
     if not scans:
         raise UserError("no scans to fit")
     fs = scans[0].fs_hz
-    out = []
     for scan in scans:
         if abs(scan.fs_hz - fs) > 1e-6 * fs:
             raise UserError(f"{scan.path}: column 't_s': sample rate {scan.fs_hz:g} Hz differs "
                             f"from the first scan's {fs:g} Hz")
-        out.append((preprocess(scan.acc, fs, highpass_hz), np.asarray(scan.speed_mm_s, float)))
-    return fs, out
+    return fs, [(preprocess(sc.acc, fs, highpass_hz), np.asarray(sc.speed_mm_s, float))
+                for sc in scans]
 
 
 def _where(scans: list[Scan]) -> str:
     return scans[0].path if len(scans) == 1 else "scans"
 
 
-def _created() -> str:
-    return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+def _model(scans: list[Scan], fs: float, speeds: Sequence[float],
+           fits: Sequence[tuple[Array, float, int]], method: dict[str, Any],
+           spans: list[Span], gaps: list[Span], surface: str | None, highpass_hz: float,
+           **fields: Any) -> TextureModel:
+    """The model of per-speed fits (A, sigma^2, samples) and its provenance: the scans,
+    the ``method`` and its settings, the samples per speed and where the scans went."""
+    provenance = {
+        "scans": [s.path for s in scans], **method, "tool": "fydpad texture fit",
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "samples_per_speed": {f"{v:g}": n for v, (_, _, n) in zip(speeds, fits, strict=True)},
+        "speed_coverage_mm_s": [list(sp) for sp in spans],
+        "interpolated_mm_s": [list(g) for g in gaps],
+    }
+    return TextureModel(
+        surface=surface or scans[0].surface, fs_hz=fs, speeds_mm_s=np.asarray(speeds),
+        h=np.vstack([h_from_poly(a) for a, _, _ in fits]),
+        sigma2=np.asarray([s2 for _, s2, _ in fits]), highpass_hz=highpass_hz,
+        fit_band_hz=(highpass_hz, fs / 2), provenance=provenance, **fields)
 
 
 def fit_texture(
@@ -72,10 +88,8 @@ def fit_texture(
     scans = list(scans)
     fs, prepared = _prepare(scans, highpass_hz)
     by: dict[float, list[tuple[Array, Array]]] = {float(s): [] for s in speeds_mm_s}
-    whole: list[tuple[Array, Array]] = []
     min_len = max(1, round(min_seconds * fs))  # shorter: too little for a spectrum
     for x, v in prepared:
-        whole.append((x, v))
         for s, segs in by.items():
             segs.extend((x[r0:r1], v[r0:r1])
                         for r0, r1 in runs(np.abs(v - s) <= tolerance_mm_s, min_len))
@@ -102,34 +116,22 @@ def fit_texture(
                         "fit with --form paper")
     lo, hi = modelled_speed_range(got, tolerance_mm_s)
     try:
-        two = fit_two_part([w[0] for w in whole], [w[1] for w in whole], fs, (lo, hi),
+        two = fit_two_part([x for x, _ in prepared], [v for _, v in prepared], fs, (lo, hi),
                            ITERATIONS, wrap=wrap_iterations)
         spec = fit_calibrated({s: by[s] for s in got}, fs, two)
     except ValueError as exc:
         raise UserError(f"calibrated spectrum: {exc}") from None
-    polys = [spec.ar(s, order, fs) for s in got]
-    if not all(is_stable(a) for a, _ in polys):
+    fits = [(*spec.ar(s, order, fs), counts[s]) for s in got]
+    if not all(is_stable(a) for a, _, _ in fits):
         raise UserError("spectral model: an all-pole fit of S(f, v) is unstable")
-    # Where the strokes went, and where the model only interpolates (coverage.py).
     spans = scanned_spans([v for _, v in prepared], fs, (lo, hi))
-    model = TextureModel(
-        surface=surface or scans[0].surface, fs_hz=fs, speeds_mm_s=np.asarray(got),
-        h=np.vstack([h_from_poly(a) for a, _ in polys]),
-        sigma2=np.asarray([s2 for _, s2 in polys]), highpass_hz=highpass_hz,
-        fit_band_hz=(highpass_hz, fs / 2), drive_band_hz=drive_band_hz,
-        tolerance_mm_s=tolerance_mm_s, interpolation="stretch",
-        provenance={
-            "scans": [s.path for s in scans],
-            "method": "two-stage all-pole fit of S(f, v)", "order": order,
-            "prewhiten_order": PREWHITEN_ORDER, "tool": "fydpad texture fit",
-            "created": _created(), "samples_per_speed": {f"{s:g}": counts[s] for s in got},
-            "speed_coverage_mm_s": [list(sp) for sp in spans],
-            "interpolated_mm_s": [list(g) for g in gaps_within(spans, min(got), max(got))],
-        },
-        two_part=two.to_json(), free_form=spec.to_json(),
-    )
-    model.provenance["spectral_model"] = "free-form"
-    model.provenance["two_part_iterations"] = ITERATIONS
+    method = {"method": "two-stage all-pole fit of S(f, v)", "order": order,
+              "prewhiten_order": PREWHITEN_ORDER}
+    model = _model(scans, fs, got, fits, method, spans, gaps_within(spans, min(got), max(got)),
+                   surface, highpass_hz, drive_band_hz=drive_band_hz,
+                   tolerance_mm_s=tolerance_mm_s, interpolation="stretch",
+                   two_part=two.to_json(), free_form=spec.to_json())
+    model.provenance.update(spectral_model="free-form", two_part_iterations=ITERATIONS)
     return model
 
 
@@ -164,7 +166,7 @@ def fit_paper(
     lo, hi = np.percentile(moving, [1, 99])
     lo = max(step_mm_s * math.floor(lo / step_mm_s), step_mm_s)
     grid = lo + step_mm_s * np.arange(math.floor((hi - lo) / step_mm_s + 1e-9) + 1)
-    hs, sig, counts = [], [], []
+    fits = []
     for v in grid:
         dist = np.abs(v_all - v)
         limit = window_mm_s
@@ -179,19 +181,10 @@ def fit_paper(
                 break
         else:
             raise UserError(f"speed {v:g} mm/s: the fitted filter is unstable")
-        hs.append(h_from_poly(a))
-        sig.append(s2)
-        counts.append(int(sum(s.size for s in segs)))
+        fits.append((a, s2, int(sum(s.size for s in segs))))
     spans = scanned_spans(vs, fs, (float(grid[0]) - window_mm_s, float(grid[-1]) + window_mm_s))
-    return TextureModel(
-        surface=surface or scans[0].surface, fs_hz=fs, speeds_mm_s=grid, h=np.vstack(hs),
-        sigma2=np.asarray(sig), highpass_hz=highpass_hz, fit_band_hz=(highpass_hz, fs / 2),
-        drive_band_hz=drive_band_hz, tolerance_mm_s=step_mm_s / 2, interpolation="nearest",
-        provenance={
-            "scans": [s.path for s in scans], "method": "autocorrelation", "order": order,
-            "form": "paper", "window_mm_s": window_mm_s, "min_seconds": PAPER_MIN_SECONDS,
-            "tool": "fydpad texture fit", "created": _created(),
-            "samples_per_speed": {f"{v:g}": n for v, n in zip(grid, counts, strict=True)},
-            "speed_coverage_mm_s": [list(sp) for sp in spans], "interpolated_mm_s": [],
-        },
-    )
+    method = {"method": "autocorrelation", "order": order, "form": "paper",
+              "window_mm_s": window_mm_s, "min_seconds": PAPER_MIN_SECONDS}
+    return _model(scans, fs, grid, fits, method, spans, [], surface, highpass_hz,
+                  drive_band_hz=drive_band_hz, tolerance_mm_s=step_mm_s / 2,
+                  interpolation="nearest")
