@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 from fydpad.errors import UserError, read_json
 from fydpad.texture.family import FORMAT, require, save_model_json
 from fydpad.texture.lpc.analysis import is_stable, poly_from_h
-from fydpad.texture.lpc.coverage import check_provenance
+from fydpad.texture.lpc.coverage import checked_spans
 
 #: Version 2 added a periodic surface's line model (key 'lines'), no longer rendered.
 FORMAT_VERSION = 1
@@ -109,7 +109,9 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
     if not isinstance(provenance, dict):
         raise UserError(f"{where}: key 'provenance' must be an object, not "
                         f"{_short(provenance)}")
-    check_provenance(provenance, where)
+    for key in ("speed_coverage_mm_s", "interpolated_mm_s"):
+        if key in provenance:
+            checked_spans(provenance[key], where, key)
     fit_band = _band(data, "fit_band_hz", where, (hp, fs / 2), fs, False)
     drive = data.get("drive_band_hz", (165.0, 220.0))
     drive = None if drive is None else _band(data, "drive_band_hz", where, drive, fs, True)
