@@ -93,23 +93,18 @@ def fit_texture(
         for s, segs in by.items():
             segs.extend((x[r0:r1], v[r0:r1])
                         for r0, r1 in runs(np.abs(v - s) <= tolerance_mm_s, min_len))
-    counts: dict[float, int] = {}
-    short: list[str] = []  # speeds with data, too little for the order
-    for s, segs in by.items():
-        n = sum(x.size for x, _ in segs)
-        if n == 0:
-            warnings.warn(f"no scan has {min_seconds:g} s within {tolerance_mm_s:g} mm/s of "
-                          f"{s:g} mm/s: no model at that speed", stacklevel=2)
-        elif n < 4 * order:
-            short.append(f"only {n} samples near {s:g} mm/s for an order-{order} model "
-                         f"(need at least {4 * order}); record longer or lower --order")
-        else:
-            counts[s] = n
-    if not counts and short:
+    counts = {s: sum(x.size for x, _ in segs) for s, segs in by.items()}
+    for s in (s for s, n in counts.items() if n == 0):
+        warnings.warn(f"no scan has {min_seconds:g} s within {tolerance_mm_s:g} mm/s of "
+                      f"{s:g} mm/s: no model at that speed", stacklevel=2)
+    short = [f"only {n} samples near {s:g} mm/s for an order-{order} model (need at least "
+             f"{4 * order}); record longer or lower --order"
+             for s, n in counts.items() if 0 < n < 4 * order]
+    got = [s for s, n in counts.items() if n >= 4 * order]
+    if not got and short:
         raise UserError(f"{_where(scans)}: {short[0]}")
     for msg in short:
         warnings.warn(f"{msg}: no model at that speed", stacklevel=2)
-    got = list(counts)
     if len(got) < 2:
         raise UserError(f"{_where(scans)}: the calibrated form needs two or more target "
                         f"speeds with data, these have {len(got)} (column 'speed_mm_s'); "
@@ -131,7 +126,8 @@ def fit_texture(
                    surface, highpass_hz, drive_band_hz=drive_band_hz,
                    tolerance_mm_s=tolerance_mm_s, interpolation="stretch",
                    two_part=two.to_json(), free_form=spec.to_json())
-    model.provenance.update(spectral_model="free-form", two_part_iterations=ITERATIONS)
+    model.provenance.update(spectral_model="free-form", two_part_iterations=ITERATIONS,
+                            form="calibrated")
     return model
 
 

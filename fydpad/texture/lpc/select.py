@@ -102,12 +102,9 @@ def fit_candidate(name: str, scans: Sequence[Scan], speeds_mm_s: Sequence[float]
                          highpass_hz=highpass_hz, surface=surface, drive_band_hz=drive_band_hz)
     if name != "calibrated":
         raise ValueError(f"unknown candidate {name!r}; one of {CANDIDATES}")
-    model = fit_texture(scans, order=order, speeds_mm_s=speeds_mm_s,
-                        tolerance_mm_s=tolerance_mm_s, highpass_hz=highpass_hz,
-                        min_seconds=min_seconds, surface=surface,
-                        drive_band_hz=drive_band_hz, wrap_iterations=wrap_iterations)
-    model.provenance["form"] = name
-    return model
+    return fit_texture(scans, order=order, speeds_mm_s=speeds_mm_s, tolerance_mm_s=tolerance_mm_s,
+                       highpass_hz=highpass_hz, min_seconds=min_seconds, surface=surface,
+                       drive_band_hz=drive_band_hz, wrap_iterations=wrap_iterations)
 
 
 def plateaus(scans: Sequence[Scan], speeds_mm_s: Sequence[float], tolerance_mm_s: float
