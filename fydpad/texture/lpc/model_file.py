@@ -42,9 +42,7 @@ class TextureModel:
     #: The calibrated form's two-part base and calibration (spectrum.py's to_json()).
     two_part: dict[str, Any] | None = None
     free_form: dict[str, Any] | None = None
-    #: How the renderer goes between ``models[]``: "nearest" (the paper's per-speed fits
-    #: on a speed grid) or "stretch" (the calibrated spectrum).
-    interpolation: str = "nearest"
+    interpolation: str = "nearest"  # between models[]: "nearest" or "stretch" (INTERPOLATIONS)
     #: What ``fydpad texture fit`` validated: the winner and every candidate's figures.
     selection: dict[str, Any] | None = None
 
@@ -61,8 +59,7 @@ def model_to_json(model: TextureModel) -> dict[str, Any]:
     optional = {"two_part": model.two_part, "free_form": model.free_form,
                 "selection": model.selection}
     return {
-        "format": FORMAT,
-        "format_version": FORMAT_VERSION,
+        "format": FORMAT, "format_version": FORMAT_VERSION,
         "surface": model.surface, "sample_rate_hz": model.fs_hz, "order": model.order,
         "highpass_hz": model.highpass_hz, "fit_band_hz": list(model.fit_band_hz),
         "drive_band_hz": None if model.drive_band_hz is None else list(model.drive_band_hz),
@@ -145,6 +142,8 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
     if np.any(np.diff(np.asarray(speeds)[order]) <= 0):
         raise UserError(f"{where}: key 'models' has two models at the same speed")
     two, free = data.get("two_part"), data.get("free_form")
+    if free is not None:
+        _calibrated(two, free, where)
     selection = data.get("selection")
     if selection is not None and not isinstance(selection, dict):
         raise UserError(f"{where}: key 'selection' must be an object, not {_short(selection)}")
@@ -153,8 +152,8 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
         h=np.vstack(hs)[order], sigma2=np.asarray(sig)[order], highpass_hz=hp,
         fit_band_hz=fit_band, drive_band_hz=drive, gain=gain, tolerance_mm_s=tolerance,
         provenance=dict(provenance), interpolation=str(interpolation),
-        two_part=None if two is None else _two_part(two, where),
-        free_form=None if free is None else _free_form(free, two, where), selection=selection,
+        two_part=None if two is None else dict(two),
+        free_form=None if free is None else dict(free), selection=selection,
     )
 
 
@@ -233,36 +232,29 @@ _TWO_PART_GRIDS = {"f_hz": "f_hz", "k_per_mm": "k_per_mm", "tool": "f_hz",
                    "n": "v_mm_s", "fixed_floor": "f_hz"}
 
 
-def _two_part(d: Any, where: str) -> dict[str, Any]:
-    """The calibrated form's two-part base: finite, nonnegative lists, each on its grid."""
-    if not isinstance(d, dict):
-        raise UserError(f"{where}: key 'two_part' must be an object")
+def _calibrated(two: Any, free: Any, where: str) -> None:
+    """The calibrated form's blocks (spectrum.py): the two-part base's lists finite,
+    nonnegative and each on its grid; the correction's grids ascending, ``log_c`` one row
+    per speed of one value per two-part bin, and a taper > 0."""
+    w = f"{where}: free_form"
+    if two is None:
+        raise UserError(f"{w}: form 'calibrated' needs the key 'two_part', which is missing")
+    for key, block in (("two_part", two), ("free_form", free)):
+        if not isinstance(block, dict):
+            raise UserError(f"{where}: key '{key}' must be an object")
     size: dict[str, int] = {}
     for k, grid in _TWO_PART_GRIDS.items():
-        size[k] = _array(d, k, f"{where}: two_part", "a list of at least 2 finite, "
+        size[k] = _array(two, k, f"{where}: two_part", "a list of at least 2 finite, "
                          "nonnegative numbers", lambda a: a.ndim == 1 and a.size >= 2
                          and (a >= 0).all()).size
         if size[k] != size[grid]:
             raise UserError(f"{where}: two_part.{k} has {size[k]} values, two_part.{grid} "
                             f"{size[grid]}")
-    return dict(d)
-
-
-def _free_form(d: Any, two_part: Any, where: str) -> dict[str, Any]:
-    """The calibrated spectrum (spectrum.py) on its ``two_part`` base: ascending grids,
-    ``log_c`` one row per speed of one value per two-part bin, a taper > 0."""
-    w = f"{where}: free_form"
-    if not isinstance(d, dict):
-        raise UserError(f"{where}: key 'free_form' must be an object")
-    f_hz, v_mm_s = (_array(d, k, w, "an ascending list of finite numbers",
+    f_hz, v_mm_s = (_array(free, k, w, "an ascending list of finite numbers",
                            lambda a: a.ndim == 1 and a.size > 0 and (np.diff(a) > 0).all())
                     for k in ("f_hz", "v_mm_s"))
-    _array(d, "log_c", w, "one row per free_form.v_mm_s of finite values per free_form.f_hz",
-           lambda a: a.shape == (v_mm_s.size, f_hz.size))
-    _number(d, "taper_mm_s", w, positive=True)
-    if two_part is None:
-        raise UserError(f"{w}: form 'calibrated' needs the key 'two_part', which is missing")
-    if f_hz.size != len(two_part["f_hz"]):
-        raise UserError(f"{w}.log_c has {f_hz.size} columns, two_part.f_hz "
-                        f"{len(two_part['f_hz'])}")
-    return dict(d)
+    _array(free, "log_c", w, "one row per free_form.v_mm_s of finite values per "
+           "free_form.f_hz", lambda a: a.shape == (v_mm_s.size, f_hz.size))
+    _number(free, "taper_mm_s", w, positive=True)
+    if f_hz.size != size["f_hz"]:
+        raise UserError(f"{w}.log_c has {f_hz.size} columns, two_part.f_hz {size['f_hz']}")
