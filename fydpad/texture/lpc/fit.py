@@ -79,11 +79,9 @@ def fit_texture(
     drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
     wrap_iterations: Callable[[Iterable], Iterable] = lambda it: it,
 ) -> TextureModel:
-    """The calibrated form (:mod:`spectrum`): the two-part spectrum S_two(f, v) fitted on
-    every 0.5 s chunk within the modelled speeds, times a correction measured at each
-    target speed on the runs (of ``min_seconds`` or more) within ``tolerance_mm_s`` of
-    it; each speed's (h, sigma^2) is the all-pole fit of S there. Needs two or more
-    target speeds with data.
+    """The calibrated form (:mod:`spectrum`): S = S_two(f, v), fitted on every 0.5 s chunk,
+    times a correction measured at each target speed with data (two or more) on its runs
+    of ``min_seconds`` within ``tolerance_mm_s``; (h, sigma^2) the all-pole fit of S there.
     ``wrap_iterations`` wraps the two-part fit's iterations (a progress bar)."""
     scans = list(scans)
     fs, prepared = _prepare(scans, highpass_hz)
@@ -142,12 +140,10 @@ def fit_paper(
     highpass_hz: float = 10.0, surface: str | None = None,
     drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
 ) -> TextureModel:
-    """The paper's method read plainly (Fig. 8, eq. 4): for each synthesis speed v, one
-    LPC of ``order`` (autocorrelation method) on the modelling signal's samples whose
-    speed is within ``window_mm_s`` of v, or the ``PAPER_MIN_SECONDS`` of samples nearest
-    to v where fewer are. One such fit every ``PAPER_GRID_STEP_MM_S`` over the scanned
-    speeds (1st-99th percentile of the moving samples), played by the nearest
-    (``interpolation "nearest"``): a per-speed refit to within half a step."""
+    """The paper's method read plainly (Fig. 8, eq. 4): every ``PAPER_GRID_STEP_MM_S`` over
+    the scanned speeds (1st-99th percentile of the moving samples), one LPC of ``order``
+    (autocorrelation method) on the samples within ``window_mm_s`` of the speed, or the
+    ``PAPER_MIN_SECONDS`` nearest where fewer; rendered by the nearest grid speed."""
     scans = list(scans)
     fs, prepared = _prepare(scans, highpass_hz)
     vs = [v for _, v in prepared]

@@ -104,8 +104,7 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
                         f"frequency {fs / 2:g} Hz of 'sample_rate_hz'")
     provenance = data.get("provenance", {})
     if not isinstance(provenance, dict):
-        raise UserError(f"{where}: key 'provenance' must be an object, not "
-                        f"{_short(provenance)}")
+        raise UserError(f"{where}: key 'provenance' must be an object, not {_short(provenance)}")
     for key in ("speed_coverage_mm_s", "interpolated_mm_s"):
         if key in provenance:
             checked_spans(provenance[key], where, key)
@@ -129,8 +128,7 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
         sig.append(_number(m, "sigma2", w, positive=True))  # 0: a singular spectrum
         h = _array(m, "h", w, "a non-empty list of finite numbers")
         if hs and h.size != hs[0].size:
-            raise UserError(f"{w}: key 'h' has {h.size} coefficients, models[0] has "
-                            f"{hs[0].size}")
+            raise UserError(f"{w}: key 'h' has {h.size} coefficients, models[0] has {hs[0].size}")
         if not is_stable(poly_from_h(h)):
             raise UserError(f"{w}: key 'h' is an unstable filter")
         hs.append(h)

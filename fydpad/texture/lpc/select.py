@@ -186,9 +186,8 @@ def select_model(
                       [_piece(scans[i], a, b, f"{s:g}")]))
     scores = {c: CandidateScore(c, [], []) for c in candidates}
     for (kind, train, speeds, held), c in wrap([(f, c) for f in folds for c in candidates]):
-        with warnings.catch_warnings():
-            # speeds a fold lacks, blocks beyond its speeds (clamped): the final fit says
-            warnings.simplefilter("ignore")
+        # speeds a fold lacks, blocks beyond its speeds (clamped): the final fit says
+        with warnings.catch_warnings(action="ignore"):
             got = held_out_lsd_db(fit_candidate(c, train, speeds, **kw), held, seed)
         (scores[c].block_lsd_db if kind == "block" else scores[c].between_lsd_db).extend(got)
     table = [scores[c] for c in candidates]
