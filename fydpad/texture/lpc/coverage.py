@@ -22,9 +22,8 @@ MIN_SECONDS_PER_BIN = 0.1
 MIN_GAP_MM_S = 1.0
 #: Slower is a finger at rest, not a scan (the renderer is silent below 1 mm/s).
 STILL_MM_S = 1.0
-#: A sample counts only where its speed changes by less than this share of itself per
-#: second over RATE_WINDOW_S: a hand's sway is 0.5 /s at most; a stroke's start and end,
-#: 3 /s and more, sweep every slower speed, which over many strokes would add up.
+#: Steady: the speed changes by less than this share of itself per second (over
+#: RATE_WINDOW_S); a hand's sway is 0.5 /s at most, a stroke's start and end 3 /s and more.
 STEADY_RATE_PER_S = 1.5
 RATE_WINDOW_S = 0.1
 #: Faster than any finger (10 m/s): left out, a corrupt sample would make a huge histogram.

@@ -28,8 +28,7 @@ from fydpad.texture.lpc.spectrum import ITERATIONS, PREWHITEN_ORDER, fit_calibra
 from fydpad.texture.scan_io import Scan
 
 Array = NDArray[np.float64]
-#: The plain per-speed fit's grid step: the renderer takes the nearest grid speed, so a
-#: speed is never more than half a step from a model fitted around it.
+#: The plain fit's grid step: the nearest grid speed is never more than half a step away.
 PAPER_GRID_STEP_MM_S = 1.0
 #: Where fewer samples lie within the window of a speed, the nearest this many seconds.
 PAPER_MIN_SECONDS = 2.0
@@ -166,8 +165,7 @@ def fit_paper(
             limit = float(np.partition(dist, need - 1)[need - 1])
         segs = [x[a:b] for x, sv in prepared for a, b in runs(np.abs(sv - v) <= limit, 1)]
         for floor in (1e-9, 1e-7, 1e-5, 1e-3):
-            # A positive-definite autocorrelation gives a stable filter; at order 200 over
-            # a 60 dB spectrum rounding can break it: a white floor this far down restores it.
+            # Rounding can make an order-200 fit of a 60 dB spectrum unstable; a floor mends it.
             a, s2 = lpc_autocorrelation(segs, order, floor)
             if is_stable(a):
                 break

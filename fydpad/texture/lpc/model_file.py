@@ -6,6 +6,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from reprlib import repr as _short  # a value for a one-line message: a long list cut
 from typing import Any
 
 import numpy as np
@@ -153,12 +154,6 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
         two_part=None if two is None else dict(two),
         free_form=None if free is None else dict(free), selection=selection,
     )
-
-
-def _short(v: Any) -> str:
-    """A value for a one-line message (a long list cut)."""
-    r = repr(v)
-    return r if len(r) <= 40 else r[:37] + "..."
 
 
 def _number(d: Any, key: str, where: str, default: float | None = None,

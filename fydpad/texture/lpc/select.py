@@ -26,8 +26,8 @@ from fydpad.texture.scan_io import Scan
 CANDIDATES = ("paper", "calibrated")
 BLOCKS = 2
 MIN_PLATEAU_S = 4.5  # shorter: blocks under 2.25 s, too few 4 Hz Welch segments
-#: The scoring renderer's speed table step (the station's is 0.25): half the cost of
-#: building each fold's table; a block's speed lies within 0.25 mm/s of an entry.
+#: The scoring renderer's table step (the station's is 0.25): each fold's table built at
+#: half the cost, every speed within 0.25 mm/s of an entry.
 SCORE_STEP_MM_S = 0.5
 MIN_PIECE_S = 1.0  # training pieces shorter than this are dropped (too short for DFT321)
 
