@@ -185,13 +185,10 @@ def _band(data: dict[str, Any], key: str, where: str, default: Any, fs_hz: float
           open_ends: bool) -> tuple[float, float]:
     """``data[key]`` as [lo, hi] Hz within 0..Nyquist, lo < hi (``open_ends``: 0 < lo and
     hi < Nyquist, as a band-pass filter needs)."""
-    v = data.get(key, default)
-    nyq = fs_hz / 2
-    ok = (isinstance(v, (list, tuple)) and len(v) == 2
-          and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-                  for x in v)
-          and (0 < v[0] < v[1] < nyq if open_ends else 0 <= v[0] < v[1] <= nyq))
-    if not ok:
+    v, nyq = data.get(key, default), fs_hz / 2
+    if not (isinstance(v, (list, tuple)) and len(v) == 2 and all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+            for x in v) and (0 < v[0] < v[1] < nyq if open_ends else 0 <= v[0] < v[1] <= nyq)):
         rel = "0 < lo < hi <" if open_ends else "0 <= lo < hi <="
         raise UserError(f"{where}: key '{key}' must be [lo, hi] with {rel} {nyq:g} Hz "
                         f"(Nyquist of 'sample_rate_hz'), not {_short(v)}")

@@ -95,8 +95,8 @@ def fit_candidate(name: str, scans: Sequence[Scan], speeds_mm_s: Sequence[float]
                   min_seconds: float = 0.25,
                   wrap_iterations: Callable[[Iterable], Iterable] = lambda it: it
                   ) -> TextureModel:
-    """One candidate form fitted on ``scans`` (``min_seconds``: the calibrated form's,
-    :func:`fit.fit_texture`)."""
+    """One candidate form fitted on ``scans`` (``speeds_mm_s``, ``min_seconds``: the
+    calibrated form's)."""
     if name == "paper":
         return fit_paper(scans, order=order, window_mm_s=tolerance_mm_s,
                          highpass_hz=highpass_hz, surface=surface, drive_band_hz=drive_band_hz)
