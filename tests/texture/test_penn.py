@@ -7,13 +7,8 @@ import pytest
 import scipy.signal as ss
 
 from fydpad.errors import UserError
-from fydpad.texture.families.penn.toolkit import (
-    PennModelSet,
-    PennRenderer,
-    interpolate,
-    read_penn,
-    write_penn,
-)
+from fydpad.synth.hatt import PennRenderer, interpolate, write_penn
+from fydpad.texture.families.penn.toolkit import PennModelSet, read_penn
 from fydpad.texture.lpc.lsf import lsf_to_poly
 from tests.texture.lpc_polys import poly_to_lsf, reflection_to_poly
 
