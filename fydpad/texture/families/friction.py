@@ -28,6 +28,7 @@ from fydpad.texture.family import (
     require_version,
     save_model_json,
 )
+from fydpad.texture.lpc.analysis import runs
 
 NAME = "friction"
 FORMAT_VERSION = 1
@@ -94,7 +95,7 @@ def fit_friction(scans: list, *, dx_mm: float = 0.01, lowpass_hz: float = LOWPAS
                       left=np.nan, right=np.nan)
         filt = np.full(n, np.nan)
         # Low-pass each scan's strip on its own (no jump at a strip's edge).
-        for a, bnd in _runs(np.isfinite(g)):
+        for a, bnd in runs(np.isfinite(g)):
             seg = g[a:bnd]
             pad = min(seg.size - 1, int(3 / cutoff / dx_mm))
             ext = np.pad(seg, pad, mode="reflect") if pad > 0 else seg
@@ -119,12 +120,6 @@ def fit_friction(scans: list, *, dx_mm: float = 0.01, lowpass_hz: float = LOWPAS
         "fydpad": {"vibration_gain_m_s2": 2.0, "tension_gain": 1.0, "still_mm_s": 2.0},
         "provenance": {"scans": [str(s.path) for s in scans], "method": "Jiao 2018 IV-B eq. 1"},
     }
-
-
-def _runs(mask: Array) -> list[tuple[int, int]]:
-    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    starts, stops = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
-    return list(zip(starts.tolist(), stops.tolist(), strict=True))
 
 
 class FrictionFamily(FamilyBase):

@@ -24,7 +24,7 @@ import scipy.signal as ss
 from numpy.typing import ArrayLike, NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.family import FORMAT, read_model_json, require_version, save_model_json
+from fydpad.texture.family import FORMAT, read_model_json, require, require_version
 
 Array = NDArray[np.float64]
 KIND = "mlp"
@@ -161,19 +161,9 @@ def model_to_json(model: MlpModel) -> dict[str, Any]:
     }
 
 
-def save_mlp(model: MlpModel, path: str | Path) -> Path:
-    return save_model_json(model_to_json(model), path)
-
-
-def _key(d: Any, key: str, where: str) -> Any:
-    if not isinstance(d, dict) or key not in d:
-        raise UserError(f"{where}: missing key '{key}'")
-    return d[key]
-
-
 def _vector(d: Any, key: str, where: str, shape: tuple[int, ...]) -> Array:
     try:
-        a = np.asarray(_key(d, key, where), float)
+        a = np.asarray(require(d, key, where, object), float)
     except (TypeError, ValueError):
         raise UserError(f"{where}: key '{key}' must be numbers") from None
     if a.shape != shape:
@@ -188,15 +178,14 @@ def parse_mlp(data: dict[str, Any], where: str = "model") -> MlpModel:
     require_version(data, where, KIND, FORMAT_VERSION)
     if list(data.get("inputs", INPUTS)) != list(INPUTS):
         raise UserError(f"{where}: key 'inputs' must be {list(INPUTS)}")
-    w, ww = _key(data, "weights", where), f"{where}: weights"
-    rows = _key(w, "input", ww)
-    hidden = len(rows) if isinstance(rows, list) else 0
+    w, ww = require(data, "weights", where, dict), f"{where}: weights"
+    hidden = len(require(w, "input", ww, list))
     if hidden < 1:
         raise UserError(f"{where}: key 'weights.input' must list one row per hidden unit")
     net = MlpNet(_vector(w, "input", ww, (hidden, len(INPUTS))),
                  _vector(w, "input_bias", ww, (hidden,)), _vector(w, "output", ww, (hidden,)),
                  float(_vector(w, "output_bias", ww, ())))
-    sc, sw = _key(data, "scaling", where), f"{where}: scaling"
+    sc, sw = require(data, "scaling", where, dict), f"{where}: scaling"
     scaling = Scaling(_vector(sc, "input_offset", sw, (len(INPUTS),)),
                       _vector(sc, "input_scale", sw, (len(INPUTS),)),
                       float(_vector(sc, "output_offset", sw, ())),
@@ -207,7 +196,8 @@ def parse_mlp(data: dict[str, Any], where: str = "model") -> MlpModel:
     if not (fs > 0 and 0 <= band[0] < band[1]):
         raise UserError(f"{where}: keys 'sample_rate_hz'/'band_hz' must be positive and "
                         f"ordered (got {fs:g} Hz, {band.tolist()})")
-    tau = float(_vector(_key(data, "delta_force", where), "tau_s", f"{where}: delta_force", ()))
+    df = require(data, "delta_force", where, dict)
+    tau = float(_vector(df, "tau_s", f"{where}: delta_force", ()))
     if not tau > 0:
         raise UserError(f"{where}: key 'delta_force.tau_s' must be positive, got {tau:g}")
     return MlpModel(net, scaling, fs, (float(band[0]), float(band[1])), tau,
@@ -215,10 +205,6 @@ def parse_mlp(data: dict[str, Any], where: str = "model") -> MlpModel:
                     str(data.get("surface", "")), dict(data.get("provenance", {})))
 
 
-def load_mlp(path: str | Path) -> MlpModel:
-    return parse_mlp(read_model_json(path), str(path))
-
-
 def thesis_model() -> MlpModel:
     """The thesis' trained weights (Tables 3.2-3.4, output bias 0.11); see its file."""
-    return load_mlp(THESIS_MODEL)
+    return parse_mlp(read_model_json(THESIS_MODEL), str(THESIS_MODEL))
