@@ -1,14 +1,6 @@
-"""HaTT model sets (:mod:`.toolkit`) as a texture family (kind ``"penn"``, Culbertson 2014).
-
-The (speed, force) plane is sampled on a grid (64 x 32 by default) where the barycentric
-interpolation of LSFs, ``var`` and ``gain`` becomes A(z), B(z) once, at load; ``render``
-and ``tick`` both take the nearest grid point's model (docs/texture.md). ``tick`` runs R =
-fs_model / rate samples of the ARMA recursion and an elliptic anti-alias low-pass as one
-precomputed matrix per grid point (linear in [y history, e history, low-pass state, R
-noises]), one ``np.dot`` a tick into views made in ``prepare``; ``render`` runs the same
-recursion by ``lfilter``, state carried across blocks and model changes. Silent without
-contact or below ``still_mm_s`` through a 5 ms ramp; beyond maxSpeed/maxForce clamped
-(warned once), as the toolkit saturates.
+"""HaTT model sets (:mod:`.toolkit`) as a texture family (kind ``"penn"``, Culbertson 2014):
+the toolkit's interpolated models tabled on a (speed, force) grid at load, ``render`` and the
+1 kHz ``tick`` taking the nearest grid point's (docs/texture.md, "Rendering HaTT models").
 """
 
 from __future__ import annotations

@@ -61,30 +61,22 @@ def _values(node: ET.Element | None, where: str) -> Array:
 
 
 def _num(root: ET.Element, key: str, where: str, default: float | None = None) -> float:
-    node = root.find(key)
-    if node is None or node.text is None:
-        if default is not None:
-            return default
-        raise UserError(f"{where}: missing element <{key}>")
-    try:
-        return float(node.text)
-    except ValueError:
-        raise UserError(f"{where}: <{key}> is not a number ({node.text!r})") from None
-
-
-def _count(root: ET.Element, key: str, where: str, default: int | None = None) -> int:
-    """A count element (numARCoeff, numMod, ...): a whole number >= 0."""
     text = (root.findtext(key) or "").strip()
     if not text:
         if default is not None:
             return default
         raise UserError(f"{where}: missing element <{key}>")
     try:
-        v = float(text)
+        return float(text)
     except ValueError:
-        v = math.nan
+        raise UserError(f"{where}: <{key}> is not a number ({text!r})") from None
+
+
+def _count(root: ET.Element, key: str, where: str, default: int | None = None) -> int:
+    """A count element (numARCoeff, numMod, ...): a whole number >= 0."""
+    v = _num(root, key, where, default)
     if not (math.isfinite(v) and v >= 0 and v == round(v)):
-        raise UserError(f"{where}: <{key}> is not a whole number >= 0 ({text!r})")
+        raise UserError(f"{where}: <{key}> is not a whole number >= 0 ({v:g})")
     return int(v)
 
 
