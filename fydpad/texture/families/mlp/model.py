@@ -1,15 +1,9 @@
-"""The neural-network texture model of Lin 2016 (section 3.2, Tables 3.1-3.4).
-
-A 3-10-1 network maps the finger's velocity and force change to the normal acceleration:
+"""The texture network of Lin 2016 (section 3.2, Tables 3.1-3.4): features, weights, file.
 
     net_j = logsig(sum_i w_in[j, i] u_i + b_in[j])        (eq. 4, 6; 10 hidden units)
     a_z   = sum_j w_out[j] net_j + b_out                    (eq. 5, 7; purelin)
 
-with u = scale((v_x, v_y, Δf)) and a_z unscaled (``Scaling``). Δf, which the thesis does
-not define, is the force minus its causal moving mean over ``DF_TAU_S`` = 50 ms (a
-first-order high-pass at 3.2 Hz; a 1 kHz difference would be mostly sensor noise).
-(v_x, v_y) is the speed along the direction of the last position change (positions
-arrive at camera rate, held between frames).
+with u = scale((v_x, v_y, Δf)), a_z unscaled; Δf and (v_x, v_y) as docs/texture_mlp.md defines.
 """
 
 from __future__ import annotations

@@ -1,11 +1,7 @@
-"""The thesis network as a texture family (kind ``"mlp"``): render and 1 kHz tick.
-
-Per sample: (v_x, v_y, Δf) (:mod:`.model`), the network's normal acceleration, a causal
-first-order DC blocker at the training band's 5 Hz edge (the network's output at rest is a
-constant that would offset the motors' PWM), gated to 0 without contact or below
-``still_mm_s``. ``render`` and ``tick`` share their state: a block rendered sample by
-sample equals the block at once. Channels ``vibration`` (1 kHz) and ``audio`` (the same
-signal, for an external actuator).
+"""The thesis network as a texture family (kind ``"mlp"``): per sample the network, a
+first-order DC blocker at the band's 5 Hz edge, gated to 0 without contact or below
+``still_mm_s`` (docs/texture_mlp.md, "Rendering"). ``render`` and ``tick`` share their
+state; ``audio`` is the same signal for an external actuator.
 """
 
 from __future__ import annotations
