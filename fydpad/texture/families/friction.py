@@ -65,8 +65,7 @@ def fit_friction(scans: list, *, dx_mm: float = 0.01, lowpass_hz: float = LOWPAS
         raise UserError("fit --kind friction: no scans")
     pieces = []
     for sc in scans:
-        ff = getattr(sc, "friction_n", None)
-        x = getattr(sc, "x_mm", None)
+        ff, x = sc.friction_n, sc.x_mm
         if ff is None or sc.force_n is None:
             raise UserError(f"{sc.path}: column 'friction_n' and 'force_n' are needed for a "
                             "friction model (docs/recording_format.md, texture scan)")

@@ -178,8 +178,7 @@ def estimate_wavelength(scans: list, band_mm: tuple[float, float] = (0.3, 10.0),
     then divided by m while the lines it adds stand 10 dB out."""
     logs = []
     for sc in scans:
-        x = getattr(sc, "x_mm", None)
-        x = np.cumsum(sc.speed_mm_s) / sc.fs_hz if x is None else x
+        x = np.cumsum(sc.speed_mm_s) / sc.fs_hz if sc.x_mm is None else sc.x_mm
         a = preprocess(sc.acc, sc.fs_hz, 10.0)
         keep = sc.speed_mm_s > 0.5 * np.median(sc.speed_mm_s)
         xs, order = x[keep], np.argsort(x[keep], kind="stable")

@@ -140,13 +140,11 @@ def model_to_json(model: MlpModel) -> dict[str, Any]:
         "band_hz": list(model.band_hz),
         "delta_force": {"definition": "force_n minus its causal exponential moving mean",
                         "tau_s": model.df_tau_s},
-        "weights": {"input": [[float(w) for w in row] for row in net.w_in],
-                    "input_bias": [float(b) for b in net.b_in],
-                    "output": [float(w) for w in net.w_out], "output_bias": float(net.b_out)},
+        "weights": {"input": net.w_in.tolist(), "input_bias": net.b_in.tolist(),
+                    "output": net.w_out.tolist(), "output_bias": float(net.b_out)},
         "scaling": {
             "method": s.method, "known": s.known,
-            "input_offset": [float(v) for v in s.in_offset],
-            "input_scale": [float(v) for v in s.in_scale],
+            "input_offset": s.in_offset.tolist(), "input_scale": s.in_scale.tolist(),
             "output_offset": float(s.out_offset), "output_scale": float(s.out_scale),
             "convention": "u = (x - input_offset) * input_scale; "
                           "y = output_offset + output_scale * net(u)",

@@ -158,13 +158,11 @@ def scan_features(scan: Scan, band_hz: tuple[float, float] = BAND_HZ,
         raise UserError(f"{scan.path}: column 'force_n' is missing or has empty cells: the "
                         "network's Δf input needs the normal force")
     df, _ = delta_force(scan.force_n, scan.fs_hz, df_tau_s)
-    x_mm = getattr(scan, "x_mm", None)
-    if x_mm is None:  # no position columns: the stroke runs along +x
+    # A scan's stroke runs along x (+x without a position column).
+    if scan.x_mm is None:
         vx, vy = scan.speed_mm_s, np.zeros_like(scan.speed_mm_s)
     else:
-        y_mm = getattr(scan, "y_mm", None)
-        vx, vy, _ = velocity_xy(x_mm, np.zeros_like(x_mm) if y_mm is None else y_mm,
-                                scan.speed_mm_s)
+        vx, vy, _ = velocity_xy(scan.x_mm, np.zeros_like(scan.x_mm), scan.speed_mm_s)
     az = bandpass_fft(scan.acc[:, 2], scan.fs_hz, band_hz)
     return Features(np.column_stack([vx, vy, df]), az)
 
