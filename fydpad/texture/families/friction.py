@@ -1,11 +1,7 @@
-"""Position-indexed friction playback (Jiao 2018, section IV-B; docs/texture_friction.md).
-
-Fit: mu(x) = F_f(x) / F_n(x) (eq. 1) on a uniform position grid, low-passed at the paper's
-100 Hz taken to x: k_c = 100 Hz / v_ref cycles/mm, v_ref the scans' median sliding speed.
-Playback by position at any speed, u = (x - x0) mod L: ``audio`` (an electrostatic
-display) V = b mu(x) Y(t), Y the 0/1 square carrier at 240 Hz (eq. 2); on the FYD-pad
-``tension`` = clip(1 + g_t (mu - mean) / mean, 0.5, 1.5), a scale on the stiffness
-request, and ``vibration`` = g_v (mu - mean) / mean m/s^2, faded in over 0-``still_mm_s``.
+"""Position-indexed friction playback (Jiao 2018, section IV-B): mu(x) = F_f(x) / F_n(x)
+(eq. 1) low-passed in position, played back at u = (x - x0) mod L as the electrostatic
+``audio`` V = b mu(x) Y(t) (eq. 2) or, on the FYD-pad, as ``tension`` and ``vibration``
+(docs/texture_friction.md).
 """
 
 from __future__ import annotations
