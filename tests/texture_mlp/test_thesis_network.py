@@ -221,6 +221,9 @@ def test_fit_needs_force(tmp_path):
         fit_family("mlp", [generate_scan("felt", 10.0, 1.0, seed=1)])
     with pytest.raises(UserError, match=r"unknown option.*lerning_rate"):
         fit_family("mlp", [generate_scan("felt", 10.0, 1.0, seed=1)], lerning_rate=0.1)
+    scan = generate_scan("felt", 10.0, 1.0, seed=1, friction=True)
+    with pytest.raises(UserError, match=r"mlp fit: option mode must be .* not 'fast'"):
+        fit_family("mlp", [scan], mode="fast")
 
 
 def _bad(tmp_path, edit, name="bad.json"):

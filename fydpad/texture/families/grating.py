@@ -216,7 +216,7 @@ def fit_grating(scans: list | None = None, *, wavelength_mm: float | None = None
                 ratio: tuple[int, int] | None = None,
                 vib_levels_n: tuple[float, float] = (0.05, 0.5),
                 friction_levels_n: tuple[float, float] = (0.02, 0.2),
-                surface: str | None = None, **extra: Any) -> dict[str, Any]:
+                surface: str | None = None) -> dict[str, Any]:
     """A grating model file (JSON dict): parametric, lambda given or estimated from scans."""
     how = "given"
     if wavelength_mm is not None and not (wavelength_mm > 0 and math.isfinite(wavelength_mm)):

@@ -103,7 +103,7 @@ def train(u_train: Array, t_train: Array, u_val: Array | None, t_val: Array | No
           cfg: TrainConfig = TrainConfig()) -> tuple[MlpNet, TrainReport]:
     """Train on network-unit data (inputs (n, n_in), target (n,)); deterministic per seed."""
     if cfg.mode not in ("online", "batch"):
-        raise ValueError(f"training mode must be 'online' or 'batch', not {cfg.mode!r}")
+        raise UserError(f"mlp fit: option mode must be 'online' or 'batch', not {cfg.mode!r}")
     u_train, t_train = np.asarray(u_train, float), np.asarray(t_train, float)
     if u_train.shape[1] != 3 and cfg.mode == "online":
         raise ValueError("online training is written for 3 inputs (v_x, v_y, Δf)")
