@@ -13,7 +13,7 @@ from fydpad.synth.texture_scans import hand_speed, penn_scan, plateau_speed
 from fydpad.texture.evaluation.evaluate import lsd_db, welch_psd
 from fydpad.texture.families import load_family
 from fydpad.texture.families.penn.toolkit import PennModelSet
-from fydpad.texture.lpc.analysis import ar_psd, autocorrelation
+from fydpad.texture.lpc.analysis import ar_psd, levinson, lpc_autocorrelation
 from fydpad.texture.lpc.dft321 import preprocess
 from fydpad.texture.lpc.fit import fit_paper
 from fydpad.texture.lpc.model_file import load_model, model_to_json, save_model
@@ -46,11 +46,16 @@ def stroke():
 
 
 def test_autocorrelation_of_a_segment_shorter_than_the_lags():
-    x = np.random.default_rng(0).standard_normal(50)
-    want = np.correlate(x, x, "full")[49:]
-    got = autocorrelation(x, 80)
-    np.testing.assert_allclose(got[:50], want, atol=1e-9)
-    np.testing.assert_allclose(got[50:], 0.0, atol=1e-9)
+    x, y = np.split(np.random.default_rng(0).standard_normal(150), [50])
+    r = np.zeros(81)
+    r[:50] = np.correlate(x, x, "full")[49:]  # no wrapped lags above 49
+    r += np.correlate(y, y, "full")[99:180]
+    r /= 150
+    r[0] *= 1.0 + 1e-9
+    want_a, want_s2 = levinson(r, 80)
+    a, s2 = lpc_autocorrelation([x, y], 80)
+    np.testing.assert_allclose(a, want_a, atol=1e-9)
+    assert s2 == pytest.approx(want_s2, rel=1e-9)
 
 
 def test_plain_fit_is_each_speeds_window(stroke):

@@ -17,17 +17,6 @@ DEFAULT_SPEEDS_MM_S = (10.0, 20.0, 30.0, 40.0)
 DEFAULT_TOLERANCE_MM_S = 5.0
 
 
-def autocorrelation(x: ArrayLike, maxlag: int) -> Array:
-    """Biased autocorrelation r[0..maxlag] (sum over the segment, not divided by n)."""
-    x = np.asarray(x, float)
-    # n + maxlag, not 2n - 1: a segment shorter than maxlag would otherwise read its
-    # negative lags, wrapped round, as lags above n (no longer positive definite).
-    nfft = 1 << int(np.ceil(np.log2(max(x.size + maxlag, 2))))
-    spec = np.fft.rfft(x, nfft)
-    r = np.fft.irfft(spec.real**2 + spec.imag**2, nfft)[: maxlag + 1]
-    return np.concatenate([r, np.zeros(maxlag + 1 - r.size)]) if r.size < maxlag + 1 else r
-
-
 def levinson(r: ArrayLike, order: int) -> tuple[Array, float]:
     """Levinson-Durbin on the autocorrelation ``r`` (r[0] the signal power): A and the
     prediction-error power sigma^2 of eq. 5. A positive-definite ``r`` (any biased
@@ -53,13 +42,18 @@ def levinson(r: ArrayLike, order: int) -> tuple[Array, float]:
 
 def lpc_autocorrelation(segments: Sequence[ArrayLike], order: int, floor: float = 1e-9
                         ) -> tuple[Array, float]:
-    """(A, sigma^2) over several segments: their autocorrelations summed (no seams), then
-    Levinson. A white floor (``floor`` of r[0]) keeps it well conditioned at order 200."""
+    """(A, sigma^2) over several segments: their biased autocorrelations summed (no seams),
+    then Levinson. A white floor (``floor`` of r[0]) keeps it well conditioned at order 200."""
     total = np.zeros(order + 1)
     n = 0
     for seg in segments:
         seg = np.asarray(seg, float)
-        total += autocorrelation(seg, order)
+        # n + order, not 2n - 1: a segment shorter than the order would otherwise read its
+        # negative lags, wrapped round, as lags above n (no longer positive definite).
+        nfft = 1 << int(np.ceil(np.log2(max(seg.size + order, 2))))
+        spec = np.fft.rfft(seg, nfft)
+        r = np.fft.irfft(spec.real**2 + spec.imag**2, nfft)[: order + 1]
+        total[:r.size] += r  # shorter only for an empty segment
         n += seg.size
     if n <= order:
         raise ValueError(f"{n} samples cannot fit an order-{order} model")
