@@ -297,6 +297,12 @@ class CalibratedSpectrum:
     log_c: Array  # (speeds, f)
     taper_mm_s: float = TAPER_MM_S
 
+    def weights(self, speed_mm_s: float) -> Array:
+        """w_i(v): a tent of half-width :attr:`half_widths_mm_s` around each v_i (speeds
+        clamped to the fitted range)."""
+        v = float(np.clip(speed_mm_s, self.v_mm_s[0], self.v_mm_s[-1]))
+        return np.maximum(0.0, 1.0 - np.abs(v - self.v_mm_s) / self.half_widths_mm_s)
+
     @property
     def half_widths_mm_s(self) -> Array:
         """``taper_mm_s``, at most TAPER_PER_SPACING x the distance to the next v_i."""
@@ -305,11 +311,7 @@ class CalibratedSpectrum:
         return np.minimum(float(self.taper_mm_s), TAPER_PER_SPACING * near)
 
     def psd(self, speed_mm_s: float) -> Array:
-        """S at v: w_i(v) a tent of half-width :attr:`half_widths_mm_s` around each v_i
-        (speeds clamped to the fitted range)."""
-        v = float(np.clip(speed_mm_s, self.v_mm_s[0], self.v_mm_s[-1]))
-        w = np.maximum(0.0, 1.0 - np.abs(v - self.v_mm_s) / self.half_widths_mm_s)
-        return self.two.psd(speed_mm_s) * np.exp(w @ self.log_c)
+        return self.two.psd(speed_mm_s) * np.exp(self.weights(speed_mm_s) @ self.log_c)
 
     def ar(self, speed_mm_s: float, order: int, fs_hz: float) -> tuple[Array, float]:
         """All-pole (A, sigma^2) of S averaged over v +- RENDER_SMEAR_MM_S."""
