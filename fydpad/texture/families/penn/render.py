@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from fydpad.errors import UserError
 from fydpad.texture.families.penn.toolkit import PennModelSet, barycentric_weights, read_penn
 from fydpad.texture.family import FamilyBase, FingerBlock, Kind, hold_finite
-from fydpad.texture.lpc.lsf import lsf_to_poly as lsf_to_poly_rows
+from fydpad.texture.lpc.lsf import lsf_to_poly
 
 Array = NDArray[np.float64]
 _NOISE_TICKS = 512  # ticks of noise drawn at once
@@ -75,8 +75,8 @@ class PennTexture(FamilyBase):
         self.force_grid_n = np.linspace(0.0, ms.max_force_n, nf)
         s, f = np.meshgrid(self.speed_grid_mm_s, self.force_grid_n, indexing="ij")
         w = barycentric_weights(ms, s.ravel(), f.ravel())  # (cells, models)
-        self.den = lsf_to_poly_rows(w @ ms.ar_lsf)
-        ma = lsf_to_poly_rows(w @ ms.ma_lsf) if self.q else np.ones((w.shape[0], 1))
+        self.den = lsf_to_poly(w @ ms.ar_lsf)
+        ma = lsf_to_poly(w @ ms.ma_lsf) if self.q else np.ones((w.shape[0], 1))
         self.sigma = np.sqrt(np.maximum(w @ ms.var, 0.0))
         self.num = (w @ ms.gain)[:, None] * ma  # gain: 1 in AR files (toolkit.read_penn)
         self._inv_ds = (ns - 1) / ms.max_speed_mm_s if ms.max_speed_mm_s > 0 else 0.0
