@@ -16,29 +16,27 @@ from numpy.typing import NDArray
 
 from fydpad.channels import open_channel
 from fydpad.errors import UserError
-from fydpad.texture.evaluation.compare import (
-    by_surface,
-    compare_families,
-    identify_families,
-    specimen_experiment,
-)
 from fydpad.texture.evaluation.evaluate import (
     BIN_HZ,
     TARGET_LSD_OVER_CEILING_DB,
     TARGET_PSD_CORRELATION,
     Comparison,
     ceiling,
-    compare,
+    evaluate_family,
     meets_targets,
     unfair_ceiling,
     verdict_on_means,
     welch_psd,
 )
-from fydpad.texture.evaluation.identify import Identification, plot_confusion
+from fydpad.texture.evaluation.identify import (
+    Identification,
+    compare_families,
+    identify_families,
+    plot_confusion,
+)
 from fydpad.texture.families import get_kind, load_family, read_scans, spec_kind
 from fydpad.texture.families.friction import FrictionFamily, friction_coefficient
 from fydpad.texture.family import (
-    RateMismatch,
     TextureFamily,
     constant_stroke,
     finger_from_scan,
@@ -265,18 +263,7 @@ def evaluate_scan_file(spec: str, family: TextureFamily, path: str, second: str 
         raise UserError(f"{path}: column 'speed_mm_s': too little of the scan "
                         f"({int(mask.sum())} samples) is within the model's speeds")
     sec = None if not second else _second(second, scan, mask, family)
-    set_render_parameters(family, seed=seed)
-    family.reset()
-    finger = finger_from_scan(scan)
-    try:
-        syn = family.render(finger, "vibration")
-    except RateMismatch as exc:
-        raise UserError(f"{path}: column 't_s': sample rate {scan.fs_hz:g} Hz, {spec}: "
-                        f"{exc}") from None
-    except ValueError as exc:
-        raise UserError(f"{path}: {exc}") from None
-    rec = preprocess(scan.acc, scan.fs_hz, family.highpass_hz)
-    c, f, pr, ps = compare(rec, syn, scan.fs_hz, mask)
+    c, f, pr, ps = evaluate_family(family, scan, seed=seed, mask=mask, name=spec)
     gaps = family.unscanned_speeds()
     share = None if gaps is None else float(np.mean(inside(scan.speed_mm_s[mask], gaps)))
     out = {"model": spec, "kind": family.kind, "scan": path, **c.to_json(),
@@ -290,7 +277,7 @@ def evaluate_scan_file(spec: str, family: TextureFamily, path: str, second: str 
     if isinstance(family, FrictionFamily) and scan.friction_n is not None \
             and scan.force_n is not None:
         mu_rec = friction_coefficient(scan.friction_n, scan.force_n)
-        mu_syn = family.mu_at(finger.x_mm)
+        mu_syn = family.mu_at(finger_from_scan(scan).x_mm)
         ok = np.isfinite(mu_rec) & (scan.speed_mm_s > 0.5 * np.median(scan.speed_mm_s))
         err = float(np.sqrt(np.mean((mu_rec[ok] - mu_syn[ok]) ** 2)) / np.mean(mu_syn[ok]))
         out["mu_rms_error_rel"] = err
@@ -413,10 +400,8 @@ def identify_models(specs: list[str], scan_paths: list[str], *, distance: str | 
 
 
 def compare_command(train_paths: list[str], scan_paths: list[str], kinds: list[str],
-                    out_dir: Path, *, specimens: bool = False, trials: int = 3,
-                    seed: int = 0) -> tuple[dict, list[str]]:
-    """Per family the confusion matrix (plots in ``out_dir``); with ``specimens``
-    Bianchi 2015's 2 x 2."""
+                    out_dir: Path, seed: int = 0) -> tuple[dict, list[str]]:
+    """Per family the confusion matrix (plots in ``out_dir``)."""
     fit_kinds = [k for k in kinds if get_kind(k).fit is not None]
     unknown = [k for k in kinds if k not in fit_kinds]
     if unknown:
@@ -426,8 +411,7 @@ def compare_command(train_paths: list[str], scan_paths: list[str], kinds: list[s
     lines = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = compare_families(train, test, kinds, seed=seed)
-        for kind, ident in res.items():
+        for kind, ident in compare_families(train, test, kinds, seed=seed).items():
             if isinstance(ident, str):
                 lines.append(f"{kind:9s} {ident}")
                 result["families"][kind] = {"error": ident}
@@ -436,24 +420,4 @@ def compare_command(train_paths: list[str], scan_paths: list[str], kinds: list[s
             result["families"][kind] = ident.to_json()
             plot_confusion(str(out_dir / f"confusion_{kind}.png"), ident,
                            f"{kind}: rate {ident.rate:.0%}")
-        if specimens:
-            tr, te = by_surface(train), by_surface(test)
-            if not all(r in tr and r in te for r in ("R1", "R2")):
-                raise UserError("--specimens: the --train and --scans need R1 and R2 scans "
-                                "(fydpad texture generate-scans --textures R1,R2)")
-            result["specimens"] = {}
-            for kind in kinds:
-                if isinstance(res.get(kind), str):
-                    continue
-                r = specimen_experiment(kind, tr, te, te, trials=trials)
-                result["specimens"][kind] = r
-                lines.append(f"{kind:9s} SS1..SS4: spectra alone {r['rate']['spectra']:.0%}, "
-                             f"with the stiffness of a press "
-                             f"{r['rate']['spectra+stiffness']:.0%}")
-                for key, conf in r["confusion"].items():
-                    rate = r["rate"][key]
-                    plot_confusion(str(out_dir / f"specimens_{kind}_{key.replace('+', '_')}"
-                                        ".png"),
-                                   Identification(r["specimens"], conf, rate, []),
-                                   f"{kind}, {key}: {rate:.0%}")
     return result, lines

@@ -56,11 +56,17 @@ class LpcFamily(FamilyBase):
         self.limit = math.inf
         self.resets = 0
         self.tick_renderer: TextureRenderer | None = None
+        #: ``render``'s renderer: its table is built once (hundreds of all-pole fits for a
+        #: calibrated model), then reset and reseeded for each new stroke.
         self._renderer: TextureRenderer | None = None
+        self._restart = True
 
     def set_parameter(self, name: str, value: Any) -> None:
         super().set_parameter(name, value)
-        self._renderer = self.tick_renderer = None  # rebuilt with the new value
+        self.tick_renderer = None  # prepare() builds it with the new value
+        if name != "seed":
+            self._renderer = None
+        self._restart = True
 
     def check_rate(self, rate_hz: float) -> None:
         """One sample per tick: a model at another rate would play at rate_hz / fs_hz
@@ -104,16 +110,20 @@ class LpcFamily(FamilyBase):
             raise RateMismatch(f"key 'sample_rate_hz' {self.model.fs_hz:g} Hz (an LPC model "
                                f"renders at its own rate: fit it on scans at "
                                f"{finger.fs_hz:g} Hz)")
-        if self._renderer is None:
-            p = self.parameters
-            self._renderer = TextureRenderer(self.model, seed=p["seed"],
-                                             drive_filter=p["drive_filter"], ramp_s=1e-6)
-            v0 = float(finger.speed_mm_s[0]) if finger.speed_mm_s.size else 0.0
-            self._renderer.warmup(v0, 0.5)
-        return self._renderer.block(finger.speed_mm_s, finger.contact)
+        r = self._renderer
+        if r is None:
+            r = self._renderer = TextureRenderer(
+                self.model, drive_filter=self.parameters["drive_filter"], ramp_s=1e-6)
+        if self._restart:  # as a new renderer: no history, the noise from the seed
+            r.reset()
+            r.reseed(self.parameters["seed"])
+            r.clamped = False
+            r.warmup(float(finger.speed_mm_s[0]) if finger.speed_mm_s.size else 0.0, 0.5)
+            self._restart = False
+        return r.block(finger.speed_mm_s, finger.contact)
 
     def reset(self) -> None:
-        self._renderer = None
+        self._restart = True
         if self.tick_renderer is not None:
             self.tick_renderer.reset()
 
