@@ -100,7 +100,7 @@ def thesis_vs_lpc(texture: str, cfg: TrainConfig | None = None, seconds: float =
                   speeds: Sequence[float] = SPEEDS, force: str = "generator"
                   ) -> dict[str, float | str]:
     """R^2, spectral correlation and LSD of both families on the strokes' test thirds."""
-    from fydpad.texture.families import finger_from_scan
+    from fydpad.texture.family import finger_from_scan
 
     cfg = cfg or TrainConfig()
     scans = [stroke(texture, s, seconds, seed=1, force=force) for s in speeds]
@@ -159,7 +159,7 @@ def plot_figures(out_dir: str) -> list[str]:
     from pathlib import Path
 
     from fydpad.texture.evaluation.evaluate import welch_psd
-    from fydpad.texture.families import finger_from_scan
+    from fydpad.texture.family import finger_from_scan
     from fydpad.texture.plots import plot_spectra
 
     out = Path(out_dir)

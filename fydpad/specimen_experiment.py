@@ -25,10 +25,10 @@ from fydpad.texture.evaluation.identify import (
     by_surface,
     fit_per_surface,
     observe,
-    plot_confusion,
     shape_distance_db,
 )
-from fydpad.texture.families import read_scans
+from fydpad.texture.plots import plot_confusion
+from fydpad.texture.scan_io import read_scans
 
 
 def press_stiffness(drive, k_n_per_mm: float, rng: np.random.Generator) -> float:

@@ -451,7 +451,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
 def run_identify(args: argparse.Namespace) -> int:
     from fydpad.progress import progress
     from fydpad.texture import operations as ops
-    from fydpad.texture.evaluation.identify import plot_confusion
+    from fydpad.texture.plots import plot_confusion
 
     _check_out(args.json, "--json")
     _check_out(args.plot, "--plot")

@@ -7,7 +7,7 @@ spectra) and log-spectral distance, band energies, and the time correlation (the
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.signal as ss
@@ -69,9 +69,6 @@ class Comparison:
     band_energy_recorded: dict[str, float]
     band_energy_synthesized: dict[str, float]
 
-    def to_json(self) -> dict:
-        return asdict(self)
-
 
 def compare(recorded: Array, synthesized: Array, fs: float, mask: ArrayLike | None = None,
             band: tuple[float, float] = BAND_HZ) -> tuple[Comparison, Array, Array, Array]:
@@ -130,9 +127,6 @@ class Ceiling:
 
     psd_correlation: float
     lsd_db: float
-
-    def to_json(self) -> dict:
-        return asdict(self)
 
 
 def ceiling(recorded_psd: Array, second_psd: Array, f_hz: Array,

@@ -1,21 +1,9 @@
 """Which surface does each scan sound like (an objective analogue of Bianchi 2015's Table
 I)? Every model of one family is rendered along each scan's own finger stream and the
-scan goes to the model of nearest spectrum (Welch, 4 Hz bins, over the same samples);
-``compare_families`` does so for every family on the same scans. Distances:
-
-- ``"bands"`` (LPC's default): the RMS over third-octave bands (edges 20 * 2^(k/3) Hz,
-  14 bands over 20-500 Hz) of the level difference, L_b = 10 log10(mean P over band b):
-  weight per octave, where a surface's content is (4 Hz bins put three quarters of the
-  weight above 140 Hz, mostly the sensor floor); a third of an octave is also about the
-  Weber fraction of vibrotactile frequency discrimination.
-- ``"lsd"``: the log-spectral distance on the 4 Hz bins (evaluate's metric).
-- ``"shape"`` (the other families'): the RMS of the dB difference less its mean and linear
-  trend in log f, since gains and what a family models set levels and tilts (a grating
-  renders a force, the scan holds an acceleration: f^2 apart), while lines and bands
-  identify a surface. Each family is compared on what it renders: the vibration against
-  the scan's DFT321 acceleration (20-500 Hz), friction's ``tension`` (affine in mu(x))
-  against the measured F_f / F_n (2-100 Hz).
-"""
+scan goes to the model of nearest spectrum (Welch, 4 Hz bins, over the same samples):
+``"bands"`` (LPC's default) the RMS level difference over third-octave bands, ``"lsd"`` the
+log-spectral distance on the bins, ``"shape"`` (the other families') the dB difference less
+its mean and tilt. docs/texture.md and docs/texture_families.md give the reasons."""
 
 from __future__ import annotations
 
@@ -33,7 +21,6 @@ from fydpad.texture.families import get_kind
 from fydpad.texture.families.friction import friction_coefficient
 from fydpad.texture.family import TextureFamily
 from fydpad.texture.lpc.dft321 import preprocess
-from fydpad.texture.plots import pyplot
 from fydpad.texture.scan_io import Scan
 
 Array = NDArray[np.float64]
@@ -103,11 +90,6 @@ def observe(scan: Scan, what: str, highpass_hz: float = 10.0) -> Array:
     return preprocess(scan.acc, scan.fs_hz, highpass_hz)
 
 
-def scored_samples(scan: Scan, covered: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    """The samples a model covers, or where too few (half a second), every moving one."""
-    return covered if covered.sum() >= scan.fs_hz / 2 else scan.speed_mm_s > 1.0
-
-
 def identify_families(models: Sequence[TextureFamily], labels: Sequence[str],
                       scans: Sequence[Scan], *, seed: int = 0, distance: str = "shape",
                       wrap: Callable[[Iterable], Iterable] = lambda it: it,
@@ -131,8 +113,10 @@ def identify_families(models: Sequence[TextureFamily], labels: Sequence[str],
     for scan in wrap(scans):
         dists = []
         for m, name in zip(models, names, strict=True):
-            mask = (scan.speed_mm_s > 1.0 if distance == "shape"
-                    else scored_samples(scan, m.covers(scan.speed_mm_s)))
+            mask = scan.speed_mm_s > 1.0  # every moving sample, or where enough, those
+            covered = m.covers(scan.speed_mm_s)  # the model covers (bands, lsd)
+            if distance != "shape" and covered.sum() >= scan.fs_hz / 2:
+                mask = covered
             try:
                 f, pr = welch_psd(observe(scan, what, m.highpass_hz), scan.fs_hz, mask)
             except ValueError as exc:  # the synthesis has the same mask: one check
@@ -196,21 +180,3 @@ def compare_families(train: Sequence[Scan], test: Sequence[Scan], kinds: Sequenc
         out[kind] = identify_families(models, labels, test, seed=seed)
     return out
 
-
-def plot_confusion(path: str, ident: Identification, title: str = "") -> None:
-    plt = pyplot()
-    c = np.asarray(ident.confusion)
-    n = len(ident.labels)
-    fig, ax = plt.subplots(figsize=(1.0 + 0.5 * n, 1.0 + 0.45 * n), constrained_layout=True)
-    ax.imshow(c, cmap="Blues")
-    ax.set_xticks(range(n), ident.labels, rotation=60, ha="right")
-    ax.set_yticks(range(n), ident.labels)
-    ax.set_xlabel("identified as (model)")
-    ax.set_ylabel("scan surface")
-    for i in range(n):
-        for j in range(n):
-            if c[i, j]:
-                ax.text(j, i, str(c[i, j]), ha="center", va="center")
-    ax.set_title(title or f"identification rate {ident.rate:.0%}")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)

@@ -1,13 +1,9 @@
 """The FYD-pad's LPC texture (Bianchi 2015 III-B, eq. 5) behind the family contract: the
-model file (:mod:`model_file`) rendered by :class:`synthesis.TextureRenderer`, and
-``fydpad texture fit`` through :mod:`select`.
-
-``render`` synthesizes along the block's speed after a 0.5 s warm-up at its first speed;
-``tick`` renders one sample per station tick. Switching between very different per-speed
-filters can grow the filter's history though each filter is stable, so a tick beyond
-``LIMIT_FACTOR`` times the largest RMS the model produces at its own speeds clears the
-filter (``counters()["limiter_resets"]``) and is clipped.
-"""
+model file rendered by :class:`synthesis.TextureRenderer`, ``fydpad texture fit`` through
+:mod:`select`. Switching between very different per-speed filters can grow the filter's
+history though each filter is stable, so a tick beyond ``LIMIT_FACTOR`` times the model's
+largest RMS at its own speeds clears the filter and is clipped
+(``counters()["limiter_resets"]``)."""
 
 from __future__ import annotations
 
@@ -29,8 +25,7 @@ from fydpad.texture.lpc.model_file import TextureModel, model_to_json, parse_mod
 from fydpad.texture.lpc.select import fit_candidate, select_model, selection_table
 from fydpad.texture.lpc.synthesis import TextureRenderer
 from fydpad.texture.plots import SpeedCoverage, plot_spectra
-from fydpad.texture.scan_io import Scan, read_scan
-from vision.recording import RecordingError
+from fydpad.texture.scan_io import Scan, read_scans
 
 #: A tick beyond this many times the model's largest RMS clears the filter.
 LIMIT_FACTOR = 10.0
@@ -181,10 +176,7 @@ def fit_command(scan_paths: list[str], opts: dict[str, Any], out: str,
     whole, and with ``plot`` the recorded against the model spectra (Bianchi 2015 Fig. 10)."""
     if not scan_paths:
         raise UserError("fit: give at least one SCAN.csv")
-    try:
-        scans = [read_scan(p) for p in scan_paths]
-    except RecordingError as exc:
-        raise UserError(str(exc)) from None
+    scans = read_scans(scan_paths)
     check_fit_options(opts, scans[0].fs_hz)
     labels = [sc.meta.get("surface") for sc in scans]
     notes = []
