@@ -98,8 +98,8 @@ def test_identify_refuses_a_model_at_another_rate(files):
     ("provenance", 5, "key 'provenance' must be an object"),
     ("speed_tolerance_mm_s", -1, "key 'speed_tolerance_mm_s' must be a finite number >= 0"),
     ("order", 3, "key 'order' is 3, but models\\[\\].h have 2 coefficients"),
-    ("models.speed_mm_s", -20, r"models\[1\]: key 'speed_mm_s' must be a finite speed > 0"),
-    ("models.sigma2", 0, r"models\[1\]: key 'sigma2' must be a finite variance > 0"),
+    ("models.speed_mm_s", -20, r"models\[1\]: key 'speed_mm_s' must be a finite number > 0"),
+    ("models.sigma2", 0, r"models\[1\]: key 'sigma2' must be a finite number > 0"),
 ])
 def test_model_header_is_checked_naming_the_key(tmp_path, key, value, match):
     data = model_to_json(_model())

@@ -165,7 +165,7 @@ def test_bad_free_form_block_names_the_key(scan_model):
     data = json.loads(json.dumps(model_to_json(scan_model)))
     bad = json.loads(json.dumps(data))
     bad["free_form"]["log_c"] = bad["free_form"]["log_c"][:-1]
-    with pytest.raises(UserError, match=r"free_form.log_c must be one row per"):
+    with pytest.raises(UserError, match=r"free_form: key 'log_c' must be one row per"):
         parse_model(bad, "m.json")
     bad = json.loads(json.dumps(data))
     del bad["two_part"]
@@ -174,7 +174,8 @@ def test_bad_free_form_block_names_the_key(scan_model):
     for taper in (0, -5, "x", float("inf")):  # 0 and "x" were tracebacks, -5 silent
         bad = json.loads(json.dumps(data))
         bad["free_form"]["taper_mm_s"] = taper
-        with pytest.raises(UserError, match=r"m.json: free_form.taper_mm_s must be a number"):
+        with pytest.raises(UserError, match=r"m.json: free_form: key 'taper_mm_s' "
+                           "(must be a finite number > 0|is not a finite number)"):
             parse_model(bad, "m.json")
 
 

@@ -191,7 +191,7 @@ def test_bad_two_part_block_names_the_key(scan_model):
     with pytest.raises(UserError, match=r"m.json: two_part.g has"):
         parse_model(data, "m.json")
     data["two_part"]["tool"][3] = -1.0
-    with pytest.raises(UserError, match=r"two_part.tool must be"):
+    with pytest.raises(UserError, match=r"two_part: key 'tool' must be"):
         parse_model(data, "m.json")
 
 
@@ -244,7 +244,7 @@ def test_model_file_keeps_the_fixed_floor(gap_fit, scan_model):
     assert np.allclose(TwoPartSpectrum.from_json(d).psd(15.0), gap_fit.psd(15.0))
     data = json.loads(json.dumps(model_to_json(scan_model)))
     data["two_part"]["fixed_floor"] = [1.0]
-    with pytest.raises(UserError, match=r"m.json: two_part.fixed_floor"):
+    with pytest.raises(UserError, match=r"m.json: two_part: key 'fixed_floor' must be"):
         parse_model(data, "m.json")
     data["two_part"].pop("fixed_floor")
     with pytest.raises(UserError, match=r"m.json: a two-part base without 'fixed_floor' is "

@@ -3,17 +3,19 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from reprlib import repr as _short  # a value for a one-line message: a long list cut
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError, read_json
-from fydpad.texture.family import FORMAT, save_model_json
+from fydpad.texture.family import FORMAT, require, save_model_json
 from fydpad.texture.lpc.analysis import is_stable, poly_from_h
-from fydpad.texture.lpc.coverage import check_provenance
+from fydpad.texture.lpc.coverage import checked_spans
 
 #: Version 2 added a periodic surface's line model (key 'lines'), no longer rendered.
 FORMAT_VERSION = 1
@@ -41,9 +43,7 @@ class TextureModel:
     #: The calibrated form's two-part base and calibration (spectrum.py's to_json()).
     two_part: dict[str, Any] | None = None
     free_form: dict[str, Any] | None = None
-    #: How the renderer goes between ``models[]``: "nearest" (the paper's per-speed fits
-    #: on a speed grid) or "stretch" (the calibrated spectrum).
-    interpolation: str = "nearest"
+    interpolation: str = "nearest"  # between models[]: "nearest" or "stretch" (INTERPOLATIONS)
     #: What ``fydpad texture fit`` validated: the winner and every candidate's figures.
     selection: dict[str, Any] | None = None
 
@@ -60,8 +60,7 @@ def model_to_json(model: TextureModel) -> dict[str, Any]:
     optional = {"two_part": model.two_part, "free_form": model.free_form,
                 "selection": model.selection}
     return {
-        "format": FORMAT,
-        "format_version": FORMAT_VERSION,
+        "format": FORMAT, "format_version": FORMAT_VERSION,
         "surface": model.surface, "sample_rate_hz": model.fs_hz, "order": model.order,
         "highpass_hz": model.highpass_hz, "fit_band_hz": list(model.fit_band_hz),
         "drive_band_hz": None if model.drive_band_hz is None else list(model.drive_band_hz),
@@ -97,36 +96,42 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
         raise UserError(f"{where}: key 'lines' (a periodic surface's line model, format_version "
                         f"2) is a form this fydpad no longer renders; {REFIT}")
     if isinstance(version, bool) or version != FORMAT_VERSION:
-        raise UserError(
-            f"{where}: key 'format_version' is {version!r}; this fydpad reads version "
-            f"{FORMAT_VERSION} (refit the model with 'fydpad texture fit')"
-        )
-    fs, head = _header(data, where)
+        raise UserError(f"{where}: key 'format_version' is {version!r}; this fydpad reads "
+                        f"version {FORMAT_VERSION} (refit the model with 'fydpad texture fit')")
+    fs = _number(data, "sample_rate_hz", where, positive=True)
+    hp = _number(data, "highpass_hz", where, 10.0)
+    if hp >= fs / 2:
+        raise UserError(f"{where}: key 'highpass_hz' {hp:g} Hz must be below the Nyquist "
+                        f"frequency {fs / 2:g} Hz of 'sample_rate_hz'")
+    provenance = data.get("provenance", {})
+    if not isinstance(provenance, dict):
+        raise UserError(f"{where}: key 'provenance' must be an object, not {_short(provenance)}")
+    for key in ("speed_coverage_mm_s", "interpolated_mm_s"):
+        if key in provenance:
+            checked_spans(provenance[key], where, key)
+    fit_band = _band(data, "fit_band_hz", where, (hp, fs / 2), fs, False)
+    drive = data.get("drive_band_hz", (165.0, 220.0))
+    drive = None if drive is None else _band(data, "drive_band_hz", where, drive, fs, True)
+    gain = _number(data, "gain", where, 1.0)
+    tolerance = _number(data, "speed_tolerance_mm_s", where, 5.0)
+    interpolation = data.get("interpolation", "stretch")  # absent: the spectral default
+    if interpolation not in INTERPOLATIONS:
+        raise UserError(f"{where}: key 'interpolation' {_short(interpolation)} is not "
+                        f"rendered by this fydpad; {REFIT}")
     _removed_form(data, where)
-    models = _get(data, "models", where)
+    models = data.get("models")
     if not isinstance(models, list) or not models:
         raise UserError(f"{where}: key 'models' must be a non-empty list")
     speeds, sig, hs = [], [], []
     for i, m in enumerate(models):
         w = f"{where}: models[{i}]"
-        try:
-            v, s2, h = (float(_get(m, "speed_mm_s", w)), float(_get(m, "sigma2", w)),
-                        np.asarray(_get(m, "h", w), float))
-        except (TypeError, ValueError) as exc:
-            raise UserError(f"{w}: {exc}") from None
-        if not (math.isfinite(v) and v > 0):
-            raise UserError(f"{w}: key 'speed_mm_s' must be a finite speed > 0 mm/s, not {v:g}")
-        if not (math.isfinite(s2) and s2 > 0):  # 0: a singular spectrum to interpolate
-            raise UserError(f"{w}: key 'sigma2' must be a finite variance > 0, not {s2:g}")
-        if h.ndim != 1 or h.size == 0 or not np.isfinite(h).all():
-            raise UserError(f"{w}: key 'h' must be a non-empty list of finite numbers")
+        speeds.append(_number(m, "speed_mm_s", w, positive=True))
+        sig.append(_number(m, "sigma2", w, positive=True))  # 0: a singular spectrum
+        h = _array(m, "h", w, "a non-empty list of finite numbers")
         if hs and h.size != hs[0].size:
-            raise UserError(f"{w}: key 'h' has {h.size} coefficients, models[0] has "
-                            f"{hs[0].size}")
+            raise UserError(f"{w}: key 'h' has {h.size} coefficients, models[0] has {hs[0].size}")
         if not is_stable(poly_from_h(h)):
             raise UserError(f"{w}: key 'h' is an unstable filter")
-        speeds.append(v)
-        sig.append(s2)
         hs.append(h)
     o = data.get("order", hs[0].size)
     if isinstance(o, bool) or not isinstance(o, (int, float)) or o != hs[0].size:
@@ -135,167 +140,111 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
     order = np.argsort(speeds)
     if np.any(np.diff(np.asarray(speeds)[order]) <= 0):
         raise UserError(f"{where}: key 'models' has two models at the same speed")
-    two_part = _two_part(data.get("two_part"), where)
-    free_form = _free_form(data.get("free_form"), data.get("two_part"), where)
+    two, free = data.get("two_part"), data.get("free_form")
+    if free is not None:
+        _calibrated(two, free, where)
     selection = data.get("selection")
     if selection is not None and not isinstance(selection, dict):
         raise UserError(f"{where}: key 'selection' must be an object, not {_short(selection)}")
     return TextureModel(
         surface=str(data.get("surface", "")), fs_hz=fs, speeds_mm_s=np.asarray(speeds)[order],
-        h=np.vstack(hs)[order], sigma2=np.asarray(sig)[order], **head, two_part=two_part,
-        free_form=free_form, selection=selection,
+        h=np.vstack(hs)[order], sigma2=np.asarray(sig)[order], highpass_hz=hp,
+        fit_band_hz=fit_band, drive_band_hz=drive, gain=gain, tolerance_mm_s=tolerance,
+        provenance=dict(provenance), interpolation=str(interpolation),
+        two_part=None if two is None else dict(two),
+        free_form=None if free is None else dict(free), selection=selection,
     )
 
 
-def _get(d: dict[str, Any], key: str, where: str) -> Any:
-    if key not in d:
-        raise UserError(f"{where}: missing key '{key}'")
-    return d[key]
-
-
-def _short(v: Any) -> str:
-    """A value for a one-line message (a long list cut)."""
-    r = repr(v)
-    return r if len(r) <= 40 else r[:37] + "..."
-
-
-def _number(data: dict[str, Any], key: str, where: str, default: float | None, *,
-            minimum: float, above: bool = False) -> float:
-    """``data[key]`` (``default`` when absent; required when None) as a finite number
-    >= ``minimum`` (> when ``above``)."""
-    v = _get(data, key, where) if default is None else data.get(key, default)
+def _number(d: Any, key: str, where: str, default: float | None = None,
+            positive: bool = False) -> float:
+    """``d[key]`` (``default`` when absent; required when None): a finite number >= 0,
+    or > 0 where ``positive``."""
+    v = require(d, key, where, object) if default is None else d.get(key, default)
     if (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
-            or not (v > minimum if above else v >= minimum)):
+            or v < 0 or (positive and v == 0)):
         raise UserError(f"{where}: key '{key}' must be a finite number "
-                        f"{'>' if above else '>='} {minimum:g}, not {_short(v)}")
+                        f"{'>' if positive else '>='} 0, not {_short(v)}")
     return float(v)
+
+
+def _array(d: Any, key: str, where: str, what: str,
+           ok: Callable[[Array], Any] = lambda a: a.ndim == 1 and a.size > 0) -> Array:
+    """``d[key]``, a list of finite numbers for which ``ok`` holds; else the UserError
+    says it must be ``what``."""
+    try:
+        a = np.asarray(require(d, key, where, list), float)
+    except (TypeError, ValueError):  # a ragged list, a string in it
+        a = None
+    if a is None or not np.isfinite(a).all() or not ok(a):
+        raise UserError(f"{where}: key '{key}' must be {what}")
+    return a
 
 
 def _band(data: dict[str, Any], key: str, where: str, default: Any, fs_hz: float,
           open_ends: bool) -> tuple[float, float]:
     """``data[key]`` as [lo, hi] Hz within 0..Nyquist, lo < hi (``open_ends``: 0 < lo and
     hi < Nyquist, as a band-pass filter needs)."""
-    v = data.get(key, default)
-    nyq = fs_hz / 2
-    ok = (isinstance(v, (list, tuple)) and len(v) == 2
-          and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-                  for x in v)
-          and (0 < v[0] < v[1] < nyq if open_ends else 0 <= v[0] < v[1] <= nyq))
-    if not ok:
+    v, nyq = data.get(key, default), fs_hz / 2
+    if not (isinstance(v, (list, tuple)) and len(v) == 2 and all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+            for x in v) and (0 < v[0] < v[1] < nyq if open_ends else 0 <= v[0] < v[1] <= nyq)):
         rel = "0 < lo < hi <" if open_ends else "0 <= lo < hi <="
         raise UserError(f"{where}: key '{key}' must be [lo, hi] with {rel} {nyq:g} Hz "
                         f"(Nyquist of 'sample_rate_hz'), not {_short(v)}")
     return float(v[0]), float(v[1])
 
 
-def _header(data: dict[str, Any], where: str) -> tuple[float, dict[str, Any]]:
-    """The sample rate and the checked header fields (TextureModel keyword arguments)."""
-    fs = _number(data, "sample_rate_hz", where, None, minimum=0.0, above=True)
-    hp = _number(data, "highpass_hz", where, 10.0, minimum=0.0)
-    if hp >= fs / 2:
-        raise UserError(f"{where}: key 'highpass_hz' {hp:g} Hz must be below the Nyquist "
-                        f"frequency {fs / 2:g} Hz of 'sample_rate_hz'")
-    drive = data.get("drive_band_hz", (165.0, 220.0))
-    provenance = data.get("provenance", {})
-    if not isinstance(provenance, dict):
-        raise UserError(f"{where}: key 'provenance' must be an object, not "
-                        f"{_short(provenance)}")
-    check_provenance(provenance, where)
-    interpolation = data.get("interpolation", "stretch")  # absent: the spectral default
-    head = {
-        "highpass_hz": hp,
-        "fit_band_hz": _band(data, "fit_band_hz", where, (hp, fs / 2), fs, False),
-        "drive_band_hz": (None if drive is None
-                          else _band(data, "drive_band_hz", where, drive, fs, True)),
-        "gain": _number(data, "gain", where, 1.0, minimum=0.0),
-        "tolerance_mm_s": _number(data, "speed_tolerance_mm_s", where, 5.0, minimum=0.0),
-        "provenance": dict(provenance), "interpolation": str(interpolation),
-    }
-    if interpolation not in INTERPOLATIONS:
-        raise UserError(f"{where}: key 'interpolation' {_short(interpolation)} is not "
-                        f"rendered by this fydpad; {REFIT}")
-    return fs, head
-
-
 def _removed_form(data: dict[str, Any], where: str) -> None:
     """One line naming a form this fydpad no longer fits or renders, and asking to refit."""
-    ff, prov, two = data.get("free_form"), data.get("provenance", {}), data.get("two_part")
-    form = None
-    if isinstance(ff, dict) and ff.get("form") != "calibrated":
-        form = f"free_form.form {_short(ff.get('form'))}"
-    elif isinstance(ff, dict) and ff.get("taper_mm_s") is None:
-        form = "free_form.taper_mm_s null (log-linear calibration)"
-    elif isinstance(prov, dict) and "speed_normalised" in prov:
-        form = "the speed-normalised form (provenance 'speed_normalised')"
-    elif ff is None and two is not None:
-        form = "the two-part form (key 'two_part' without 'free_form')"
-    elif ff is None and data.get("interpolation", "stretch") == "stretch":
-        form = "the pooled form (interpolation 'stretch' without key 'free_form')"
-    elif isinstance(two, dict) and "fixed_floor" not in two:
-        form = "a two-part base without 'fixed_floor'"
-    if form is not None:
-        raise UserError(f"{where}: {form} is a form this fydpad no longer renders; {REFIT}")
+    ff, two, prov = data.get("free_form"), data.get("two_part"), data.get("provenance")
+    calibration = ff if isinstance(ff, dict) else {}
+    for gone, form in (
+        (isinstance(ff, dict) and ff.get("form") != "calibrated",
+         f"free_form.form {_short(calibration.get('form'))}"),
+        (isinstance(ff, dict) and ff.get("taper_mm_s") is None,
+         "free_form.taper_mm_s null (log-linear calibration)"),
+        (isinstance(prov, dict) and "speed_normalised" in prov,
+         "the speed-normalised form (provenance 'speed_normalised')"),
+        (ff is None and two is not None, "the two-part form (key 'two_part' without 'free_form')"),
+        (ff is None and data.get("interpolation", "stretch") == "stretch",
+         "the pooled form (interpolation 'stretch' without key 'free_form')"),
+        (isinstance(two, dict) and "fixed_floor" not in two,
+         "a two-part base without 'fixed_floor'"),
+    ):
+        if gone:
+            raise UserError(f"{where}: {form} is a form this fydpad no longer renders; {REFIT}")
 
 
-#: The two-part base's factors, each on the grid named first in its group.
-_TWO_PART = {"f_hz": ("tool", "floor", "fixed_floor"), "k_per_mm": ("surface",),
-             "v_mm_s": ("g", "n")}
-_TWO_PART_KEYS = ("f_hz", "k_per_mm", "tool", "surface", "floor", "v_mm_s", "g", "n",
-                  "fixed_floor")
+#: The two-part base's lists, each with the grid it lies on (its own where it is one).
+_TWO_PART_GRIDS = {"f_hz": "f_hz", "k_per_mm": "k_per_mm", "tool": "f_hz",
+                   "surface": "k_per_mm", "floor": "f_hz", "v_mm_s": "v_mm_s", "g": "v_mm_s",
+                   "n": "v_mm_s", "fixed_floor": "f_hz"}
 
 
-def _two_part(d: Any, where: str) -> dict[str, Any] | None:
-    """The calibrated form's two-part base: every factor a finite, nonnegative list on
-    its grid."""
-    if d is None:
-        return None
-    if not isinstance(d, dict):
-        raise UserError(f"{where}: key 'two_part' must be an object")
-    for k in _TWO_PART_KEYS:
-        try:
-            a = np.asarray(_get(d, k, f"{where}: two_part"), float)
-        except (TypeError, ValueError) as exc:
-            raise UserError(f"{where}: two_part.{k}: {exc}") from None
-        if a.ndim != 1 or a.size < 2 or not np.isfinite(a).all() or (a < 0).any():
-            raise UserError(f"{where}: two_part.{k} must be a list of at least 2 finite, "
-                            "nonnegative numbers")
-    for grid, vals in _TWO_PART.items():
-        for k in vals:
-            if len(d[k]) != len(d[grid]):
-                raise UserError(f"{where}: two_part.{k} has {len(d[k])} values, "
-                                f"two_part.{grid} {len(d[grid])}")
-    return dict(d)
-
-
-def _free_form(d: Any, two_part: Any, where: str) -> dict[str, Any] | None:
-    """The calibrated spectrum (spectrum.py): ascending ``f_hz`` and ``v_mm_s``, a finite
-    ``log_c`` of one row per speed and one column per ``two_part.f_hz``, a taper > 0, and
-    the ``two_part`` block it builds on."""
-    if d is None:
-        return None
+def _calibrated(two: Any, free: Any, where: str) -> None:
+    """The calibrated form's blocks (spectrum.py): the two-part base's lists finite,
+    nonnegative and each on its grid; the correction's grids ascending, ``log_c`` one row
+    per speed of one value per two-part bin, and a taper > 0."""
     w = f"{where}: free_form"
-    if not isinstance(d, dict):
-        raise UserError(f"{where}: key 'free_form' must be an object")
-    try:
-        arrays = {k: np.asarray(_get(d, k, w), float) for k in ("f_hz", "v_mm_s", "log_c")}
-    except (TypeError, ValueError) as exc:
-        raise UserError(f"{w}: {exc}") from None
-    for k in ("f_hz", "v_mm_s"):
-        a = arrays[k]
-        if a.ndim != 1 or a.size < 1 or not np.isfinite(a).all() or (np.diff(a) <= 0).any():
-            raise UserError(f"{w}.{k} must be an ascending list of finite numbers")
-    t = arrays["log_c"]
-    if (t.ndim != 2 or t.shape[0] != arrays["v_mm_s"].size
-            or t.shape[1] != arrays["f_hz"].size or not np.isfinite(t).all()):
-        raise UserError(f"{w}.log_c must be one row per free_form.v_mm_s of finite values "
-                        "per free_form.f_hz")
-    taper = d.get("taper_mm_s")
-    if isinstance(taper, bool) or not isinstance(taper, int | float) or not (
-            math.isfinite(taper) and taper > 0):
-        raise UserError(f"{w}.taper_mm_s must be a number > 0, not {taper!r}")
-    if two_part is None:
+    if two is None:
         raise UserError(f"{w}: form 'calibrated' needs the key 'two_part', which is missing")
-    if t.shape[1] != len(two_part["f_hz"]):
-        raise UserError(f"{w}.log_c has {t.shape[1]} columns, two_part.f_hz "
-                        f"{len(two_part['f_hz'])}")
-    return dict(d)
+    for key, block in (("two_part", two), ("free_form", free)):
+        if not isinstance(block, dict):
+            raise UserError(f"{where}: key '{key}' must be an object")
+    size: dict[str, int] = {}
+    for k, grid in _TWO_PART_GRIDS.items():
+        size[k] = _array(two, k, f"{where}: two_part", "a list of at least 2 finite, "
+                         "nonnegative numbers", lambda a: a.ndim == 1 and a.size >= 2
+                         and (a >= 0).all()).size
+        if size[k] != size[grid]:
+            raise UserError(f"{where}: two_part.{k} has {size[k]} values, two_part.{grid} "
+                            f"{size[grid]}")
+    f_hz, v_mm_s = (_array(free, k, w, "an ascending list of finite numbers",
+                           lambda a: a.ndim == 1 and a.size > 0 and (np.diff(a) > 0).all())
+                    for k in ("f_hz", "v_mm_s"))
+    _array(free, "log_c", w, "one row per free_form.v_mm_s of finite values per "
+           "free_form.f_hz", lambda a: a.shape == (v_mm_s.size, f_hz.size))
+    _number(free, "taper_mm_s", w, positive=True)
+    if f_hz.size != size["f_hz"]:
+        raise UserError(f"{w}.log_c has {f_hz.size} columns, two_part.f_hz {size['f_hz']}")

@@ -1,9 +1,8 @@
 """Choosing the LPC model form on the user's own scans by held-out validation
-(docs/texture.md, "How fit chooses"): time blocks of each speed plateau and whole inner
-plateaus held out in turn; each candidate fitted on the rest is scored by the
-log-spectral distance of its synthesis along each held-out block's own speed (the time
-blocks and the between blocks half each); the simplest candidate within the noise of the
-best is refitted on all the scans."""
+(docs/texture.md, "How fit chooses"): time blocks of each plateau and whole inner plateaus
+held out in turn, each candidate fitted on the rest and scored by the log-spectral
+distance of its synthesis along the held-out speeds; the simplest candidate within the
+noise of the best is refitted on all the scans."""
 
 from __future__ import annotations
 
@@ -27,8 +26,8 @@ from fydpad.texture.scan_io import Scan
 CANDIDATES = ("paper", "calibrated")
 BLOCKS = 2
 MIN_PLATEAU_S = 4.5  # shorter: blocks under 2.25 s, too few 4 Hz Welch segments
-#: The scoring renderer's speed table step (the station's is 0.25): half the cost of
-#: building each fold's table; a block's speed lies within 0.25 mm/s of an entry.
+#: The scoring renderer's table step (the station's is 0.25): each fold's table built at
+#: half the cost, every speed within 0.25 mm/s of an entry.
 SCORE_STEP_MM_S = 0.5
 MIN_PIECE_S = 1.0  # training pieces shorter than this are dropped (too short for DFT321)
 
@@ -45,9 +44,7 @@ class CandidateScore:
 
     @property
     def weights(self) -> NDArray[np.float64]:
-        """Each block's weight in the score: the time blocks and the between-plateau
-        blocks count half each (a finger meets the speeds between the plateaus as often as
-        the plateaus'; by count the between blocks were 2 of 10)."""
+        """The time blocks and the between-plateau blocks weigh half each."""
         nb, nt = len(self.block_lsd_db), len(self.between_lsd_db)
         if nb == 0 or nt == 0:
             return np.full(nb + nt, 1.0 / (nb + nt))
@@ -60,6 +57,11 @@ class CandidateScore:
     @property
     def spread_db(self) -> float:
         return float(np.std(self.scores, ddof=1)) if self.scores.size > 1 else 0.0
+
+    def noise_to(self, best: CandidateScore) -> float:
+        """The standard error of the weighted mean of the paired differences to ``best``."""
+        d = self.scores - best.scores
+        return float(np.sqrt(np.sum(self.weights ** 2) * np.var(d, ddof=1))) if d.size > 1 else 0.0
 
 
 @dataclass
@@ -93,19 +95,16 @@ def fit_candidate(name: str, scans: Sequence[Scan], speeds_mm_s: Sequence[float]
                   min_seconds: float = 0.25,
                   wrap_iterations: Callable[[Iterable], Iterable] = lambda it: it
                   ) -> TextureModel:
-    """One candidate form fitted on ``scans`` (``min_seconds``: the calibrated form's,
-    :func:`fit.fit_texture`)."""
+    """One candidate form fitted on ``scans`` (``speeds_mm_s``, ``min_seconds``: the
+    calibrated form's)."""
     if name == "paper":
         return fit_paper(scans, order=order, window_mm_s=tolerance_mm_s,
                          highpass_hz=highpass_hz, surface=surface, drive_band_hz=drive_band_hz)
     if name != "calibrated":
         raise ValueError(f"unknown candidate {name!r}; one of {CANDIDATES}")
-    model = fit_texture(scans, order=order, speeds_mm_s=speeds_mm_s,
-                        tolerance_mm_s=tolerance_mm_s, highpass_hz=highpass_hz,
-                        min_seconds=min_seconds, surface=surface,
-                        drive_band_hz=drive_band_hz, wrap_iterations=wrap_iterations)
-    model.provenance["form"] = name
-    return model
+    return fit_texture(scans, order=order, speeds_mm_s=speeds_mm_s, tolerance_mm_s=tolerance_mm_s,
+                       highpass_hz=highpass_hz, min_seconds=min_seconds, surface=surface,
+                       drive_band_hz=drive_band_hz, wrap_iterations=wrap_iterations)
 
 
 def plateaus(scans: Sequence[Scan], speeds_mm_s: Sequence[float], tolerance_mm_s: float
@@ -114,15 +113,12 @@ def plateaus(scans: Sequence[Scan], speeds_mm_s: Sequence[float], tolerance_mm_s
     tolerance, for the targets that have one of at least ``MIN_PLATEAU_S``."""
     out = []
     for s in sorted(float(v) for v in speeds_mm_s):
-        best = None
-        for i, sc in enumerate(scans):
-            # A hand sways about 10 % around a plateau: widened to 20 % of its speed.
-            for a, b in runs(np.abs(sc.speed_mm_s - s) <= max(tolerance_mm_s, 0.2 * s),
-                             round(MIN_PLATEAU_S * sc.fs_hz)):
-                if best is None or b - a > best[2] - best[1]:
-                    best = (i, a, b)
-        if best is not None:
-            out.append((s, *best))
+        # A hand sways about 10 % around a plateau: widened to 20 % of its speed.
+        found = [(i, a, b) for i, sc in enumerate(scans)
+                 for a, b in runs(np.abs(sc.speed_mm_s - s) <= max(tolerance_mm_s, 0.2 * s),
+                                  round(MIN_PLATEAU_S * sc.fs_hz))]
+        if found:
+            out.append((s, *max(found, key=lambda r: r[2] - r[1])))  # the first longest
     return out
 
 
@@ -190,18 +186,13 @@ def select_model(
                       [_piece(scans[i], a, b, f"{s:g}")]))
     scores = {c: CandidateScore(c, [], []) for c in candidates}
     for (kind, train, speeds, held), c in wrap([(f, c) for f in folds for c in candidates]):
-        with warnings.catch_warnings():
-            # speeds a fold lacks, blocks beyond its speeds (clamped): the final fit says
-            warnings.simplefilter("ignore")
+        # speeds a fold lacks, blocks beyond its speeds (clamped): the final fit says
+        with warnings.catch_warnings(action="ignore"):
             got = held_out_lsd_db(fit_candidate(c, train, speeds, **kw), held, seed)
         (scores[c].block_lsd_db if kind == "block" else scores[c].between_lsd_db).extend(got)
     table = [scores[c] for c in candidates]
     best = min(table, key=lambda t: t.mean_lsd_db)
-    noise = {}
-    for t in table:
-        d = t.scores - best.scores  # the weighted mean's standard error
-        noise[t.name] = (float(np.sqrt(np.sum(t.weights ** 2) * np.var(d, ddof=1)))
-                         if d.size > 1 else 0.0)
+    noise = {t.name: t.noise_to(best) for t in table}
     winner = next(t for t in table if t.mean_lsd_db - best.mean_lsd_db <= noise[t.name])
     reason = (f"lowest held-out LSD within the noise, simplest first "
               f"({len(folds)} folds, {best.scores.size} held-out blocks)")
