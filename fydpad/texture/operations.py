@@ -378,8 +378,7 @@ def identify_models(specs: list[str], scan_paths: list[str], *, distance: str | 
 def compare_command(train_paths: list[str], scan_paths: list[str], kinds: list[str],
                     out_dir: Path, seed: int = 0) -> tuple[dict, list[str]]:
     """Per family the confusion matrix (plots in ``out_dir``)."""
-    fit_kinds = [k for k in kinds if get_kind(k).fit is not None]
-    unknown = [k for k in kinds if k not in fit_kinds]
+    unknown = [k for k in kinds if get_kind(k).fit is None]
     if unknown:
         raise UserError(f"--kinds: unknown {', '.join(unknown)}")
     train, test = read_scans(train_paths), read_scans(scan_paths)
