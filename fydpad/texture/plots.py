@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from fydpad.texture.evaluation.evaluate import BAND_HZ
 from fydpad.texture.lpc.coverage import MIN_SECONDS_PER_BIN
 
 if TYPE_CHECKING:
@@ -44,8 +45,7 @@ def _save(fig: Any, path: str | Path, title: str) -> Path:
 
 
 def plot_spectra(path: str | Path, panels: Sequence[tuple[str, NDArray, NDArray, NDArray]],
-                 title: str = "", band: tuple[float, float] = (20.0, 500.0),
-                 coverage: SpeedCoverage | None = None) -> Path:
+                 title: str = "", coverage: SpeedCoverage | None = None) -> Path:
     """One panel per (label, f_hz, P_recorded, P_model); with ``coverage``, a last panel
     of the scans' time per speed bin, the fitted speeds and the gaps."""
     from fydpad.plots import label, plt
@@ -58,7 +58,7 @@ def plot_spectra(path: str | Path, panels: Sequence[tuple[str, NDArray, NDArray,
     grid = fig.add_gridspec(rows + extra, cols)
     axes = [fig.add_subplot(grid[i // cols, i % cols]) for i in range(rows * cols)]
     for ax, (name, f, pr, pm) in zip(axes, panels, strict=False):
-        sel = (f >= band[0]) & (f <= band[1])
+        sel = (f >= BAND_HZ[0]) & (f <= BAND_HZ[1])
         ax.plot(f[sel], 10 * np.log10(pr[sel]), label="recorded (DFT321)")
         ax.plot(f[sel], 10 * np.log10(pm[sel]), label="model", alpha=0.85)
         ax.set_title(name)
@@ -97,13 +97,12 @@ def _plot_coverage(ax: Axes, cov: SpeedCoverage) -> None:
 
 
 def plot_against_ceiling(path: str | Path, f_hz: NDArray, recorded: NDArray, model: NDArray,
-                         second: NDArray, title: str = "",
-                         band: tuple[float, float] = (20.0, 500.0)) -> Path:
+                         second: NDArray, title: str = "") -> Path:
     """``evaluate --second``: the three spectra, and below them the model's and the
     second recording's difference to the recording in dB."""
     from fydpad.plots import label, legend_outside, plt
 
-    sel = (f_hz >= band[0]) & (f_hz <= band[1])
+    sel = (f_hz >= BAND_HZ[0]) & (f_hz <= BAND_HZ[1])
     f = f_hz[sel]
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True,
                                       constrained_layout=True,

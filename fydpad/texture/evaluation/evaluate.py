@@ -29,11 +29,10 @@ TARGET_PSD_CORRELATION = 0.95
 TARGET_LSD_OVER_CEILING_DB = 0.25
 
 
-def welch_psd(x: ArrayLike, fs: float, mask: ArrayLike | None = None,
-              bin_hz: float = BIN_HZ) -> tuple[Array, Array]:
-    """Welch PSD with ``bin_hz`` bins (Hann, 50 %), averaged over the True runs of mask."""
+def welch_psd(x: ArrayLike, fs: float, mask: ArrayLike | None = None) -> tuple[Array, Array]:
+    """Welch PSD in ``BIN_HZ`` bins (Hann, 50 %), averaged over the True runs of mask."""
     x = np.asarray(x, float)
-    nper = round(fs / bin_hz)
+    nper = round(fs / BIN_HZ)
     pieces = [(0, x.size)] if mask is None else runs(mask, nper)
     acc, weight, f = None, 0, None
     for a, b in pieces:
@@ -43,7 +42,7 @@ def welch_psd(x: ArrayLike, fs: float, mask: ArrayLike | None = None,
         acc = p * (b - a) if acc is None else acc + p * (b - a)
         weight += b - a
     if acc is None:
-        raise ValueError(f"fewer than {nper} samples to estimate a {bin_hz:g} Hz-bin spectrum")
+        raise ValueError(f"fewer than {nper} samples to estimate a {BIN_HZ:g} Hz-bin spectrum")
     return f, acc / weight
 
 
@@ -70,12 +69,12 @@ class Comparison:
     band_energy_synthesized: dict[str, float]
 
 
-def compare(recorded: Array, synthesized: Array, fs: float, mask: ArrayLike | None = None,
-            band: tuple[float, float] = BAND_HZ) -> tuple[Comparison, Array, Array, Array]:
+def compare(recorded: Array, synthesized: Array, fs: float, mask: ArrayLike | None = None
+            ) -> tuple[Comparison, Array, Array, Array]:
     """Metrics of two equally long signals over the mask; also (f, P_rec, P_syn)."""
     f, pr = welch_psd(recorded, fs, mask)
     _, ps = welch_psd(synthesized, fs, mask)
-    sel = _band(f, band)
+    sel = _band(f, BAND_HZ)
     m = np.ones(recorded.size, bool) if mask is None else np.asarray(mask, bool)
     r, s = recorded[m], synthesized[m]
     tc = float(np.corrcoef(r, s)[0, 1]) if r.size > 2 else float("nan")
@@ -129,10 +128,9 @@ class Ceiling:
     lsd_db: float
 
 
-def ceiling(recorded_psd: Array, second_psd: Array, f_hz: Array,
-            band: tuple[float, float] = BAND_HZ) -> Ceiling:
+def ceiling(recorded_psd: Array, second_psd: Array, f_hz: Array) -> Ceiling:
     """The ceiling from the two recordings' Welch spectra."""
-    sel = _band(f_hz, band)
+    sel = _band(f_hz, BAND_HZ)
     return Ceiling(psd_correlation(recorded_psd[sel], second_psd[sel]),
                    lsd_db(recorded_psd[sel], second_psd[sel]))
 
