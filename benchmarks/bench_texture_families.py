@@ -41,8 +41,9 @@ def penn_family(order_ar: int, order_ma: int, tmp: str):
     random stable ARMA models, loaded as ``fydpad run --texture FILE.xml`` does."""
     from scipy.spatial import Delaunay
 
+    from fydpad.synth.hatt import write_penn
     from fydpad.texture.families import load_family
-    from fydpad.texture.families.penn.toolkit import PennModelSet, write_penn
+    from fydpad.texture.families.penn.toolkit import PennModelSet
 
     rng = np.random.default_rng(order_ar)
     s, f = np.meshgrid([10.0, 50.0, 120.0, 250.0], [0.2, 1.0, 3.0], indexing="ij")

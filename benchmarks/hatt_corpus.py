@@ -5,8 +5,9 @@
 
 DIR holds HaTT model files (``Models_<material>.xml``, Culbertson, Lopez Delgado and
 Kuchenbecker 2014; not shipped: see the README). Per surface, through the project's HaTT
-import (fydpad/texture/families/penn/toolkit.py) and :func:`texture_scans.penn_scan` (which
-adds a tool resonance, contact impacts, the hand's wander and gravity on three axes):
+import (fydpad/texture/families/penn/toolkit.py), the toolkit's synthesis (fydpad/synth/hatt.py)
+and :func:`texture_scans.penn_scan` (which adds a tool resonance, contact impacts, the hand's
+wander and gravity on three axes):
 
 - training: one 30 s hand stroke through plateaus near 10, 20, 30 and 40 mm/s;
 - test: a 10 s stroke at about 15, 20, 25 and 35 mm/s (a separate rendering: held out),

@@ -90,7 +90,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "(docs/texture_mlp.md)")
     f.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="a fit option of the family, repeatable (e.g. for mlp: "
-                   "--set learning_rate=0.1 --set epochs=500; an unknown key is named)")
+                   "--set learning_rate=0.1 --set max_epochs=500; an unknown key is named)")
     f.add_argument("--dx-mm", type=float, default=0.01,
                    help="friction: position grid step (default 0.01 mm)")
     f.add_argument("--lowpass-hz", type=float, default=100.0,

@@ -48,7 +48,8 @@ import scipy.signal as ss
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.families.penn.toolkit import PennModelSet, PennRenderer
+from fydpad.synth.hatt import PennRenderer
+from fydpad.texture.families.penn.toolkit import PennModelSet
 from fydpad.texture.scan_io import Scan, write_scan
 from vision.recording import CsvRowWriter
 

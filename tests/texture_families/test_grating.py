@@ -8,6 +8,7 @@ import json
 import numpy as np
 import pytest
 
+from fydpad.errors import UserError
 from fydpad.synth.texture_scans import generate_scan
 from fydpad.texture.families import load_family
 from fydpad.texture.families.grating import RATIOS, GratingFamily, estimate_wavelength, level_value
@@ -103,6 +104,13 @@ def test_rectangular_profile_has_90_percent_ridge_and_the_10th_harmonic_vanishes
 def test_wavelength_estimated_from_scans(name, lam):
     scans = [generate_scan(name, v, 6.0, seed=1) for v in (20.0, 30.0)]
     assert estimate_wavelength(scans) == pytest.approx(lam, rel=0.01)
+
+
+def test_cli_fit_names_an_option_the_grating_does_not_take(tmp_path):
+    with pytest.raises(UserError, match=r"fit --kind grating: .*argument 'ridge'"):
+        run_cli("fit", "--kind", "grating", "--wavelength-mm", "2.15", "--set", "ridge=0.8",
+                "--out", str(tmp_path / "g.json"))
+    assert not (tmp_path / "g.json").exists()
 
 
 def test_cli_fit_parametric_and_synth(tmp_path):

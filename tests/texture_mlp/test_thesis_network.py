@@ -15,12 +15,13 @@ from fydpad.texture.families.mlp.model import (
     MlpNet,
     bandpass_fft,
     delta_force,
-    load_mlp,
-    save_mlp,
+    model_to_json,
+    parse_mlp,
     thesis_model,
     velocity_xy,
 )
 from fydpad.texture.families.mlp.train import TrainConfig, fit_mlp, thirds, train
+from fydpad.texture.family import read_model_json, save_model_json
 
 # Tables 3.2-3.4 of the thesis, transcribed here independently of the shipped file.
 VX = [0.87, -1.87, 0.13, -1.32, -1.26, 1.09, 1.91, 2.91, -1.67, -0.53]
@@ -28,6 +29,10 @@ VY = [2.38, -2.04, 2.86, 0.61, -2.05, 2.21, 0.97, 0.44, -1.46, -2.45]
 DF = [-1.63, -1.17, 0.81, 2.58, -1.74, 1.65, 2.14, -0.23, -1.97, 1.66]
 BIAS = [-2.99, 2.33, -1.66, 1.16, -0.04, 1.00, 0.61, 1.75, -2.35, -3.013]
 OUT = [-0.41, -0.39, -0.07, 0.14, 0.04, 0.57, -0.22, -0.26, 0.51, 0.02]
+
+
+def load_mlp(path):
+    return parse_mlp(read_model_json(path), str(path))
 
 
 def _by_hand(vx: float, vy: float, df: float) -> float:
@@ -194,7 +199,7 @@ def test_fit_round_trip_and_family_render_equals_tick(fitted, tmp_path):
     from fydpad.texture.family import finger_from_scan
 
     scans, model, _ = fitted
-    p = save_mlp(model, tmp_path / "felt_mlp.json")
+    p = save_model_json(model_to_json(model), tmp_path / "felt_mlp.json")
     back = load_mlp(p)
     np.testing.assert_array_equal(back.net.w_in, model.net.w_in)
     np.testing.assert_array_equal(back.scaling.in_scale, model.scaling.in_scale)
@@ -217,6 +222,9 @@ def test_fit_needs_force(tmp_path):
         fit_family("mlp", [generate_scan("felt", 10.0, 1.0, seed=1)])
     with pytest.raises(UserError, match=r"unknown option.*lerning_rate"):
         fit_family("mlp", [generate_scan("felt", 10.0, 1.0, seed=1)], lerning_rate=0.1)
+    scan = generate_scan("felt", 10.0, 1.0, seed=1, friction=True)
+    with pytest.raises(UserError, match=r"mlp fit: option mode must be .* not 'fast'"):
+        fit_family("mlp", [scan], mode="fast")
 
 
 def _bad(tmp_path, edit, name="bad.json"):
@@ -246,7 +254,7 @@ def test_bad_model_files_name_the_file_and_key(tmp_path, edit, match):
 def test_non_finite_and_unreadable_files(tmp_path):
     p = tmp_path / "nan.json"
     p.write_text(THESIS_MODEL.read_text().replace("0.11", "NaN", 1))
-    with pytest.raises(UserError, match=r"nan\.json: .*not finite"):
+    with pytest.raises(UserError, match=r"nan\.json: weights: key .output_bias. is not a finite"):
         load_mlp(p)
     (tmp_path / "trunc.json").write_text(THESIS_MODEL.read_text()[:100])
     with pytest.raises(UserError, match=r"trunc\.json: not a readable JSON model"):

@@ -1,11 +1,7 @@
-"""Position-indexed friction playback (Jiao 2018, section IV-B; docs/texture_friction.md).
-
-Fit: mu(x) = F_f(x) / F_n(x) (eq. 1) on a uniform position grid, low-passed at the paper's
-100 Hz taken to x: k_c = 100 Hz / v_ref cycles/mm, v_ref the scans' median sliding speed.
-Playback by position at any speed, u = (x - x0) mod L: ``audio`` (an electrostatic
-display) V = b mu(x) Y(t), Y the 0/1 square carrier at 240 Hz (eq. 2); on the FYD-pad
-``tension`` = clip(1 + g_t (mu - mean) / mean, 0.5, 1.5), a scale on the stiffness
-request, and ``vibration`` = g_v (mu - mean) / mean m/s^2, faded in over 0-``still_mm_s``.
+"""Position-indexed friction playback (Jiao 2018, section IV-B): mu(x) = F_f(x) / F_n(x)
+(eq. 1) low-passed in position, played back at u = (x - x0) mod L as the electrostatic
+``audio`` V = b mu(x) Y(t) (eq. 2) or, on the FYD-pad, as ``tension`` and ``vibration``
+(docs/texture_friction.md).
 """
 
 from __future__ import annotations
@@ -28,6 +24,7 @@ from fydpad.texture.family import (
     require_version,
     save_model_json,
 )
+from fydpad.texture.lpc.analysis import runs
 
 NAME = "friction"
 FORMAT_VERSION = 1
@@ -64,8 +61,7 @@ def fit_friction(scans: list, *, dx_mm: float = 0.01, lowpass_hz: float = LOWPAS
         raise UserError("fit --kind friction: no scans")
     pieces = []
     for sc in scans:
-        ff = getattr(sc, "friction_n", None)
-        x = getattr(sc, "x_mm", None)
+        ff, x = sc.friction_n, sc.x_mm
         if ff is None or sc.force_n is None:
             raise UserError(f"{sc.path}: column 'friction_n' and 'force_n' are needed for a "
                             "friction model (docs/recording_format.md, texture scan)")
@@ -94,7 +90,7 @@ def fit_friction(scans: list, *, dx_mm: float = 0.01, lowpass_hz: float = LOWPAS
                       left=np.nan, right=np.nan)
         filt = np.full(n, np.nan)
         # Low-pass each scan's strip on its own (no jump at a strip's edge).
-        for a, bnd in _runs(np.isfinite(g)):
+        for a, bnd in runs(np.isfinite(g)):
             seg = g[a:bnd]
             pad = min(seg.size - 1, int(3 / cutoff / dx_mm))
             ext = np.pad(seg, pad, mode="reflect") if pad > 0 else seg
@@ -119,12 +115,6 @@ def fit_friction(scans: list, *, dx_mm: float = 0.01, lowpass_hz: float = LOWPAS
         "fydpad": {"vibration_gain_m_s2": 2.0, "tension_gain": 1.0, "still_mm_s": 2.0},
         "provenance": {"scans": [str(s.path) for s in scans], "method": "Jiao 2018 IV-B eq. 1"},
     }
-
-
-def _runs(mask: Array) -> list[tuple[int, int]]:
-    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    starts, stops = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
-    return list(zip(starts.tolist(), stops.tolist(), strict=True))
 
 
 class FrictionFamily(FamilyBase):

@@ -1,17 +1,9 @@
-"""Vibrotactile/friction gratings at a composition ratio (Ito 2019, section 4.2).
+"""Vibrotactile/friction gratings at a composition ratio (Ito 2019, section 4.2); the levels,
+the rectangular profile and the channels as docs/texture_grating.md describes them.
 
     F_v = A sin(2 pi x / lambda)                       (eq. 1, voice coil, normal)
     V_e = B cos(2 pi x / (2 lambda))                   (eq. 2, electrostatic voltage)
     F_e = mu (W + k V_e^2) = mu (W + k B^2/2 (1 + cos(2 pi x / lambda)))   (eq. 3-4)
-
-A ratio v:f picks level v of the vibrotactile stimulus and f of the friction one, levels
-linear in force from 1 (just perceivable) to 10 (realistic alone), 0 off (4.2.3); 8:2 for
-lambda >= 1 mm, 6:4 below (Fig. 5). The rectangular profile (the FYD-pad specimens, 90 %
-ridge) replaces the sine by p(x) = 2 (r(x) - d), r the 0/1 ridge with raised-cosine edges,
-d the ridge fraction; friction leads by a quarter period (4.2.2): V_e^2 = B^2 (1 + p(x +
-lambda/4)) / 2. Channels: ``vibration`` = g_v F_v / A_10 m/s^2 and ``tension`` = clip(1 +
-g_t (F_e - mean) / (mu W), 0.5, 1.5) at 1 kHz; ``audio`` = V_e (V) and ``force`` = F_v (N)
-for external displays.
 """
 
 from __future__ import annotations
@@ -172,14 +164,11 @@ class GratingFamily(FamilyBase):
 
 def estimate_wavelength(scans: list, band_mm: tuple[float, float] = (0.3, 10.0),
                         dx_mm: float = 0.02, fmax_per_mm: float = 5.0) -> float:
-    """A grating's period from the scans' spatial power spectrum (DFT321 on the position,
-    averaged over scans): the period whose lines k / lambda < ``fmax_per_mm`` stand highest
-    above the median in sum (the rectangle's fundamental need not be its strongest line),
-    then divided by m while the lines it adds stand 10 dB out."""
+    """A grating's period from the scans' spatial power spectrum (docs/texture_grating.md,
+    "Fit"): the period whose lines k / lambda < ``fmax_per_mm`` stand highest in sum."""
     logs = []
     for sc in scans:
-        x = getattr(sc, "x_mm", None)
-        x = np.cumsum(sc.speed_mm_s) / sc.fs_hz if x is None else x
+        x = np.cumsum(sc.speed_mm_s) / sc.fs_hz if sc.x_mm is None else sc.x_mm
         a = preprocess(sc.acc, sc.fs_hz, 10.0)
         keep = sc.speed_mm_s > 0.5 * np.median(sc.speed_mm_s)
         xs, order = x[keep], np.argsort(x[keep], kind="stable")
@@ -227,7 +216,7 @@ def fit_grating(scans: list | None = None, *, wavelength_mm: float | None = None
                 ratio: tuple[int, int] | None = None,
                 vib_levels_n: tuple[float, float] = (0.05, 0.5),
                 friction_levels_n: tuple[float, float] = (0.02, 0.2),
-                surface: str | None = None, **extra: Any) -> dict[str, Any]:
+                surface: str | None = None) -> dict[str, Any]:
     """A grating model file (JSON dict): parametric, lambda given or estimated from scans."""
     how = "given"
     if wavelength_mm is not None and not (wavelength_mm > 0 and math.isfinite(wavelength_mm)):

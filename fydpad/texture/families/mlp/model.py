@@ -1,15 +1,9 @@
-"""The neural-network texture model of Lin 2016 (section 3.2, Tables 3.1-3.4).
-
-A 3-10-1 network maps the finger's velocity and force change to the normal acceleration:
+"""The texture network of Lin 2016 (section 3.2, Tables 3.1-3.4): features, weights, file.
 
     net_j = logsig(sum_i w_in[j, i] u_i + b_in[j])        (eq. 4, 6; 10 hidden units)
     a_z   = sum_j w_out[j] net_j + b_out                    (eq. 5, 7; purelin)
 
-with u = scale((v_x, v_y, Δf)) and a_z unscaled (``Scaling``). Δf, which the thesis does
-not define, is the force minus its causal moving mean over ``DF_TAU_S`` = 50 ms (a
-first-order high-pass at 3.2 Hz; a 1 kHz difference would be mostly sensor noise).
-(v_x, v_y) is the speed along the direction of the last position change (positions
-arrive at camera rate, held between frames).
+with u = scale((v_x, v_y, Δf)), a_z unscaled; Δf and (v_x, v_y) as docs/texture_mlp.md defines.
 """
 
 from __future__ import annotations
@@ -24,7 +18,7 @@ import scipy.signal as ss
 from numpy.typing import ArrayLike, NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.family import FORMAT, read_model_json, require_version, save_model_json
+from fydpad.texture.family import FORMAT, read_model_json, require, require_version
 
 Array = NDArray[np.float64]
 KIND = "mlp"
@@ -146,13 +140,11 @@ def model_to_json(model: MlpModel) -> dict[str, Any]:
         "band_hz": list(model.band_hz),
         "delta_force": {"definition": "force_n minus its causal exponential moving mean",
                         "tau_s": model.df_tau_s},
-        "weights": {"input": [[float(w) for w in row] for row in net.w_in],
-                    "input_bias": [float(b) for b in net.b_in],
-                    "output": [float(w) for w in net.w_out], "output_bias": float(net.b_out)},
+        "weights": {"input": net.w_in.tolist(), "input_bias": net.b_in.tolist(),
+                    "output": net.w_out.tolist(), "output_bias": float(net.b_out)},
         "scaling": {
             "method": s.method, "known": s.known,
-            "input_offset": [float(v) for v in s.in_offset],
-            "input_scale": [float(v) for v in s.in_scale],
+            "input_offset": s.in_offset.tolist(), "input_scale": s.in_scale.tolist(),
             "output_offset": float(s.out_offset), "output_scale": float(s.out_scale),
             "convention": "u = (x - input_offset) * input_scale; "
                           "y = output_offset + output_scale * net(u)",
@@ -161,19 +153,9 @@ def model_to_json(model: MlpModel) -> dict[str, Any]:
     }
 
 
-def save_mlp(model: MlpModel, path: str | Path) -> Path:
-    return save_model_json(model_to_json(model), path)
-
-
-def _key(d: Any, key: str, where: str) -> Any:
-    if not isinstance(d, dict) or key not in d:
-        raise UserError(f"{where}: missing key '{key}'")
-    return d[key]
-
-
 def _vector(d: Any, key: str, where: str, shape: tuple[int, ...]) -> Array:
     try:
-        a = np.asarray(_key(d, key, where), float)
+        a = np.asarray(require(d, key, where, object), float)
     except (TypeError, ValueError):
         raise UserError(f"{where}: key '{key}' must be numbers") from None
     if a.shape != shape:
@@ -188,15 +170,14 @@ def parse_mlp(data: dict[str, Any], where: str = "model") -> MlpModel:
     require_version(data, where, KIND, FORMAT_VERSION)
     if list(data.get("inputs", INPUTS)) != list(INPUTS):
         raise UserError(f"{where}: key 'inputs' must be {list(INPUTS)}")
-    w, ww = _key(data, "weights", where), f"{where}: weights"
-    rows = _key(w, "input", ww)
-    hidden = len(rows) if isinstance(rows, list) else 0
+    w, ww = require(data, "weights", where, dict), f"{where}: weights"
+    hidden = len(require(w, "input", ww, list))
     if hidden < 1:
         raise UserError(f"{where}: key 'weights.input' must list one row per hidden unit")
     net = MlpNet(_vector(w, "input", ww, (hidden, len(INPUTS))),
                  _vector(w, "input_bias", ww, (hidden,)), _vector(w, "output", ww, (hidden,)),
                  float(_vector(w, "output_bias", ww, ())))
-    sc, sw = _key(data, "scaling", where), f"{where}: scaling"
+    sc, sw = require(data, "scaling", where, dict), f"{where}: scaling"
     scaling = Scaling(_vector(sc, "input_offset", sw, (len(INPUTS),)),
                       _vector(sc, "input_scale", sw, (len(INPUTS),)),
                       float(_vector(sc, "output_offset", sw, ())),
@@ -207,7 +188,8 @@ def parse_mlp(data: dict[str, Any], where: str = "model") -> MlpModel:
     if not (fs > 0 and 0 <= band[0] < band[1]):
         raise UserError(f"{where}: keys 'sample_rate_hz'/'band_hz' must be positive and "
                         f"ordered (got {fs:g} Hz, {band.tolist()})")
-    tau = float(_vector(_key(data, "delta_force", where), "tau_s", f"{where}: delta_force", ()))
+    df = require(data, "delta_force", where, dict)
+    tau = float(_vector(df, "tau_s", f"{where}: delta_force", ()))
     if not tau > 0:
         raise UserError(f"{where}: key 'delta_force.tau_s' must be positive, got {tau:g}")
     return MlpModel(net, scaling, fs, (float(band[0]), float(band[1])), tau,
@@ -215,10 +197,6 @@ def parse_mlp(data: dict[str, Any], where: str = "model") -> MlpModel:
                     str(data.get("surface", "")), dict(data.get("provenance", {})))
 
 
-def load_mlp(path: str | Path) -> MlpModel:
-    return parse_mlp(read_model_json(path), str(path))
-
-
 def thesis_model() -> MlpModel:
     """The thesis' trained weights (Tables 3.2-3.4, output bias 0.11); see its file."""
-    return load_mlp(THESIS_MODEL)
+    return parse_mlp(read_model_json(THESIS_MODEL), str(THESIS_MODEL))

@@ -1,11 +1,7 @@
-"""The thesis network as a texture family (kind ``"mlp"``): render and 1 kHz tick.
-
-Per sample: (v_x, v_y, Δf) (:mod:`.model`), the network's normal acceleration, a causal
-first-order DC blocker at the training band's 5 Hz edge (the network's output at rest is a
-constant that would offset the motors' PWM), gated to 0 without contact or below
-``still_mm_s``. ``render`` and ``tick`` share their state: a block rendered sample by
-sample equals the block at once. Channels ``vibration`` (1 kHz) and ``audio`` (the same
-signal, for an external actuator).
+"""The thesis network as a texture family (kind ``"mlp"``): per sample the network, a
+first-order DC blocker at the band's 5 Hz edge, gated to 0 without contact or below
+``still_mm_s`` (docs/texture_mlp.md, "Rendering"). ``render`` and ``tick`` share their
+state; ``audio`` is the same signal for an external actuator.
 """
 
 from __future__ import annotations
@@ -73,12 +69,17 @@ class MlpTexture(FamilyBase):
 
     def render(self, finger: FingerBlock, channel: str = "vibration") -> Array:
         self.check_channel(channel)
-        fs = self.model.fs_hz
-        if abs(finger.fs_hz - fs) > 1e-6 * fs:
-            return self._render_other_rate(finger)
-        n = finger.t_s.size
-        if n == 0:
-            return np.zeros(0)
+        fs, n = self.model.fs_hz, finger.t_s.size
+        other_rate = abs(finger.fs_hz - fs) > 1e-6 * fs
+        if n < (2 if other_rate else 1):
+            return np.zeros(n)
+        if other_rate:
+            # Another rate (the sound card's): rendered at the network's own, where Δf and
+            # the blocker are defined, then brought to it by a polyphase filter.
+            y = self.render(resample_finger(finger, fs))
+            ratio = Fraction(finger.fs_hz / fs).limit_denominator(1000)
+            out = ss.resample_poly(y, ratio.numerator, ratio.denominator)
+            return np.pad(out[:n], (0, max(0, n - out.size)), mode="edge")
         # Fail safe: a missing speed is 0 (silence), a missing force holds the last one.
         speed = np.where(np.isfinite(finger.speed_mm_s), finger.speed_mm_s, 0.0)
         force = hold_finite(finger.force_n, self._last_f)
@@ -94,17 +95,6 @@ class MlpTexture(FamilyBase):
         self._hp_x, self._hp_y = float(r[-1]), float(y[-1])
         on = finger.contact & (speed >= self.still_mm_s)
         return np.where(on, y, 0.0)
-
-    def _render_other_rate(self, finger: FingerBlock) -> Array:
-        """Another rate (the sound card's): rendered at the network's own (Δf and the
-        blocker are defined there), then brought to it by a polyphase filter (offline)."""
-        n = finger.t_s.size
-        if n < 2:
-            return np.zeros(n)
-        y = self.render(resample_finger(finger, self.model.fs_hz))
-        ratio = Fraction(finger.fs_hz / self.model.fs_hz).limit_denominator(1000)
-        out = ss.resample_poly(y, ratio.numerator, ratio.denominator)
-        return np.pad(out[:n], (0, max(0, n - out.size)), mode="edge")
 
     def tick(self, t_s: float, contact: bool, x_mm: float, y_mm: float,
              speed_mm_s: float, force_n: float) -> tuple[float]:
@@ -136,10 +126,6 @@ class MlpTexture(FamilyBase):
         return (y if on else 0.0,)
 
 
-def _from_json(data: dict[str, Any], where: str) -> MlpTexture:
-    return MlpTexture(parse_mlp(data, where))
-
-
 def _fit(scans: list, **options: Any) -> dict[str, Any]:
     """``fit_family("mlp", scans, seed=.., learning_rate=.., mode=.., ...)``."""
     if not scans:
@@ -154,6 +140,6 @@ def _fit(scans: list, **options: Any) -> dict[str, Any]:
     return model_to_json(model)
 
 
-KIND = Kind("mlp", _from_json, _fit,
+KIND = Kind("mlp", lambda data, where: MlpTexture(parse_mlp(data, where)), _fit,
             "3-10-1 network from (v_x, v_y, delta f) to the normal acceleration, Lin 2016",
             fit_options=("surface",))

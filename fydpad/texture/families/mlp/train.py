@@ -1,16 +1,11 @@
-"""Training the thesis' 3-10-1 texture network (Lin 2016, section 3.2, Fig. 3.18).
-
-``TrainConfig`` defaults are the thesis': weights and biases uniform in [-10, 10];
-learning rate 0.9; steepest descent on the squared error, per sample in time order (Fig.
-3.18, MATLAB's ``adapt``; ``mode="batch"``: full-batch ``traingd``, ~20x faster per
-epoch); at most 2000 epochs or training MSE < 1e-9; "over-fitting controls" read as
-MATLAB's validation stop (6 epochs without improvement, the best weights kept). Data:
-each recording's z acceleration band-passed 5-500 Hz by FFT, cut into contiguous thirds
-(training, validation, test), scaled to [-1, 1] on the training third.
+"""Training the thesis' 3-10-1 texture network (Lin 2016, section 3.2, Fig. 3.18): the
+data pipeline and the settings (``TrainConfig``, defaults the thesis') are tabled in
+docs/texture_mlp.md.
 """
 
 from __future__ import annotations
 
+import copy
 import datetime as _dt
 import math
 from collections.abc import Sequence
@@ -108,7 +103,7 @@ def train(u_train: Array, t_train: Array, u_val: Array | None, t_val: Array | No
           cfg: TrainConfig = TrainConfig()) -> tuple[MlpNet, TrainReport]:
     """Train on network-unit data (inputs (n, n_in), target (n,)); deterministic per seed."""
     if cfg.mode not in ("online", "batch"):
-        raise ValueError(f"training mode must be 'online' or 'batch', not {cfg.mode!r}")
+        raise UserError(f"mlp fit: option mode must be 'online' or 'batch', not {cfg.mode!r}")
     u_train, t_train = np.asarray(u_train, float), np.asarray(t_train, float)
     if u_train.shape[1] != 3 and cfg.mode == "online":
         raise ValueError("online training is written for 3 inputs (v_x, v_y, Δf)")
@@ -119,7 +114,7 @@ def train(u_train: Array, t_train: Array, u_val: Array | None, t_val: Array | No
         return float(np.mean((t - net.forward(u)) ** 2))
 
     have_val = u_val is not None and t_val is not None and len(t_val) > 0
-    best, best_val, best_epoch, fails = _copy(net), math.inf, 0, 0
+    best, best_val, best_epoch, fails = copy.deepcopy(net), math.inf, 0, 0
     tr_hist: list[float] = []
     va_hist: list[float] = []
     stop, epoch = "max_epochs", 0
@@ -132,7 +127,7 @@ def train(u_train: Array, t_train: Array, u_val: Array | None, t_val: Array | No
         tr_hist.append(tr := mse(u_train, t_train))
         va_hist.append(va := mse(u_val, t_val) if have_val else tr)
         if va < best_val:
-            best, best_val, best_epoch, fails = _copy(net), va, epoch, 0
+            best, best_val, best_epoch, fails = copy.deepcopy(net), va, epoch, 0
         else:
             fails += 1
         if tr < cfg.goal_mse:
@@ -146,10 +141,6 @@ def train(u_train: Array, t_train: Array, u_val: Array | None, t_val: Array | No
                         f"{cfg.learning_rate:g}, per sample); lower it (fit option "
                         "learning_rate, e.g. 0.3) or train with mode=batch")
     return best, TrainReport(epoch, best_epoch, stop, tr_hist, va_hist)
-
-
-def _copy(net: MlpNet) -> MlpNet:
-    return MlpNet(net.w_in.copy(), net.b_in.copy(), net.w_out.copy(), float(net.b_out))
 
 
 @dataclass
@@ -167,13 +158,11 @@ def scan_features(scan: Scan, band_hz: tuple[float, float] = BAND_HZ,
         raise UserError(f"{scan.path}: column 'force_n' is missing or has empty cells: the "
                         "network's Δf input needs the normal force")
     df, _ = delta_force(scan.force_n, scan.fs_hz, df_tau_s)
-    x_mm = getattr(scan, "x_mm", None)
-    if x_mm is None:  # no position columns: the stroke runs along +x
+    # A scan's stroke runs along x (+x without a position column).
+    if scan.x_mm is None:
         vx, vy = scan.speed_mm_s, np.zeros_like(scan.speed_mm_s)
     else:
-        y_mm = getattr(scan, "y_mm", None)
-        vx, vy, _ = velocity_xy(x_mm, np.zeros_like(x_mm) if y_mm is None else y_mm,
-                                scan.speed_mm_s)
+        vx, vy, _ = velocity_xy(scan.x_mm, np.zeros_like(scan.x_mm), scan.speed_mm_s)
     az = bandpass_fft(scan.acc[:, 2], scan.fs_hz, band_hz)
     return Features(np.column_stack([vx, vy, df]), az)
 

@@ -1,14 +1,6 @@
-"""HaTT model sets (:mod:`.toolkit`) as a texture family (kind ``"penn"``, Culbertson 2014).
-
-The (speed, force) plane is sampled on a grid (64 x 32 by default) where the barycentric
-interpolation of LSFs, ``var`` and ``gain`` becomes A(z), B(z) once, at load; ``render``
-and ``tick`` both take the nearest grid point's model (docs/texture.md). ``tick`` runs R =
-fs_model / rate samples of the ARMA recursion and an elliptic anti-alias low-pass as one
-precomputed matrix per grid point (linear in [y history, e history, low-pass state, R
-noises]), one ``np.dot`` a tick into views made in ``prepare``; ``render`` runs the same
-recursion by ``lfilter``, state carried across blocks and model changes. Silent without
-contact or below ``still_mm_s`` through a 5 ms ramp; beyond maxSpeed/maxForce clamped
-(warned once), as the toolkit saturates.
+"""HaTT model sets (:mod:`.toolkit`) as a texture family (kind ``"penn"``, Culbertson 2014):
+the toolkit's interpolated models tabled on a (speed, force) grid at load, ``render`` and the
+1 kHz ``tick`` taking the nearest grid point's (docs/texture.md, "Rendering HaTT models").
 """
 
 from __future__ import annotations
@@ -72,17 +64,15 @@ class PennTexture(FamilyBase):
     tick_channels = ("vibration",)
     needs = frozenset({"speed_mm_s", "force_n"})
 
-    def __init__(self, ms: PennModelSet, path: str | None = None, *, rate_hz: float = 1000.0,
-                 seed: int | None = None, still_mm_s: float = 1.0, ramp_s: float = 0.005,
-                 grid: tuple[int, int] = (64, 32)):
+    def __init__(self, ms: PennModelSet, path: str | None = None, *, seed: int | None = None):
         super().__init__()
         self.ms, self.path, self.surface = ms, path or ms.name, ms.name
-        self.rate_hz = float(rate_hz)
+        self.rate_hz = 1000.0  # until prepare(rate_hz)
         self.channels = {"vibration": self.rate_hz}
         self.parameters = {"seed": seed}
-        self.still_mm_s, self.ramp_s = float(still_mm_s), float(ramp_s)
+        self.still_mm_s, self.ramp_s = 1.0, 0.005  # silent below 1 mm/s, faded over 5 ms
         self.p, self.q = ms.ar_lsf.shape[1], ms.ma_lsf.shape[1]
-        self._grid = self._fit_grid(grid)
+        self._grid = self._fit_grid()
         self._build_table()
         self.default_force_n = float(np.median(ms.forces_n))
         self._tick_ready = False
@@ -90,8 +80,8 @@ class PennTexture(FamilyBase):
         self.clamped = False
         self.reset()
 
-    def _fit_grid(self, grid: tuple[int, int]) -> tuple[int, int]:
-        ns, nf = max(2, int(grid[0])), max(2, int(grid[1]))
+    def _fit_grid(self) -> tuple[int, int]:
+        ns, nf = 64, 32  # speeds x forces
         ratio = max(1, round(self.ms.fs_hz / self.rate_hz))
         # The tick matrix's size (_tick_matrices) with the low-pass prepare() will build.
         d = self.p + self.q + 2 * decimation_sos(ratio, self.rate_hz).shape[0]
@@ -163,7 +153,7 @@ class PennTexture(FamilyBase):
         self._st_noise = self._state[d:]
         self._noise = np.zeros((_NOISE_TICKS, r))
         self._noise_rows, self._npos = list(self._noise), _NOISE_TICKS
-        self._alpha = 1.0 - math.exp(-1.0 / (max(self.ramp_s, 1e-9) * self.rate_hz))
+        self._alpha = 1.0 - math.exp(-1.0 / (self.ramp_s * self.rate_hz))
         self._tick_ready = True
 
     def _tick_matrices(self, r: int, sos: Array) -> Array:
@@ -249,7 +239,7 @@ class PennTexture(FamilyBase):
         whole = r >= 1 and abs(ratio - r) <= 1e-9 * ratio
         at = np.minimum((np.arange(round(n * ratio)) / ratio).astype(np.int64), n - 1)
         y = self._arma(np.repeat(cells, r) if whole else cells[at])
-        alpha = 1.0 - math.exp(-1.0 / (max(self.ramp_s, 1e-9) * (fo if whole else fs)))
+        alpha = 1.0 - math.exp(-1.0 / (self.ramp_s * (fo if whole else fs)))
         if whole:
             if r > 1:
                 sos = decimation_sos(r, fo)
