@@ -17,10 +17,10 @@ import warnings
 import numpy as np
 from timing import best
 
-from fydpad.texture.families import constant_stroke
 from fydpad.texture.families.mlp.model import thesis_model
 from fydpad.texture.families.mlp.render import MlpTexture
 from fydpad.texture.families.mlp.train import TrainConfig, _batch_epoch, _online_epoch, init_net
+from fydpad.texture.family import constant_stroke
 
 
 def naive_tick(model, state, x_mm, y_mm, speed, force):

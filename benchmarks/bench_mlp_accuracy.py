@@ -3,7 +3,7 @@ in the same run) on held-out data: the figures of docs/texture_mlp.md.
 
 ``python benchmarks/bench_mlp_accuracy.py`` prints the table (about 3 minutes);
 ``--plot DIR`` draws the spectra; ``--identify`` gives the network's identification
-rates (``fydpad.texture.evaluation.compare``).
+rates (``fydpad.texture.evaluation.identify``).
 
 The thesis network (fit_mlp) and the LPC family on the test thirds of the same strokes,
 both modelling the z acceleration: R^2 (sample by sample), the power-spectrum
@@ -26,9 +26,10 @@ from numpy.typing import NDArray
 
 from fydpad.errors import UserError
 from fydpad.synth.texture_scans import DX_MM, TEXTURES, generate_scan, surface_profile
-from fydpad.texture.evaluation.evaluate import compare, evaluation_mask
+from fydpad.texture.evaluation.evaluate import compare
 from fydpad.texture.families.mlp.render import MlpTexture
 from fydpad.texture.families.mlp.train import TrainConfig, fit_mlp, scan_features, thirds
+from fydpad.texture.lpc.family import LpcFamily
 from fydpad.texture.lpc.fit import fit_paper
 from fydpad.texture.scan_io import Scan
 
@@ -99,7 +100,7 @@ def thesis_vs_lpc(texture: str, cfg: TrainConfig | None = None, seconds: float =
                   speeds: Sequence[float] = SPEEDS, force: str = "generator"
                   ) -> dict[str, float | str]:
     """R^2, spectral correlation and LSD of both families on the strokes' test thirds."""
-    from fydpad.texture.families import finger_from_scan
+    from fydpad.texture.family import finger_from_scan
 
     cfg = cfg or TrainConfig()
     scans = [stroke(texture, s, seconds, seed=1, force=force) for s in speeds]
@@ -119,7 +120,7 @@ def thesis_vs_lpc(texture: str, cfg: TrainConfig | None = None, seconds: float =
         net = MlpTexture(model).render(finger_from_scan(scan))[s]
         test = _third(scan, 2)
         lpc_sig = _synth(lpc, test.speed_mm_s, seed=10 + i)
-        mask = evaluation_mask(test, lpc)
+        mask = LpcFamily(lpc).covers(test.speed_mm_s)
         m_net.append(compare(rec, net, scan.fs_hz, mask)[0])
         m_lpc.append(compare(rec, lpc_sig, scan.fs_hz, mask)[0])
         rec_all.append(rec[mask])
@@ -158,7 +159,7 @@ def plot_figures(out_dir: str) -> list[str]:
     from pathlib import Path
 
     from fydpad.texture.evaluation.evaluate import welch_psd
-    from fydpad.texture.families import finger_from_scan
+    from fydpad.texture.family import finger_from_scan
     from fydpad.texture.plots import plot_spectra
 
     out = Path(out_dir)
@@ -188,9 +189,13 @@ IDENTIFY_SURFACES = ("R1", "R2", "canvas", "corduroy", "cork", "felt", "sandpape
 
 def identification() -> list[tuple[str, dict, float]]:
     """docs/texture_families.md's comparison (same surfaces, strokes and identifier:
-    ``fydpad.texture.evaluation.compare``) for the networks: one 6 s training stroke at 20 mm/s per
+    ``fydpad.texture.evaluation.identify``) for the networks: one 6 s training stroke at 20 mm/s per
     surface (seed 1), three test strokes each (seeds 101-103)."""
-    from fydpad.texture.evaluation.compare import by_surface, fit_per_surface, identify_families
+    from fydpad.texture.evaluation.identify import (
+        by_surface,
+        fit_per_surface,
+        identify_families,
+    )
 
     train = [generate_scan(n, 20.0, 6.0, seed=1, friction=True) for n in IDENTIFY_SURFACES]
     test = [generate_scan(n, 20.0, 6.0, seed=s, friction=True) for n in IDENTIFY_SURFACES
@@ -200,7 +205,7 @@ def identification() -> list[tuple[str, dict, float]]:
         warnings.simplefilter("ignore")
         for kind, opts in (("mlp", {"learning_rate": 0.3}),
                            ("mlp", {"mode": "batch", "init_range": 0.5})):
-            models, labels = fit_per_surface(kind, by_surface(train), **{kind: opts})
+            models, labels = fit_per_surface(kind, by_surface(train), **opts)
             out.append((kind, opts, identify_families(models, labels, test).rate))
     return out
 

@@ -120,12 +120,9 @@ def quality(textures: list[str] | None = None) -> None:
     """Held-out figures of both forms against the texture targets for every texture
     (minutes; --quality)."""
     from fydpad.synth.texture_scans import TEXTURES
-    from fydpad.texture.evaluation.evaluate import (
-        compare_recordings,
-        evaluate_scan,
-        evaluation_mask,
-    )
-    from fydpad.texture.evaluation.identify import identify
+    from fydpad.texture.evaluation.evaluate import compare, evaluate_family
+    from fydpad.texture.evaluation.identify import identify_families
+    from fydpad.texture.lpc.family import LpcFamily
 
     warnings.simplefilter("ignore")
     names = textures or list(TEXTURES)
@@ -141,11 +138,15 @@ def quality(textures: list[str] | None = None) -> None:
         for v in (10.0, 15.0, 20.0, 25.0, 30.0, 35.0, 40.0):
             held = generate_scan(name, v, 10.0, seed=100)
             second = generate_scan(name, v, 10.0, seed=200)
-            mask = evaluation_mask(held, fitted["calibrated"])
-            ceil = compare_recordings(held, second, fitted["calibrated"], mask)
+            cal = LpcFamily(fitted["calibrated"])
+            mask = cal.covers(held.speed_mm_s)
+            hp = cal.highpass_hz
+            ceil, *_ = compare(preprocess(held.acc, held.fs_hz, hp),
+                               preprocess(second.acc, held.fs_hz, hp), held.fs_hz,
+                               mask & cal.covers(second.speed_mm_s))
             res = [ceil.psd_correlation, ceil.lsd_db]
             for f in forms:
-                c, _ = evaluate_scan(fitted[f], held, mask=mask)
+                c, *_ = evaluate_family(LpcFamily(fitted[f]), held, mask=mask)
                 res += [c.psd_correlation, c.lsd_db]
             rows[(name, v)] = res
             print(f"  {name:15s} {v:4.0f} mm/s  ceiling corr {res[0]:.3f} LSD {res[1]:.2f} | "
@@ -164,7 +165,8 @@ def quality(textures: list[str] | None = None) -> None:
     scans = [generate_scan(n, v, 6.0, seed=300) for n in names for v in (15.0, 25.0, 35.0)]
     for f in forms:
         for d in ("bands", "lsd"):
-            ident = identify(models[f], scans, distance=d)
+            fams = [LpcFamily(m) for m in models[f]]
+            ident = identify_families(fams, [m.surface for m in fams], scans, distance=d)
             print(f"  identification ({len(names)} textures, 15/25/35 mm/s held-out "
                   f"strokes), {f}, distance {d}: {ident.rate:.1%}")
 

@@ -36,9 +36,10 @@ import numpy as np
 from fydpad.progress import progress
 from fydpad.synth.texture_scans import hand_speed, penn_scan, plateau_speed
 from fydpad.texture.evaluation.evaluate import compare
-from fydpad.texture.evaluation.identify import identify
+from fydpad.texture.evaluation.identify import identify_families
 from fydpad.texture.families.penn.toolkit import read_penn
 from fydpad.texture.lpc.dft321 import preprocess
+from fydpad.texture.lpc.family import LpcFamily
 from fydpad.texture.lpc.fit import fit_paper
 from fydpad.texture.lpc.model_file import load_model, save_model
 from fydpad.texture.lpc.select import select_model
@@ -171,8 +172,10 @@ def main(argv: list[str] | None = None) -> int:
         for sc, r in zip(scans, rows, strict=True):  # a '# surface=' value ends at a space
             sc.meta["surface"] = r["surface"]
         for fit in ("default", "paper"):
-            models = [load_model(args.work / fit / f"{r['surface']}.json") for r in rows]
-            ident = identify(models, scans)
+            models = [LpcFamily(load_model(args.work / fit / f"{r['surface']}.json"))
+                      for r in rows]
+            ident = identify_families(models, [m.surface for m in models], scans,
+                                      distance="bands")
             for r, a in zip(rows, ident.assignments, strict=True):
                 r.setdefault("identified", {})[fit] = a["predicted"] == a["label"]
     elapsed = time.perf_counter() - t0

@@ -451,7 +451,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
 def run_identify(args: argparse.Namespace) -> int:
     from fydpad.progress import progress
     from fydpad.texture import operations as ops
-    from fydpad.texture.evaluation.identify import plot_confusion
+    from fydpad.texture.plots import plot_confusion
 
     _check_out(args.json, "--json")
     _check_out(args.plot, "--plot")
@@ -472,9 +472,14 @@ def run_compare(args: argparse.Namespace) -> int:
 
     kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
     out_dir = _make_dir(args.out_dir, "--out-dir")
-    result, lines = ops.compare_command(args.train, args.scans, kinds, out_dir,
-                                        specimens=args.specimens, trials=args.trials,
-                                        seed=args.seed)
+    result, lines = ops.compare_command(args.train, args.scans, kinds, out_dir, args.seed)
+    if args.specimens:  # the pad's softness too: outside fydpad.texture
+        from fydpad.specimen_experiment import specimens_command
+
+        fitted = [k for k, r in result["families"].items() if "error" not in r]
+        result["specimens"], more = specimens_command(args.train, args.scans, fitted, out_dir,
+                                                      args.trials)
+        lines += more
     for line in lines:
         print(line)
     _write_json(str(out_dir / "compare.json"), result)

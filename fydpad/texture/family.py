@@ -71,8 +71,7 @@ class Kind:
     #: ``describe(data, where)``: the lines ``fydpad texture fit`` prints about a fit.
     describe: Callable[[dict[str, Any], str], list[str]] | None = None
     #: ``fit_command(scan_paths, options, out, plot)`` -> (JSON, lines, warnings): a fit
-    #: with its own report (the LPC fit's per-speed figures and plot); else ``fit`` and
-    #: ``describe``.
+    #: with its own report (LPC's selection and plot) instead of ``fit`` and ``describe``.
     fit_command: Callable[..., tuple[dict[str, Any], list[str], list[str]]] | None = None
     #: ``identify``'s default distance: "shape" (levels and tilt removed: families whose
     #: level is a gain) or "bands" (third-octave levels: models of recorded accelerations).
@@ -208,16 +207,15 @@ def hold_finite(x: Array, first: float) -> Array:
 
 
 # ------------------------------------------------------------------ finger streams
-def finger_from_scan(scan: Any, fs_hz: float | None = None) -> FingerBlock:
+def finger_from_scan(scan: Any) -> FingerBlock:
     """The finger stream of a scan (contact throughout; x from ``x_mm`` or the speed;
     force from ``force_n`` or 1 N)."""
     n = scan.t_s.size
     x = scan.x_mm if scan.x_mm is not None else np.cumsum(scan.speed_mm_s) / scan.fs_hz
     force = scan.force_n if scan.force_n is not None else np.ones(n)
-    fb = FingerBlock(scan.fs_hz, np.asarray(scan.t_s, float), np.ones(n, bool),
-                     np.asarray(x, float), np.zeros(n), np.asarray(scan.speed_mm_s, float),
-                     np.asarray(force, float))
-    return fb if fs_hz is None else resample_finger(fb, fs_hz)
+    return FingerBlock(scan.fs_hz, np.asarray(scan.t_s, float), np.ones(n, bool),
+                       np.asarray(x, float), np.zeros(n), np.asarray(scan.speed_mm_s, float),
+                       np.asarray(force, float))
 
 
 def resample_finger(finger: FingerBlock, fs_hz: float) -> FingerBlock:

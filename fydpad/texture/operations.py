@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -16,29 +16,26 @@ from numpy.typing import NDArray
 
 from fydpad.channels import open_channel
 from fydpad.errors import UserError
-from fydpad.texture.evaluation.compare import (
-    by_surface,
-    compare_families,
-    identify_families,
-    specimen_experiment,
-)
 from fydpad.texture.evaluation.evaluate import (
     BIN_HZ,
     TARGET_LSD_OVER_CEILING_DB,
     TARGET_PSD_CORRELATION,
     Comparison,
     ceiling,
-    compare,
+    evaluate_family,
     meets_targets,
     unfair_ceiling,
     verdict_on_means,
     welch_psd,
 )
-from fydpad.texture.evaluation.identify import Identification, plot_confusion
-from fydpad.texture.families import get_kind, load_family, read_scans, spec_kind
+from fydpad.texture.evaluation.identify import (
+    Identification,
+    compare_families,
+    identify_families,
+)
+from fydpad.texture.families import get_kind, load_family, spec_kind
 from fydpad.texture.families.friction import FrictionFamily, friction_coefficient
 from fydpad.texture.family import (
-    RateMismatch,
     TextureFamily,
     constant_stroke,
     finger_from_scan,
@@ -46,7 +43,8 @@ from fydpad.texture.family import (
 )
 from fydpad.texture.lpc.coverage import describe, inside
 from fydpad.texture.lpc.dft321 import preprocess
-from fydpad.texture.plots import plot_against_ceiling, plot_spectra
+from fydpad.texture.plots import plot_against_ceiling, plot_confusion, plot_spectra
+from fydpad.texture.scan_io import read_scans
 from vision.recording import CsvRowWriter
 
 Array = NDArray[np.float64]
@@ -117,13 +115,6 @@ class Synthesis:
         return float(np.sqrt(np.mean(self.y * self.y))) if self.y.size else 0.0
 
 
-def set_render_parameters(family: TextureFamily, **values: Any) -> None:
-    """The given render parameters the family has (None: the model's own)."""
-    for name, value in values.items():
-        if value is not None and name in family.parameters:
-            family.set_parameter(name, value)
-
-
 def synthesize(spec: str, *, speed_mm_s: float, seconds: float, channel: str | None = None,
                force_n: float | None = None, audio_hz: float = 48_000.0,
                x0_mm: float | None = None, kind: str | None = None,
@@ -151,7 +142,9 @@ def synthesize(spec: str, *, speed_mm_s: float, seconds: float, channel: str | N
                         f"{', '.join(family.channels)}, not --channel {channel}")
     rate = audio_hz if channel == "audio" else family.channels[channel]
     family.channels[channel] = rate
-    set_render_parameters(family, **parameters)
+    for name, value in parameters.items():  # those it has (None: the model's own)
+        if value is not None and name in family.parameters:
+            family.set_parameter(name, value)
     x0 = family.x0_mm if x0_mm is None else x0_mm
     lead = constant_stroke(speed_mm_s, LEAD_IN_S, rate, x0 - speed_mm_s * LEAD_IN_S, force)
     finger = constant_stroke(speed_mm_s, seconds, rate, x0_mm=x0, force_n=force)
@@ -187,16 +180,6 @@ def write_synthesis(out: str, syn: Synthesis, speed_mm_s: float) -> None:
 
 
 @dataclass
-class Second:
-    """``--second``: the recording's Welch spectrum and why it sets no fair ceiling."""
-
-    path: str
-    psd: Array
-    unfair: str | None
-    facts: dict
-
-
-@dataclass
 class Evaluated:
     """One scan's evaluation: its JSON fields, the lines to print, what the plot needs."""
 
@@ -205,28 +188,31 @@ class Evaluated:
     f_hz: Array
     recorded: Array
     synthesized: Array
-    sec: Second | None
     label: str
+    #: ``--second``: its Welch spectrum, and why it sets no fair ceiling (None: fair).
+    second_psd: Array | None = None
+    unfair: str | None = None
     lines: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
 
 
 def _second(path: str, scan: Any, scan_mask: NDArray[np.bool_], family: TextureFamily
-            ) -> Second:
-    """A ``--second`` recording's spectrum over the samples the family covers."""
+            ) -> tuple[Array, str | None, dict]:
+    """A ``--second`` recording's spectrum over the samples the family covers, why it
+    sets no fair ceiling, and the facts that say so."""
     second = read_scans([path])[0]
     if abs(second.fs_hz - scan.fs_hz) > 1e-6 * scan.fs_hz:
         raise UserError(f"{path}: column 't_s': sample rate {second.fs_hz:g} Hz, the "
                         f"scan's {scan.fs_hz:g} Hz")
     mask = family.covers(second.speed_mm_s)
-    need = round(second.fs_hz / BIN_HZ)
     try:
         _, p2 = welch_psd(preprocess(second.acc, second.fs_hz, family.highpass_hz),
                           second.fs_hz, mask)
     except ValueError:
         raise UserError(f"{path}: {int(mask.sum())} of its {mask.size} samples are "
                         f"within the model's speeds (column 'speed_mm_s'), in no run of the "
-                        f"{need} a {BIN_HZ:g} Hz-bin spectrum needs") from None
+                        f"{round(second.fs_hz / BIN_HZ)} a {BIN_HZ:g} Hz-bin spectrum "
+                        "needs") from None
     v1, v2 = scan.speed_mm_s[scan_mask], second.speed_mm_s[mask]
     unfair = unfair_ceiling(v1, v2, scan.fs_hz, SECOND_TOLERANCE_MM_S,
                             scan.meta.get("surface"), second.meta.get("surface"))
@@ -234,55 +220,27 @@ def _second(path: str, scan: Any, scan_mask: NDArray[np.bool_], family: TextureF
              "second_median_speed_mm_s": float(np.median(v2)),
              "scan_seconds": v1.size / scan.fs_hz,
              "scan_median_speed_mm_s": float(np.median(v1))}
-    return Second(path, p2, unfair, facts)
-
-
-def _report_ceiling(ev: Evaluated) -> None:
-    """The ceiling and the targets' verdict (none without a fair ceiling)."""
-    sec, c = ev.sec, ev.c
-    assert sec is not None
-    ceil = ceiling(ev.recorded, sec.psd, ev.f_hz)
-    met = None if sec.unfair else meets_targets(c, ceil)
-    ev.out.update(second=sec.path, ceiling=ceil.to_json(), **sec.facts,
-                  lsd_over_ceiling_db=c.lsd_db - ceil.lsd_db, targets_met=met,
-                  **({"ceiling_note": f"no fair ceiling: {sec.unfair}"} if sec.unfair else {}))
-    verdict = "no verdict" if met is None else "targets met" if met else "targets not met"
-    ev.lines.append(
-        f"ceiling ({sec.path} against the scan): correlation {ceil.psd_correlation:.3f}, "
-        f"LSD {ceil.lsd_db:.2f} dB; the model's LSD is {c.lsd_db - ceil.lsd_db:+.2f} dB over "
-        f"it: {verdict} ({TARGETS})")
-    if sec.unfair:
-        ev.warnings.append(f"{sec.path} sets no fair ceiling: {sec.unfair}")
+    return p2, unfair, facts
 
 
 def evaluate_scan_file(spec: str, family: TextureFamily, path: str, second: str | None,
                        seed: int) -> Evaluated:
-    """The family rendered along the scan's stroke against the scan's DFT321 signal
-    (high-passed as the family's fit) over the samples the family covers."""
+    """:func:`evaluate_family` on one scan file, with ``second`` the ceiling and the
+    targets' verdict (none without a fair ceiling)."""
     scan = read_scans([path])[0]
     mask = family.covers(scan.speed_mm_s)
     if mask.sum() < scan.fs_hz / 2:
         raise UserError(f"{path}: column 'speed_mm_s': too little of the scan "
                         f"({int(mask.sum())} samples) is within the model's speeds")
-    sec = None if not second else _second(second, scan, mask, family)
-    set_render_parameters(family, seed=seed)
-    family.reset()
-    finger = finger_from_scan(scan)
-    try:
-        syn = family.render(finger, "vibration")
-    except RateMismatch as exc:
-        raise UserError(f"{path}: column 't_s': sample rate {scan.fs_hz:g} Hz, {spec}: "
-                        f"{exc}") from None
-    except ValueError as exc:
-        raise UserError(f"{path}: {exc}") from None
-    rec = preprocess(scan.acc, scan.fs_hz, family.highpass_hz)
-    c, f, pr, ps = compare(rec, syn, scan.fs_hz, mask)
+    p2, unfair, facts = _second(second, scan, mask, family) if second else (None, None, {})
+    c, f, pr, ps = evaluate_family(family, scan, seed=seed, mask=mask, name=spec)
     gaps = family.unscanned_speeds()
     share = None if gaps is None else float(np.mean(inside(scan.speed_mm_s[mask], gaps)))
-    out = {"model": spec, "kind": family.kind, "scan": path, **c.to_json(),
+    out = {"model": spec, "kind": family.kind, "scan": path, **asdict(c),
            "interpolated_share": share,
            "note": "time_correlation compares independent realisations: ~0 expected"}
-    ev = Evaluated(out, c, f, pr, ps, sec, f"{scan.surface} vs {family.surface or family.kind}")
+    ev = Evaluated(out, c, f, pr, ps, f"{scan.surface} vs {family.surface or family.kind}",
+                   p2, unfair)
     ev.lines.append(
         f"{family.kind}: power-spectrum correlation (20-500 Hz) {c.psd_correlation:.3f} "
         f"(dB spectra {c.psd_correlation_db:.3f}); log-spectral distance {c.lsd_db:.2f} dB; "
@@ -290,14 +248,25 @@ def evaluate_scan_file(spec: str, family: TextureFamily, path: str, second: str 
     if isinstance(family, FrictionFamily) and scan.friction_n is not None \
             and scan.force_n is not None:
         mu_rec = friction_coefficient(scan.friction_n, scan.force_n)
-        mu_syn = family.mu_at(finger.x_mm)
+        mu_syn = family.mu_at(finger_from_scan(scan).x_mm)
         ok = np.isfinite(mu_rec) & (scan.speed_mm_s > 0.5 * np.median(scan.speed_mm_s))
         err = float(np.sqrt(np.mean((mu_rec[ok] - mu_syn[ok]) ** 2)) / np.mean(mu_syn[ok]))
         out["mu_rms_error_rel"] = err
         ev.lines.append(f"mu(x) RMS error {100 * err:.2f} % of the mean (unfiltered "
                         "recording)")
-    if sec is not None:
-        _report_ceiling(ev)
+    if p2 is not None:
+        ceil = ceiling(pr, p2, f)
+        met = None if unfair else meets_targets(c, ceil)
+        out.update(second=second, ceiling=asdict(ceil), **facts,
+                   lsd_over_ceiling_db=c.lsd_db - ceil.lsd_db, targets_met=met,
+                   **({"ceiling_note": f"no fair ceiling: {unfair}"} if unfair else {}))
+        verdict = "no verdict" if met is None else "targets met" if met else "targets not met"
+        ev.lines.append(
+            f"ceiling ({second} against the scan): correlation {ceil.psd_correlation:.3f}, "
+            f"LSD {ceil.lsd_db:.2f} dB; the model's LSD is {c.lsd_db - ceil.lsd_db:+.2f} dB "
+            f"over it: {verdict} ({TARGETS})")
+        if unfair:
+            ev.warnings.append(f"{second} sets no fair ceiling: {unfair}")
     if share:
         ev.lines.append(f"{share:.1%} of the compared samples are at speeds no scan of the "
                         f"fit went at ({describe(gaps)}): the model interpolates there")
@@ -322,7 +291,7 @@ def evaluate_model(spec: str, scan_paths: list[str], seconds: list[str] | None =
 
 def fair(results: list[Evaluated]) -> list[Evaluated]:
     """The scans whose second recording sets a fair ceiling."""
-    return [r for r in results if r.sec is not None and not r.sec.unfair]
+    return [r for r in results if r.second_psd is not None and not r.unfair]
 
 
 def over_scans(spec: str, results: list[Evaluated]) -> tuple[dict, list[str]]:
@@ -334,14 +303,14 @@ def over_scans(spec: str, results: list[Evaluated]) -> tuple[dict, list[str]]:
         "lsd_db": float(np.mean([r.c.lsd_db for r in results]))}
     lines = [f"mean over {len(results)} scans: power-spectrum correlation "
              f"{mean['psd_correlation']:.3f}, log-spectral distance {mean['lsd_db']:.2f} dB"]
-    if any(r.sec is not None for r in results):
-        ok = fair(results)
+    ok = fair(results)
+    if any(r.second_psd is not None for r in results):
         mean.update(fair_pairs=len(ok), **dict.fromkeys((
             "fair_psd_correlation", "ceiling_lsd_db", "lsd_over_ceiling_db",
             "psd_correlation_se", "lsd_over_ceiling_se_db", "targets_met", "verdict_decided")))
         if not ok:
             lines.append("no scan has a fair ceiling: no verdict")
-            return {"model": spec, "scans": [r.out for r in results], "mean": mean}, lines
+    if ok:
         v = verdict_on_means([r.c.psd_correlation for r in ok],
                              [r.out["lsd_over_ceiling_db"] for r in ok])
         ceil = float(np.mean([r.out["ceiling"]["lsd_db"] for r in ok]))
@@ -365,30 +334,24 @@ def over_scans(spec: str, results: list[Evaluated]) -> tuple[dict, list[str]]:
 
 
 def plot_evaluation(path: str, results: list[Evaluated]) -> None:
-    """The spectra (with second recordings their differences; several scans: means)."""
-    r = results[0]
-    if len(results) == 1:
-        f, rec, syn = r.f_hz, r.recorded, r.synthesized
-        sec = None if r.sec is None else r.sec.psd
-        title = f"corr {r.c.psd_correlation:.3f}, LSD {r.c.lsd_db:.2f} dB"
-        label = r.label
-        ceil = r.out.get("ceiling", {}).get("lsd_db")
-    else:
-        f = r.f_hz
-        ok = fair(results)
-        pool = ok or results  # with fair ceilings, the pairs the verdict is on
-        rec = np.mean([x.recorded for x in pool], axis=0)
-        syn = np.mean([x.synthesized for x in pool], axis=0)
-        sec = np.mean([x.sec.psd for x in ok], axis=0) if ok else None  # type: ignore[union-attr]
-        title = (f"mean corr {np.mean([x.c.psd_correlation for x in pool]):.3f}, mean "
-                 f"LSD {np.mean([x.c.lsd_db for x in pool]):.2f} dB")
-        label = f"{r.label}, mean of {len(pool)} scans"
-        ceil = float(np.mean([x.out["ceiling"]["lsd_db"] for x in ok])) if ok else None
-    if sec is None:
-        plot_spectra(path, [(label, f, rec, syn)], title)
-    else:
-        plot_against_ceiling(path, f, rec, syn, sec,
-                             f"{label}: {title} (ceiling {ceil:.2f} dB)")
+    """The spectra (with second recordings their differences; several scans: the means
+    over those with a fair ceiling, else over all)."""
+    many = len(results) > 1
+    ok = fair(results) if many else [r for r in results if r.second_psd is not None]
+    pool = ok or results  # with fair ceilings, the pairs the verdict is on
+    rec = np.mean([x.recorded for x in pool], axis=0)
+    syn = np.mean([x.synthesized for x in pool], axis=0)
+    mean = "mean " if many else ""
+    title = (f"{mean}corr {np.mean([x.c.psd_correlation for x in pool]):.3f}, {mean}"
+             f"LSD {np.mean([x.c.lsd_db for x in pool]):.2f} dB")
+    label = results[0].label + (f", mean of {len(pool)} scans" if many else "")
+    if not ok:
+        plot_spectra(path, [(label, results[0].f_hz, rec, syn)], title)
+        return
+    ceil = float(np.mean([x.out["ceiling"]["lsd_db"] for x in ok]))
+    plot_against_ceiling(path, results[0].f_hz, rec, syn,
+                         np.mean([x.second_psd for x in ok], axis=0),
+                         f"{label}: {title} (ceiling {ceil:.2f} dB)")
 
 
 def identify_models(specs: list[str], scan_paths: list[str], *, distance: str | None = None,
@@ -413,12 +376,9 @@ def identify_models(specs: list[str], scan_paths: list[str], *, distance: str | 
 
 
 def compare_command(train_paths: list[str], scan_paths: list[str], kinds: list[str],
-                    out_dir: Path, *, specimens: bool = False, trials: int = 3,
-                    seed: int = 0) -> tuple[dict, list[str]]:
-    """Per family the confusion matrix (plots in ``out_dir``); with ``specimens``
-    Bianchi 2015's 2 x 2."""
-    fit_kinds = [k for k in kinds if get_kind(k).fit is not None]
-    unknown = [k for k in kinds if k not in fit_kinds]
+                    out_dir: Path, seed: int = 0) -> tuple[dict, list[str]]:
+    """Per family the confusion matrix (plots in ``out_dir``)."""
+    unknown = [k for k in kinds if get_kind(k).fit is None]
     if unknown:
         raise UserError(f"--kinds: unknown {', '.join(unknown)}")
     train, test = read_scans(train_paths), read_scans(scan_paths)
@@ -426,8 +386,7 @@ def compare_command(train_paths: list[str], scan_paths: list[str], kinds: list[s
     lines = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = compare_families(train, test, kinds, seed=seed)
-        for kind, ident in res.items():
+        for kind, ident in compare_families(train, test, kinds, seed=seed).items():
             if isinstance(ident, str):
                 lines.append(f"{kind:9s} {ident}")
                 result["families"][kind] = {"error": ident}
@@ -436,24 +395,4 @@ def compare_command(train_paths: list[str], scan_paths: list[str], kinds: list[s
             result["families"][kind] = ident.to_json()
             plot_confusion(str(out_dir / f"confusion_{kind}.png"), ident,
                            f"{kind}: rate {ident.rate:.0%}")
-        if specimens:
-            tr, te = by_surface(train), by_surface(test)
-            if not all(r in tr and r in te for r in ("R1", "R2")):
-                raise UserError("--specimens: the --train and --scans need R1 and R2 scans "
-                                "(fydpad texture generate-scans --textures R1,R2)")
-            result["specimens"] = {}
-            for kind in kinds:
-                if isinstance(res.get(kind), str):
-                    continue
-                r = specimen_experiment(kind, tr, te, te, trials=trials)
-                result["specimens"][kind] = r
-                lines.append(f"{kind:9s} SS1..SS4: spectra alone {r['rate']['spectra']:.0%}, "
-                             f"with the stiffness of a press "
-                             f"{r['rate']['spectra+stiffness']:.0%}")
-                for key, conf in r["confusion"].items():
-                    rate = r["rate"][key]
-                    plot_confusion(str(out_dir / f"specimens_{kind}_{key.replace('+', '_')}"
-                                        ".png"),
-                                   Identification(r["specimens"], conf, rate, []),
-                                   f"{kind}, {key}: {rate:.0%}")
     return result, lines

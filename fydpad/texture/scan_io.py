@@ -14,6 +14,7 @@ import numpy as np
 import scipy.signal as ss
 from numpy.typing import NDArray
 
+from fydpad.errors import UserError
 from vision.recording import CsvRowWriter, RecordingError, csv_data_line, read_csv_columns
 
 Array = NDArray[np.float64]
@@ -108,6 +109,14 @@ def read_scan(path: str | Path, rate_tolerance: float = 0.01) -> Scan:
     fs = float(f"{1.0 / med:.9g}")  # 1/median(dt) of printed times: drop rounding noise
     return Scan(str(path), fs, t, acc, speed, full.get("force_n"), read_metadata(path),
                 full.get("x_mm"), full.get("friction_n"))
+
+
+def read_scans(paths: list[str]) -> list[Scan]:
+    """:func:`read_scan` of each, a bad file a UserError."""
+    try:
+        return [read_scan(p) for p in paths]
+    except RecordingError as exc:
+        raise UserError(str(exc)) from None
 
 
 def write_scan(

@@ -4,7 +4,9 @@ that score a model form on it: held-out 8 s stroke seed 100, second recording se
 from __future__ import annotations
 
 from fydpad.synth.texture_scans import generate_scan
-from fydpad.texture.evaluation.evaluate import compare_recordings, evaluation_mask
+from fydpad.texture.evaluation.evaluate import compare
+from fydpad.texture.lpc.dft321 import preprocess
+from fydpad.texture.lpc.family import LpcFamily
 
 
 def held_out(name: str, speed_mm_s: float, model, seconds: float = 8.0, seed: int = 100,
@@ -13,6 +15,9 @@ def held_out(name: str, speed_mm_s: float, model, seconds: float = 8.0, seed: in
     against it over the same mask)."""
     held = generate_scan(name, speed_mm_s, seconds, seed=seed)
     second = generate_scan(name, speed_mm_s, seconds, seed=second_seed)
-    mask = evaluation_mask(held, model)
-    ceil = compare_recordings(held, second, model, mask)
+    fam = LpcFamily(model)
+    mask = fam.covers(held.speed_mm_s)
+    ceil, *_ = compare(preprocess(held.acc, held.fs_hz, fam.highpass_hz),
+                       preprocess(second.acc, second.fs_hz, fam.highpass_hz), held.fs_hz,
+                       mask & fam.covers(second.speed_mm_s))
     return held, mask, ceil

@@ -242,7 +242,8 @@ def target_figures():
     """The generator's held-out set-up (one 8 s training stroke per speed, held-out
     8 s strokes seed 100, ceiling seed 200) for the calibrated form:
     {(texture, speed): (corr, lsd, ceiling)}."""
-    from fydpad.texture.evaluation.evaluate import evaluate_scan
+    from fydpad.texture.evaluation.evaluate import evaluate_family
+    from fydpad.texture.lpc.family import LpcFamily
     from tests.texture.heldout import held_out
 
     out = {}
@@ -253,7 +254,7 @@ def target_figures():
             model = fit_texture([generate_scan(name, s, 8.0, seed=1) for s in SPEEDS])
             for v in (20.0, 25.0):
                 held, mask, ceil = held_out(name, v, model)
-                c, _ = evaluate_scan(model, held, mask=mask)
+                c, *_ = evaluate_family(LpcFamily(model), held, mask=mask)
                 out[(name, v)] = (c.psd_correlation, c.lsd_db, ceil.lsd_db)
     return out
 
@@ -332,7 +333,8 @@ def test_speeds_fitted_every_5_mm_s_meet_the_target_between(monkeypatch):
     stroke at 15 mm/s: +0.15 dB over the ceiling with tents scaled to the spacing, +0.55
     with the 7.5 mm/s tents, which summed three corrections there."""
     import fydpad.texture.lpc.spectrum as free_form
-    from fydpad.texture.evaluation.evaluate import evaluate_scan
+    from fydpad.texture.evaluation.evaluate import evaluate_family
+    from fydpad.texture.lpc.family import LpcFamily
     from tests.texture.heldout import held_out
 
     speeds = (10.0, 15.0, 20.0, 25.0, 30.0)
@@ -344,5 +346,5 @@ def test_speeds_fitted_every_5_mm_s_meet_the_target_between(monkeypatch):
             warnings.simplefilter("ignore")
             model = fit_texture(train, speeds_mm_s=speeds)
         held, mask, ceil = held_out("cork", 15.0, model, 12.0, 50, 51)
-        over[label] = evaluate_scan(model, held, mask=mask)[0].lsd_db - ceil.lsd_db
+        over[label] = evaluate_family(LpcFamily(model), held, mask=mask)[0].lsd_db - ceil.lsd_db
     assert over["scaled"] <= 0.25 < over["7.5"], over

@@ -12,7 +12,12 @@ import numpy as np
 import pytest
 
 from fydpad.synth.texture_scans import generate_scan
-from fydpad.texture.evaluation.identify import band_level_distance_db, band_levels_db, identify
+from fydpad.texture.evaluation.identify import (
+    band_level_distance_db,
+    band_levels_db,
+    identify_families,
+)
+from fydpad.texture.lpc.family import LpcFamily
 from fydpad.texture.lpc.fit import fit_texture
 
 F_HZ = np.arange(0.0, 501.0, 4.0)  # the Welch grid of evaluate (4 Hz bins, fs 1 kHz)
@@ -55,13 +60,14 @@ def test_identify_does_not_depend_on_the_order_of_the_scans():
     dropped), so its distances are the same whichever scans came before it."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        models = [fit_texture([generate_scan(n, s, 3.0, seed=1) for s in (10.0, 20.0)],
-                              speeds_mm_s=(10.0, 20.0)) for n in ("R1", "felt")]
+        models = [LpcFamily(fit_texture([generate_scan(n, s, 3.0, seed=1) for s in (10.0, 20.0)],
+                                        speeds_mm_s=(10.0, 20.0))) for n in ("R1", "felt")]
         scans = [generate_scan(n, 15.0, 3.0, seed=7) for n in ("R1", "felt")]
-        a = identify(models, scans)
-        b = identify(models, scans[::-1])
+        labels = [m.surface for m in models]
+        a = identify_families(models, labels, scans, distance="bands")
+        b = identify_families(models, labels, scans[::-1], distance="bands")
     assert a.assignments[0]["distance_db"] == b.assignments[1]["distance_db"]
     assert a.assignments[1]["distance_db"] == b.assignments[0]["distance_db"]
     assert a.assignments[0]["distance"] == "bands"
     with pytest.raises(ValueError, match="distance"):
-        identify(models, scans, distance="cosine")
+        identify_families(models, labels, scans, distance="cosine")

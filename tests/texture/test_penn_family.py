@@ -12,9 +12,10 @@ import scipy.signal as ss
 
 from fydpad.errors import UserError
 from fydpad.synth.hatt import write_penn
-from fydpad.texture.families import constant_stroke, load_family, spec_kind
+from fydpad.texture.families import load_family, spec_kind
 from fydpad.texture.families.penn.render import PennTexture
 from fydpad.texture.families.penn.toolkit import PennModelSet
+from fydpad.texture.family import constant_stroke
 from tests.texture.lpc_polys import poly_to_lsf, reflection_to_poly
 
 FS = 10_000.0

@@ -9,13 +9,9 @@ import warnings
 import numpy as np
 import pytest
 
+from fydpad.specimen_experiment import specimen_experiment
 from fydpad.synth.texture_scans import generate_scan, save_generated
-from fydpad.texture.evaluation.compare import (
-    by_surface,
-    compare_families,
-    shape_distance_db,
-    specimen_experiment,
-)
+from fydpad.texture.evaluation.identify import by_surface, compare_families, shape_distance_db
 from tests.texture_families.helpers import run_cli
 
 NAMES = ("R1", "R2", "canvas", "cork", "felt")
@@ -122,7 +118,7 @@ def test_the_same_seed_gives_the_same_confusion_another_seed_other_draws(scans):
     """The LPC family synthesizes noise: identify_families draws it from its seed, so two
     runs agree to the digit, and another seed gives other distances (the seed reaches
     the synthesis)."""
-    from fydpad.texture.evaluation.compare import fit_per_surface, identify_families
+    from fydpad.texture.evaluation.identify import fit_per_surface, identify_families
 
     train, test = scans
     with warnings.catch_warnings():

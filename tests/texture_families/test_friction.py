@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 
 from fydpad.synth.texture_scans import generate_scan
-from fydpad.texture.families import constant_stroke, load_family, read_scans
+from fydpad.texture.families import load_family
 from fydpad.texture.families.friction import fit_friction, parse_friction
+from fydpad.texture.family import constant_stroke
+from fydpad.texture.scan_io import read_scans
 from tests.texture_families.helpers import run_cli, truth_in_scan_frame
 
 FIT_SPEEDS = (10.0, 25.0, 40.0)

@@ -10,8 +10,9 @@ import pytest
 
 from fydpad.errors import UserError
 from fydpad.synth.texture_scans import generate_scan
-from fydpad.texture.families import constant_stroke, load_family
+from fydpad.texture.families import load_family
 from fydpad.texture.families.grating import RATIOS, GratingFamily, estimate_wavelength, level_value
+from fydpad.texture.family import constant_stroke
 from tests.texture_families.helpers import run_cli
 
 

@@ -195,7 +195,8 @@ def fitted(tmp_path_factory):
 
 
 def test_fit_round_trip_and_family_render_equals_tick(fitted, tmp_path):
-    from fydpad.texture.families import finger_from_scan, load_family
+    from fydpad.texture.families import load_family
+    from fydpad.texture.family import finger_from_scan
 
     scans, model, _ = fitted
     p = save_model_json(model_to_json(model), tmp_path / "felt_mlp.json")
@@ -264,8 +265,8 @@ def test_non_finite_and_unreadable_files(tmp_path):
 
 def test_audio_channel_at_the_sound_card_rate_is_the_network_signal(fitted):
     """render("audio") of a 48 kHz finger stream: the 1 kHz render, resampled."""
-    from fydpad.texture.families import finger_from_scan, resample_finger
     from fydpad.texture.families.mlp.render import MlpTexture
+    from fydpad.texture.family import finger_from_scan, resample_finger
 
     scans, model, _ = fitted
     fb = finger_from_scan(scans[1])
@@ -281,9 +282,8 @@ def test_audio_channel_at_the_sound_card_rate_is_the_network_signal(fitted):
 
 def test_missing_speed_or_force_fails_safe(fitted):
     """NaN speed: silence; NaN force: the last reading held. Block and tick agree."""
-    from fydpad.texture.families import finger_from_scan
     from fydpad.texture.families.mlp.render import MlpTexture
-    from fydpad.texture.family import FingerBlock
+    from fydpad.texture.family import FingerBlock, finger_from_scan
 
     scans, model, _ = fitted
     fb = finger_from_scan(scans[1])

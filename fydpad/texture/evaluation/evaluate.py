@@ -1,37 +1,38 @@
-"""Synthesized against recorded texture signals (Bianchi 2015 IV-A), on the DFT321
-signal high-passed at 10 Hz, before any drive filter: ``psd_correlation``, the Pearson
-correlation of the Welch power spectra (4 Hz bins, 20-500 Hz; the paper's "correlation
-in frequency", 0.681), ``psd_correlation_db`` the same on dB spectra; ``lsd_db``, the
-RMS over the band of their dB difference; ``band_energy`` per band in (m/s^2)^2; and
-``time_correlation`` (the paper's 0.263), near 0 for independent realisations of any
-correct model, reported for comparison only.
+"""Synthesized against recorded texture signals (Bianchi 2015 IV-A), on the DFT321 signal
+high-passed as the fit, before any drive filter: Welch spectra in 4 Hz bins over 20-500 Hz,
+their Pearson correlation (the paper's "correlation in frequency", 0.681; also on dB
+spectra) and log-spectral distance, band energies, and the time correlation (the paper's
+0.263; near 0 for independent realisations of any correct model, reported for comparison).
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.signal as ss
 from numpy.typing import ArrayLike, NDArray
 
+from fydpad.errors import UserError
+from fydpad.texture.family import RateMismatch, TextureFamily, finger_from_scan
 from fydpad.texture.lpc.analysis import runs
 from fydpad.texture.lpc.dft321 import preprocess
-from fydpad.texture.lpc.model_file import TextureModel
-from fydpad.texture.lpc.synthesis import synthesize
 from fydpad.texture.scan_io import Scan
 
 Array = NDArray[np.float64]
 BAND_HZ = (20.0, 500.0)
 BIN_HZ = 4.0
 ENERGY_BANDS_HZ = ((20, 50), (50, 100), (100, 200), (200, 500), (165, 220))
+#: The targets: the power-spectrum correlation at least this, and the log-spectral
+#: distance within this of what a second recording of the surface scores (the ceiling).
+TARGET_PSD_CORRELATION = 0.95
+TARGET_LSD_OVER_CEILING_DB = 0.25
 
 
-def welch_psd(x: ArrayLike, fs: float, mask: ArrayLike | None = None,
-              bin_hz: float = BIN_HZ) -> tuple[Array, Array]:
-    """Welch PSD with ``bin_hz`` bins (Hann, 50 %), averaged over the True runs of mask."""
+def welch_psd(x: ArrayLike, fs: float, mask: ArrayLike | None = None) -> tuple[Array, Array]:
+    """Welch PSD in ``BIN_HZ`` bins (Hann, 50 %), averaged over the True runs of mask."""
     x = np.asarray(x, float)
-    nper = round(fs / bin_hz)
+    nper = round(fs / BIN_HZ)
     pieces = [(0, x.size)] if mask is None else runs(mask, nper)
     acc, weight, f = None, 0, None
     for a, b in pieces:
@@ -41,7 +42,7 @@ def welch_psd(x: ArrayLike, fs: float, mask: ArrayLike | None = None,
         acc = p * (b - a) if acc is None else acc + p * (b - a)
         weight += b - a
     if acc is None:
-        raise ValueError(f"fewer than {nper} samples to estimate a {bin_hz:g} Hz-bin spectrum")
+        raise ValueError(f"fewer than {nper} samples to estimate a {BIN_HZ:g} Hz-bin spectrum")
     return f, acc / weight
 
 
@@ -67,16 +68,13 @@ class Comparison:
     band_energy_recorded: dict[str, float]
     band_energy_synthesized: dict[str, float]
 
-    def to_json(self) -> dict:
-        return asdict(self)
 
-
-def compare(recorded: Array, synthesized: Array, fs: float, mask: ArrayLike | None = None,
-            band: tuple[float, float] = BAND_HZ) -> tuple[Comparison, Array, Array, Array]:
+def compare(recorded: Array, synthesized: Array, fs: float, mask: ArrayLike | None = None
+            ) -> tuple[Comparison, Array, Array, Array]:
     """Metrics of two equally long signals over the mask; also (f, P_rec, P_syn)."""
     f, pr = welch_psd(recorded, fs, mask)
     _, ps = welch_psd(synthesized, fs, mask)
-    sel = _band(f, band)
+    sel = _band(f, BAND_HZ)
     m = np.ones(recorded.size, bool) if mask is None else np.asarray(mask, bool)
     r, s = recorded[m], synthesized[m]
     tc = float(np.corrcoef(r, s)[0, 1]) if r.size > 2 else float("nan")
@@ -92,29 +90,47 @@ def compare(recorded: Array, synthesized: Array, fs: float, mask: ArrayLike | No
     return c, f, pr, ps
 
 
-#: The targets: the power-spectrum correlation at least this, and the log-spectral
-#: distance within this of what a second recording of the surface scores (the ceiling).
-TARGET_PSD_CORRELATION = 0.95
-TARGET_LSD_OVER_CEILING_DB = 0.25
+def render_stroke(family: TextureFamily, scan: Scan, channel: str = "vibration",
+                  seed: int = 0, name: str = "") -> Array:
+    """A new stroke of ``family`` along the scan's finger stream, its noise (if any) drawn
+    from ``seed``; a model that cannot render it is a UserError naming the scan and
+    ``name`` (the model)."""
+    if "seed" in family.parameters:
+        family.set_parameter("seed", seed)
+    family.reset()
+    where = f"{name}: " if name else ""
+    try:
+        return family.render(finger_from_scan(scan), channel)
+    except RateMismatch as exc:
+        raise UserError(f"{scan.path}: column 't_s': sample rate {scan.fs_hz:g} Hz, "
+                        f"{where}{exc}") from None
+    except ValueError as exc:
+        raise UserError(f"{scan.path}: {where}{exc}") from None
+
+
+def evaluate_family(family: TextureFamily, scan: Scan, *, seed: int = 0,
+                    mask: ArrayLike | None = None, name: str = ""
+                    ) -> tuple[Comparison, Array, Array, Array]:
+    """The family's vibration along the scan's stroke (:func:`render_stroke`) against the
+    scan, over ``mask`` (default: the samples the family covers); also (f, P_rec, P_syn)."""
+    syn = render_stroke(family, scan, seed=seed, name=name)
+    rec = preprocess(scan.acc, scan.fs_hz, family.highpass_hz)
+    return compare(rec, syn, scan.fs_hz,
+                   family.covers(scan.speed_mm_s) if mask is None else mask)
 
 
 @dataclass
 class Ceiling:
-    """A second recording of the surface scored against the scan as a model is: what
-    two realisations of the texture score against each other."""
+    """A second recording scored against the scan as a model is: what two realisations
+    of the texture score against each other."""
 
     psd_correlation: float
     lsd_db: float
 
-    def to_json(self) -> dict:
-        return asdict(self)
 
-
-def ceiling(recorded_psd: Array, second_psd: Array, f_hz: Array,
-            band: tuple[float, float] = BAND_HZ) -> Ceiling:
-    """The ceiling from the two recordings' Welch spectra (each over its own samples
-    within the model's speeds)."""
-    sel = _band(f_hz, band)
+def ceiling(recorded_psd: Array, second_psd: Array, f_hz: Array) -> Ceiling:
+    """The ceiling from the two recordings' Welch spectra."""
+    sel = _band(f_hz, BAND_HZ)
     return Ceiling(psd_correlation(recorded_psd[sel], second_psd[sel]),
                    lsd_db(recorded_psd[sel], second_psd[sel]))
 
@@ -138,15 +154,12 @@ def unfair_ceiling(scan_speeds_mm_s: Array, second_speeds_mm_s: Array, fs_hz: fl
 
 
 def meets_targets(c: Comparison, ceil: Ceiling) -> bool:
-    """The targets: correlation >= 0.95 and LSD <= the ceiling's + 0.25 dB."""
     return (c.psd_correlation >= TARGET_PSD_CORRELATION
             and c.lsd_db <= ceil.lsd_db + TARGET_LSD_OVER_CEILING_DB)
 
 
 @dataclass(frozen=True)
 class MeansVerdict:
-    """The targets judged on the means of several strokes: :func:`verdict_on_means`."""
-
     psd_correlation: float
     lsd_over_ceiling_db: float
     psd_correlation_se: float | None  # None with one stroke
@@ -156,9 +169,9 @@ class MeansVerdict:
 
 
 def verdict_on_means(corr: ArrayLike, lsd_over_ceiling_db: ArrayLike) -> MeansVerdict:
-    """Mean correlation >= 0.95 and mean LSD - ceiling <= 0.25 dB over the strokes (each
-    against its own second recording: one pair is two random draws). Decided: both
-    means clear their limits by two standard errors (met), or one misses by two."""
+    """The targets on the means over the strokes (each against its own second recording:
+    one pair is two random draws). Decided: both means clear their limits by two standard
+    errors (met), or one misses by two."""
     c = np.asarray(corr, float)
     d = np.asarray(lsd_over_ceiling_db, float)
     corr_mean, gap = float(np.mean(c)), float(np.mean(d))
@@ -174,35 +187,3 @@ def verdict_on_means(corr: ArrayLike, lsd_over_ceiling_db: ArrayLike) -> MeansVe
         decided = (gap - 2 * g_se > TARGET_LSD_OVER_CEILING_DB
                    or corr_mean + 2 * c_se < TARGET_PSD_CORRELATION)
     return MeansVerdict(corr_mean, gap, c_se, g_se, met, decided)
-
-
-def evaluation_mask(scan: Scan, model: TextureModel) -> NDArray[np.bool_]:
-    """Samples within the model's speed range (widened by its tolerance)."""
-    tol, v = model.tolerance_mm_s, scan.speed_mm_s
-    return (v >= model.speeds_mm_s[0] - tol) & (v <= model.speeds_mm_s[-1] + tol)
-
-
-def evaluate_scan(model: TextureModel, scan: Scan, *, seed: int = 0,
-                  mask: ArrayLike | None = None) -> tuple[Comparison, dict]:
-    """Synthesize along the scan's own speed trace and compare with its DFT321 signal."""
-    if abs(scan.fs_hz - model.fs_hz) > 1e-6 * model.fs_hz:
-        raise ValueError(f"{scan.path}: sample rate {scan.fs_hz:g} Hz, model {model.fs_hz:g} Hz")
-    rec = preprocess(scan.acc, scan.fs_hz, model.highpass_hz)
-    syn = synthesize(model, scan.speed_mm_s, seed=seed)
-    if mask is None:
-        mask = evaluation_mask(scan, model)
-    c, f, pr, ps = compare(rec, syn, scan.fs_hz, mask)
-    return c, {"f_hz": f, "recorded": pr, "synthesized": ps, "signal": syn}
-
-
-def compare_recordings(scan: Scan, other: Scan, model: TextureModel,
-                       mask: ArrayLike | None = None) -> Comparison:
-    """Another recording of the surface scored against ``scan`` as :func:`evaluate_scan`
-    scores the model (the ceiling), over ``mask`` (default: within the model's speeds)
-    and the other's samples within the model's speeds."""
-    if mask is None:
-        mask = evaluation_mask(scan, model)
-    c, *_ = compare(preprocess(scan.acc, scan.fs_hz, model.highpass_hz),
-                    preprocess(other.acc, other.fs_hz, model.highpass_hz), scan.fs_hz,
-                    np.asarray(mask, bool) & evaluation_mask(other, model))
-    return c

@@ -1,49 +1,45 @@
-"""Which surface does each model sound like (an objective analogue of Bianchi 2015's
-Table I)? Every model is rendered along each scan's own speed trace and the scan goes to
-the model whose spectrum (Welch, 4 Hz bins, 20-500 Hz, over the same samples) is
-nearest; confusion[i][j] counts scans of label i assigned to model label j.
-
-Distances: ``"bands"`` (default), the RMS over third-octave bands (edges 20 * 2^(k/3)
-Hz, 14 bands) of the level difference in dB, L_b = 10 log10(mean P over band b): weight
-per octave, where a surface's content is (4 Hz bins put three quarters of the weight
-above 140 Hz, mostly the sensor floor), and each band judged on its power rather than
-on where a comb line sits to a bin; a third of an octave is also about the Weber
-fraction of vibrotactile frequency discrimination. ``"lsd"``: the log-spectral distance
-on the 4 Hz bins (evaluate's metric).
-"""
+"""Which surface does each scan sound like (an objective analogue of Bianchi 2015's Table
+I)? Every model of one family is rendered along each scan's own finger stream and the
+scan goes to the model of nearest spectrum (Welch, 4 Hz bins, over the same samples):
+``"bands"`` (LPC's default) the RMS level difference over third-octave bands, ``"lsd"`` the
+log-spectral distance on the bins, ``"shape"`` (the other families') the dB difference less
+its mean and tilt. docs/texture.md and docs/texture_families.md give the reasons."""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from itertools import pairwise
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.evaluation.evaluate import BAND_HZ, evaluation_mask, lsd_db, welch_psd
+from fydpad.texture.evaluation.evaluate import BAND_HZ, lsd_db, render_stroke, welch_psd
+from fydpad.texture.families import get_kind
+from fydpad.texture.families.friction import friction_coefficient
+from fydpad.texture.family import TextureFamily
 from fydpad.texture.lpc.dft321 import preprocess
-from fydpad.texture.lpc.model_file import TextureModel
-from fydpad.texture.lpc.synthesis import TextureRenderer
-from fydpad.texture.plots import pyplot
 from fydpad.texture.scan_io import Scan
+
+Array = NDArray[np.float64]
+BANDS_PER_OCTAVE = 3
+#: Per family: (the channel rendered, the band compared in Hz, the scan's observable).
+OBSERVABLES = {"friction": ("tension", (2.0, 100.0), "friction")}
+DEFAULT_OBSERVABLE = ("vibration", BAND_HZ, "acceleration")
 
 
 @dataclass
 class Identification:
     labels: list[str]
-    confusion: list[list[int]]
+    confusion: list[list[int]]  # [i][j]: scans of label i assigned to model label j
     rate: float
     assignments: list[dict]
 
     def to_json(self) -> dict:
         return {"rate": self.rate, "labels": self.labels, "confusion": self.confusion,
                 "assignments": self.assignments}
-
-
-Array = NDArray[np.float64]
-BANDS_PER_OCTAVE = 3
 
 
 def band_levels_db(f_hz: Array, p: Array, band_hz: tuple[float, float] = BAND_HZ,
@@ -59,7 +55,6 @@ def band_levels_db(f_hz: Array, p: Array, band_hz: tuple[float, float] = BAND_HZ
 
 
 def band_level_distance_db(f_hz: Array, p1: Array, p2: Array) -> float:
-    """RMS over third-octave bands of the level difference in dB (module docstring)."""
     d = band_levels_db(f_hz, p1) - band_levels_db(f_hz, p2)
     return float(np.sqrt(np.mean(d * d)))
 
@@ -73,87 +68,115 @@ DISTANCES: dict[str, Callable[[Array, Array, Array], float]] = {
     "bands": band_level_distance_db, "lsd": _bin_lsd_db}
 
 
-def scored_samples(scan: Scan, covered: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    """The samples a model covers, or where too few (half a second), every moving one."""
-    return covered if covered.sum() >= scan.fs_hz / 2 else scan.speed_mm_s > 1.0
+def shape_distance_db(p1: Array, p2: Array, f: Array | None = None) -> float:
+    """RMS of the dB difference of two spectra less its mean and, given the frequencies
+    ``f``, its linear trend in log f."""
+    d = 10 * np.log10(np.maximum(p1, 1e-30) / np.maximum(p2, 1e-30))
+    if f is None:
+        d = d - d.mean()
+    else:
+        lf = np.log(f)
+        d = d - np.polyval(np.polyfit(lf, d, 1), lf)
+    return float(np.sqrt(np.mean(d * d)))
 
 
-def too_short(scan: Scan, mask: NDArray[np.bool_], exc: Exception) -> UserError:
-    return UserError(f"{scan.path}: too short to identify ({scan.t_s.size} rows, "
-                     f"{int(mask.sum())} of them scanning by column 'speed_mm_s'): {exc}")
+def observe(scan: Scan, what: str, highpass_hz: float = 10.0) -> Array:
+    """The scan's signal a family is compared with (the module docstring)."""
+    if what == "friction":
+        if scan.friction_n is None or scan.force_n is None:
+            raise ValueError(f"{scan.path}: no friction_n/force_n columns")
+        mu = friction_coefficient(scan.friction_n, scan.force_n)
+        return np.nan_to_num(mu - np.nanmean(mu))
+    return preprocess(scan.acc, scan.fs_hz, highpass_hz)
 
 
-def tally(model_labels: Sequence[str], scans: Sequence[Scan],
-          distances: Callable[[Scan], list[float]], distance: str,
-          wrap: Callable[[Iterable], Iterable], key: str = "distance_db") -> Identification:
-    """Every scan assigned to the model of least ``distances(scan)`` (one per model)."""
-    labels = list(dict.fromkeys(list(model_labels) + [s.surface for s in scans]))
-    conf = np.zeros((len(labels), len(labels)), int)
+def identify_families(models: Sequence[TextureFamily], labels: Sequence[str],
+                      scans: Sequence[Scan], *, seed: int = 0, distance: str = "shape",
+                      wrap: Callable[[Iterable], Iterable] = lambda it: it,
+                      model_names: Sequence[str] | None = None) -> Identification:
+    """Assign each scan to the nearest model (all of one family, one per surface).
+
+    ``"shape"`` is scored over each scan's moving samples, ``"bands"``/``"lsd"`` (the
+    vibration against the acceleration high-passed as the family's fit) over the samples
+    each model covers. Each scan's synthesis draws its noise from ``seed``, so a run is
+    reproducible and independent of the order of the scans."""
+    if distance != "shape" and distance not in DISTANCES:
+        raise ValueError(f"distance {distance!r}: expected shape or one of "
+                         f"{', '.join(DISTANCES)}")
+    names = list(model_names) if model_names is not None else list(labels)
+    channel, band, what = (OBSERVABLES.get(models[0].kind, DEFAULT_OBSERVABLE)
+                           if distance == "shape" else DEFAULT_OBSERVABLE)
+    key = "shape_distance_db" if distance == "shape" else "distance_db"
+    all_labels = list(dict.fromkeys([*labels, *(s.surface for s in scans)]))
+    conf = np.zeros((len(all_labels), len(all_labels)), int)
     assignments = []
     for scan in wrap(scans):
-        dists = distances(scan)
-        j = int(np.argmin(dists))
-        conf[labels.index(scan.surface), labels.index(model_labels[j])] += 1
-        assignments.append({"scan": scan.path, "label": scan.surface,
-                            "predicted": model_labels[j], "distance": distance,
-                            key: {lab: round(d, 3) for lab, d in
-                                  zip(model_labels, dists, strict=True)}})
-    rate = float(np.trace(conf) / max(1, conf.sum()))
-    return Identification(labels, conf.tolist(), rate, assignments)
-
-
-def identify(models: Sequence[TextureModel], scans: Sequence[Scan], *, distance: str = "bands",
-             seed: int = 0,
-             wrap: Callable[[Iterable], Iterable] = lambda it: it,
-             model_names: Sequence[str] | None = None) -> Identification:
-    """Assign every scan to the LPC model with the nearest synthesized spectrum (one
-    renderer per model, reseeded with ``seed`` for every scan). ``model_names`` (the
-    model files) name the models in errors; a scan at another rate than a model, or too
-    short for one spectrum, is a UserError naming the scan."""
-    if distance not in DISTANCES:
-        raise ValueError(f"distance {distance!r}: expected one of {', '.join(DISTANCES)}")
-    names = list(model_names) if model_names is not None else [
-        f"model '{m.surface}'" for m in models]
-    for scan in scans:  # at another rate the synthesis's spectrum would be stretched
+        dists = []
         for m, name in zip(models, names, strict=True):
-            if abs(scan.fs_hz - m.fs_hz) > 1e-6 * m.fs_hz:
-                raise UserError(f"{scan.path}: column 't_s': sample rate {scan.fs_hz:g} Hz, "
-                                f"{name}: key 'sample_rate_hz' {m.fs_hz:g} Hz")
-    renderers = [TextureRenderer(m, ramp_s=1e-6) for m in models]
-
-    def distances(scan: Scan) -> list[float]:
-        out = []
-        for m, r in zip(models, renderers, strict=True):
-            mask = scored_samples(scan, evaluation_mask(scan, m))
+            mask = scan.speed_mm_s > 1.0  # every moving sample, or where enough, those
+            covered = m.covers(scan.speed_mm_s)  # the model covers (bands, lsd)
+            if distance != "shape" and covered.sum() >= scan.fs_hz / 2:
+                mask = covered
             try:
-                f, pr = welch_psd(preprocess(scan.acc, scan.fs_hz, m.highpass_hz),
-                                  scan.fs_hz, mask)
+                f, pr = welch_psd(observe(scan, what, m.highpass_hz), scan.fs_hz, mask)
             except ValueError as exc:  # the synthesis has the same mask: one check
-                raise too_short(scan, mask, exc) from None
-            r.reset()
-            r.reseed(seed)  # each scan's synthesis independent of the scans before it
-            r.warmup(float(scan.speed_mm_s[0]), 0.5)
-            _, ps = welch_psd(r.block(scan.speed_mm_s, True), scan.fs_hz, mask)
-            out.append(DISTANCES[distance](f, pr, ps))
-        return out
+                raise UserError(f"{scan.path}: too short to identify ({scan.t_s.size} rows, "
+                                f"{int(mask.sum())} of them scanning by column "
+                                f"'speed_mm_s'): {exc}") from None
+            syn = render_stroke(m, scan, channel, seed, name)
+            if distance == "shape":
+                _, ps = welch_psd(syn - np.mean(syn), scan.fs_hz, mask)
+                sel = (f >= band[0]) & (f <= min(band[1], scan.fs_hz / 2))
+                dists.append(shape_distance_db(pr[sel], ps[sel], f[sel]))
+            else:
+                _, ps = welch_psd(syn, scan.fs_hz, mask)
+                dists.append(DISTANCES[distance](f, pr, ps))
+        j = int(np.argmin(dists))
+        conf[all_labels.index(scan.surface), all_labels.index(labels[j])] += 1
+        assignments.append({"scan": scan.path, "label": scan.surface,
+                            "predicted": labels[j], "distance": distance,
+                            key: {lab: round(d, 3) for lab, d in
+                                  zip(labels, dists, strict=True)}})
+    rate = float(np.trace(conf) / max(1, conf.sum()))
+    return Identification(all_labels, conf.tolist(), rate, assignments)
 
-    return tally([m.surface for m in models], scans, distances, distance, wrap)
+
+# --------------------------------------------------------------- the cross-family run
+def by_surface(scans: Sequence[Scan]) -> dict[str, list[Scan]]:
+    out: dict[str, list[Scan]] = {}
+    for s in scans:
+        out.setdefault(s.surface, []).append(s)
+    return out
 
 
-def plot_confusion(path: str, ident: Identification, title: str = "") -> None:
-    plt = pyplot()
-    c = np.asarray(ident.confusion)
-    n = len(ident.labels)
-    fig, ax = plt.subplots(figsize=(1.0 + 0.5 * n, 1.0 + 0.45 * n), constrained_layout=True)
-    ax.imshow(c, cmap="Blues")
-    ax.set_xticks(range(n), ident.labels, rotation=60, ha="right")
-    ax.set_yticks(range(n), ident.labels)
-    ax.set_xlabel("identified as (model)")
-    ax.set_ylabel("scan surface")
-    for i in range(n):
-        for j in range(n):
-            if c[i, j]:
-                ax.text(j, i, str(c[i, j]), ha="center", va="center")
-    ax.set_title(title or f"identification rate {ident.rate:.0%}")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+def fit_per_surface(kind: str, train: dict[str, list[Scan]], **options: Any
+                    ) -> tuple[list[TextureFamily], list[str]]:
+    """One model of ``kind`` per surface, fitted in memory with the fit ``options`` (LPC
+    by default: order 60 at the scans' median speeds rounded to 5 mm/s)."""
+    k = get_kind(kind)
+    models, labels = [], []
+    for label, scans in train.items():
+        opts = dict(options)
+        if kind == "lpc":
+            opts.setdefault("order", 60)
+            opts.setdefault("speeds_mm_s", sorted({round(float(np.median(s.speed_mm_s)) / 5)
+                                                   * 5.0 for s in scans}))
+        models.append(k.from_json(k.fit(scans, surface=label, **opts), f"{kind}:{label}"))
+        labels.append(label)
+    return models, labels
+
+
+def compare_families(train: Sequence[Scan], test: Sequence[Scan], kinds: Sequence[str],
+                     seed: int = 0) -> dict[str, Identification | str]:
+    """Per family one model per training surface, and every test scan identified."""
+    out: dict[str, Identification | str] = {}
+    groups = by_surface(train)
+    for kind in kinds:
+        try:
+            models, labels = fit_per_surface(kind, groups)
+        except Exception as exc:  # a family that cannot fit these scans is reported
+            out[kind] = f"not fitted: {exc}"
+            continue
+        out[kind] = identify_families(models, labels, test, seed=seed)
+    return out
+

@@ -10,25 +10,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from fydpad.errors import UserError
 from fydpad.texture.families import friction, grating
 from fydpad.texture.families.mlp import render as mlp
 from fydpad.texture.families.penn import render as penn
-from fydpad.texture.family import (
-    FingerBlock,
-    Kind,
-    TextureFamily,
-    constant_stroke,
-    finger_from_scan,
-    read_model_json,
-    resample_finger,
-    save_model_json,
-)
+from fydpad.texture.family import Kind, TextureFamily, read_model_json
 from fydpad.texture.lpc import family as lpc
-from fydpad.texture.scan_io import read_scan
-from vision.recording import RecordingError, read_csv_columns
 
 KINDS: dict[str, Kind] = {k.name: k for k in (lpc.KIND, friction.KIND, grating.KIND,
                                               mlp.KIND, penn.KIND)}
@@ -93,26 +80,3 @@ def fit_family(kind: str, scans: list, **options: Any) -> dict[str, Any]:
         raise UserError(f"texture kind {kind!r} is not fitted from scans")
     return k.fit(scans, **options)
 
-
-def read_scans(paths: list[str]) -> list:
-    """Texture scans (``scan_io.read_scan``) with their ``x_mm`` and ``friction_n`` columns
-    attached when present (the position-indexed families need them)."""
-    out = []
-    try:
-        for p in paths:
-            sc = read_scan(p)
-            cols = read_csv_columns(p, ("t_s",), ("x_mm", "friction_n"),
-                                    empty_ok=("x_mm", "friction_n"))
-            for name in ("x_mm", "friction_n"):
-                col = cols.get(name)
-                setattr(sc, name, col if col is not None and np.isfinite(col).all() else None)
-            out.append(sc)
-    except RecordingError as exc:
-        raise UserError(str(exc)) from None
-    return out
-
-
-# The contract's stream and file helpers, offered here beside the families that use them.
-__all__ = ["FIT_KIND_NAMES", "KINDS", "KIND_NAMES", "FingerBlock", "constant_stroke",
-           "finger_from_scan", "fit_family", "get_kind", "load_family", "read_model_json",
-           "read_scans", "resample_finger", "save_model_json", "spec_kind", "split_spec"]

@@ -1,13 +1,9 @@
 """The FYD-pad's LPC texture (Bianchi 2015 III-B, eq. 5) behind the family contract: the
-model file (:mod:`model_file`) rendered by :class:`synthesis.TextureRenderer`, and
-``fydpad texture fit`` through :mod:`select`.
-
-``render`` synthesizes along the block's speed after a 0.5 s warm-up at its first speed;
-``tick`` renders one sample per station tick. Switching between very different per-speed
-filters can grow the filter's history though each filter is stable, so a tick beyond
-``LIMIT_FACTOR`` times the largest RMS the model produces at its own speeds clears the
-filter (``counters()["limiter_resets"]``) and is clipped.
-"""
+model file rendered by :class:`synthesis.TextureRenderer`, ``fydpad texture fit`` through
+:mod:`select`. Switching between very different per-speed filters can grow the filter's
+history though each filter is stable, so a tick beyond ``LIMIT_FACTOR`` times the model's
+largest RMS at its own speeds clears the filter and is clipped
+(``counters()["limiter_resets"]``)."""
 
 from __future__ import annotations
 
@@ -29,8 +25,7 @@ from fydpad.texture.lpc.model_file import TextureModel, model_to_json, parse_mod
 from fydpad.texture.lpc.select import fit_candidate, select_model, selection_table
 from fydpad.texture.lpc.synthesis import TextureRenderer
 from fydpad.texture.plots import SpeedCoverage, plot_spectra
-from fydpad.texture.scan_io import Scan, read_scan
-from vision.recording import RecordingError
+from fydpad.texture.scan_io import Scan, read_scans
 
 #: A tick beyond this many times the model's largest RMS clears the filter.
 LIMIT_FACTOR = 10.0
@@ -56,11 +51,17 @@ class LpcFamily(FamilyBase):
         self.limit = math.inf
         self.resets = 0
         self.tick_renderer: TextureRenderer | None = None
+        #: ``render``'s renderer: its table is built once (hundreds of all-pole fits for a
+        #: calibrated model), then reset and reseeded for each new stroke.
         self._renderer: TextureRenderer | None = None
+        self._restart = True
 
     def set_parameter(self, name: str, value: Any) -> None:
         super().set_parameter(name, value)
-        self._renderer = self.tick_renderer = None  # rebuilt with the new value
+        self.tick_renderer = None  # prepare() builds it with the new value
+        if name != "seed":
+            self._renderer = None
+        self._restart = True
 
     def check_rate(self, rate_hz: float) -> None:
         """One sample per tick: a model at another rate would play at rate_hz / fs_hz
@@ -104,16 +105,20 @@ class LpcFamily(FamilyBase):
             raise RateMismatch(f"key 'sample_rate_hz' {self.model.fs_hz:g} Hz (an LPC model "
                                f"renders at its own rate: fit it on scans at "
                                f"{finger.fs_hz:g} Hz)")
-        if self._renderer is None:
-            p = self.parameters
-            self._renderer = TextureRenderer(self.model, seed=p["seed"],
-                                             drive_filter=p["drive_filter"], ramp_s=1e-6)
-            v0 = float(finger.speed_mm_s[0]) if finger.speed_mm_s.size else 0.0
-            self._renderer.warmup(v0, 0.5)
-        return self._renderer.block(finger.speed_mm_s, finger.contact)
+        r = self._renderer
+        if r is None:
+            r = self._renderer = TextureRenderer(
+                self.model, drive_filter=self.parameters["drive_filter"], ramp_s=1e-6)
+        if self._restart:  # as a new renderer: no history, the noise from the seed
+            r.reset()
+            r.reseed(self.parameters["seed"])
+            r.clamped = False
+            r.warmup(float(finger.speed_mm_s[0]) if finger.speed_mm_s.size else 0.0, 0.5)
+            self._restart = False
+        return r.block(finger.speed_mm_s, finger.contact)
 
     def reset(self) -> None:
-        self._renderer = None
+        self._restart = True
         if self.tick_renderer is not None:
             self.tick_renderer.reset()
 
@@ -171,10 +176,7 @@ def fit_command(scan_paths: list[str], opts: dict[str, Any], out: str,
     whole, and with ``plot`` the recorded against the model spectra (Bianchi 2015 Fig. 10)."""
     if not scan_paths:
         raise UserError("fit: give at least one SCAN.csv")
-    try:
-        scans = [read_scan(p) for p in scan_paths]
-    except RecordingError as exc:
-        raise UserError(str(exc)) from None
+    scans = read_scans(scan_paths)
     check_fit_options(opts, scans[0].fs_hz)
     labels = [sc.meta.get("surface") for sc in scans]
     notes = []
