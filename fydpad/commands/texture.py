@@ -104,9 +104,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="grating: vibrotactile:friction levels, V+F=10 (default 8:2 for "
                    "lambda >= 1 mm, else 6:4)")
     f.add_argument("--order", type=int, default=200, help="LPC order per speed (default 200)")
-    f.add_argument("--speeds", type=_floats, default=[10.0, 20.0, 30.0, 40.0],
+    f.add_argument("--speeds", dest="speeds_mm_s", type=_floats,
+                   default=[10.0, 20.0, 30.0, 40.0],
                    metavar="S1,S2,..", help="target speeds in mm/s (default 10,20,30,40)")
-    f.add_argument("--tolerance", type=float, default=5.0, metavar="MM_S",
+    f.add_argument("--tolerance", dest="tolerance_mm_s", type=float, default=5.0, metavar="MM_S",
                    help="a run is valid while |speed - target| <= this (default 5 mm/s)")
     f.add_argument("--min-seconds", type=float, default=0.25,
                    help="shortest run used (default 0.25 s)")
@@ -121,7 +122,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "part S(f,v) times a correction measured at each target speed (needs two "
                    "or more)")
     f.add_argument("--surface", help="surface label (default: the scans' # surface= or name)")
-    f.add_argument("--drive-band", type=_floats, default=[165.0, 220.0], metavar="LO,HI",
+    f.add_argument("--drive-band", dest="drive_band_hz", type=_floats, default=[165.0, 220.0],
+                   metavar="LO,HI",
                    help="output drive filter band stored in the model (default 165,220 Hz)")
     f.add_argument("--plot", metavar="FIG.png",
                    help="recorded against model spectra per speed (like Bianchi 2015 Fig. 10)")
@@ -365,7 +367,6 @@ def run_fit(args: argparse.Namespace) -> int:
     _check_out(args.out, "--out")
     _check_out(args.plot, "--plot")
     options = {**vars(args),
-               "wrap": lambda it: progress(it, total=len(args.scans), desc="fit", unit="scan"),
                "wrap_iterations": lambda it: progress(it, desc="spectral model", unit="it")}
     fitted = ops.fit_model(args.kind, args.scans, options, args.out, args.plot,
                            extra=_set_options(args.set))

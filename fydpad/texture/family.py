@@ -58,21 +58,28 @@ class FingerBlock:
 @dataclass(frozen=True)
 class Kind:
     """One family in the registry: how to build it from a parsed model file, fit one from
-    scans, or (HaTT) read its own file format."""
+    scans, or (HaTT) read its own file format. ``fydpad texture fit`` calls, for every
+    family, ``check_options``, ``notes``, ``fit``, ``describe`` and ``plot`` in turn."""
 
     name: str
     from_json: Callable[[dict[str, Any], str], TextureFamily]
     #: ``fit(scans, **options)`` -> the model file's JSON.
     fit: Callable[..., dict[str, Any]] | None
-    summary: str = ""
     from_file: Callable[[str], TextureFamily] | None = None
-    #: The ``fydpad texture fit`` options it takes (argument names), passed to ``fit``.
+    #: The ``fydpad texture fit`` options it takes (argument names), passed to ``fit``;
+    #: ``report`` among them: a callable the fit hands the lines of how it chose.
     fit_options: tuple[str, ...] = ()
+    #: Whether ``fit`` takes options beyond those (``--set KEY=VALUE``).
+    set_options: bool = True
+    #: ``check_options(options, fs_hz)``: a UserError for an option the scans' rate rules
+    #: out, before the fit.
+    check_options: Callable[[dict[str, Any], float], None] | None = None
+    #: ``notes(scans, options)``: warnings about the scans as a whole.
+    notes: Callable[[list, dict[str, Any]], list[str]] | None = None
     #: ``describe(data, where)``: the lines ``fydpad texture fit`` prints about a fit.
     describe: Callable[[dict[str, Any], str], list[str]] | None = None
-    #: ``fit_command(scan_paths, options, out, plot)`` -> (JSON, lines, warnings): a fit
-    #: with its own report (LPC's selection and plot) instead of ``fit`` and ``describe``.
-    fit_command: Callable[..., tuple[dict[str, Any], list[str], list[str]]] | None = None
+    #: ``plot(path, scans, data, options)``: a figure of the fit against the scans.
+    plot: Callable[[str, list, dict[str, Any], dict[str, Any]], None] | None = None
     #: ``identify``'s default distance: "shape" (levels and tilt removed: families whose
     #: level is a gain) or "bands" (third-octave levels: models of recorded accelerations).
     distance: str = "shape"
@@ -204,6 +211,17 @@ def hold_finite(x: Array, first: float) -> Array:
     idx = np.where(ok, np.arange(x.size), -1)
     np.maximum.accumulate(idx, out=idx)
     return np.where(idx >= 0, x[np.maximum(idx, 0)], first)
+
+
+def mixed_surfaces(scans: list, options: dict[str, Any]) -> list[str]:
+    """A note when scans of several surfaces (``# surface=``) are pooled unnamed."""
+    labels = [sc.meta.get("surface") for sc in scans]
+    if options.get("surface") is not None or None in labels or len(set(labels)) < 2:
+        return []
+    counts = ", ".join(f"{s} ({labels.count(s)})" for s in dict.fromkeys(labels))
+    return [f"the scans are of {len(set(labels))} surfaces (# surface=: {counts}), pooled "
+            f"into one model labelled {labels[0]}; fit each surface on its own, or name the "
+            "mix with --surface"]
 
 
 # ------------------------------------------------------------------ finger streams

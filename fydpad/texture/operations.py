@@ -77,25 +77,30 @@ def fit_model(kind: str, scan_paths: list[str], options: dict[str, Any], out: st
     k = get_kind(kind)
     if k.fit is None:
         raise UserError(f"texture kind {kind!r} is not fitted from scans")
-    opts = {name: options[name] for name in k.fit_options if name in options}
+    reported: list[str] = []
+    given = {**options, "report": reported.extend}
+    opts = {name: given[name] for name in k.fit_options if name in given}
     if extra:
-        if k.fit_command is not None:
+        if not k.set_options:
             raise UserError(f"--set {', '.join(sorted(extra))}: the {kind} fit takes its "
                             "options as flags (fit --help)")
         opts.update(extra)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        notes: list[str] = []
-        if k.fit_command is not None:
-            data, lines, notes = k.fit_command(scan_paths, opts, out, plot)
-        else:
-            try:
-                data = k.fit(read_scans(scan_paths), **opts)
-            except TypeError as exc:  # an option this family's fit does not take
-                raise UserError(f"fit --kind {kind}: {exc}") from None
-            lines = k.describe(data, out) if k.describe is not None else [f"{kind} model"]
+        scans = read_scans(scan_paths)
+        if scans and k.check_options is not None:
+            k.check_options(opts, scans[0].fs_hz)
+        notes = k.notes(scans, opts) if k.notes is not None else []
+        try:
+            data = k.fit(scans, **opts)
+        except TypeError as exc:  # an option this family's fit does not take
+            raise UserError(f"fit --kind {kind}: {exc}") from None
+        lines = k.describe(data, out) if k.describe is not None else [f"{kind} model"]
+        if plot and k.plot is not None:
+            k.plot(plot, scans, data, opts)
     save_model_json(data, out)
-    return Fitted(data, [f"{out}: {lines[0]}", *lines[1:]], caught_messages(caught), notes)
+    return Fitted(data, [f"{out}: {lines[0]}", *lines[1:], *reported],
+                  caught_messages(caught), notes)
 
 
 @dataclass

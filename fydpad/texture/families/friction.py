@@ -225,5 +225,4 @@ def set_electrostatic_b(path: str, b_v: float) -> None:
 
 
 KIND = Kind(NAME, parse_friction, fit_friction,
-            "position-indexed friction coefficient mu(x), Jiao 2018 IV-B",
             fit_options=("dx_mm", "lowpass_hz", "surface"), describe=describe_fit)

@@ -283,6 +283,5 @@ def describe_fit(data: dict[str, Any], where: str) -> list[str]:
 
 
 KIND = Kind(NAME, parse_grating, fit_grating,
-            "vibrotactile/friction grating at a ratio, Ito 2019 4.2",
             fit_options=("wavelength_mm", "profile", "ratio", "surface"),
             describe=describe_fit)

@@ -8,6 +8,7 @@ largest RMS at its own speeds clears the filter and is clipped
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 import numpy as np
@@ -15,8 +16,8 @@ from numpy.typing import NDArray
 
 from fydpad.errors import UserError
 from fydpad.texture.evaluation.evaluate import welch_psd
-from fydpad.texture.family import Array, FamilyBase, FingerBlock, Kind, RateMismatch
-from fydpad.texture.lpc.analysis import ar_psd
+from fydpad.texture.family import Array, FamilyBase, FingerBlock, Kind, RateMismatch, mixed_surfaces
+from fydpad.texture.lpc.analysis import DEFAULT_SPEEDS_MM_S, ar_psd
 from fydpad.texture.lpc.coverage import describe, model_gaps, speed_histogram
 from fydpad.texture.lpc.dft321 import preprocess
 from fydpad.texture.lpc.fit import modelled_speed_range
@@ -25,7 +26,7 @@ from fydpad.texture.lpc.model_file import TextureModel, model_to_json, parse_mod
 from fydpad.texture.lpc.select import fit_candidate, select_model, selection_table
 from fydpad.texture.lpc.synthesis import TextureRenderer
 from fydpad.texture.plots import SpeedCoverage, plot_spectra
-from fydpad.texture.scan_io import Scan, read_scans
+from fydpad.texture.scan_io import Scan
 
 #: A tick beyond this many times the model's largest RMS clears the filter.
 LIMIT_FACTOR = 10.0
@@ -138,63 +139,50 @@ def _from_json(data: dict[str, Any], where: str) -> LpcFamily:
     return LpcFamily(parse_model(data, where), where)
 
 
-def _fit(scans: list, **options: Any) -> dict[str, Any]:
-    """As ``fydpad texture fit``: the form validated on the scans (select.py)."""
-    return model_to_json(select_model(scans, **options)[0])
+def _fit(scans: list, *, form: str = "auto", speeds_mm_s: Sequence[float] = DEFAULT_SPEEDS_MM_S,
+         drive_band_hz: Sequence[float] = (165.0, 220.0),
+         wrap_iterations: Callable[[Iterable], Iterable] = lambda it: it,
+         report: Callable[[list[str]], Any] = lambda lines: None, **options: Any
+         ) -> dict[str, Any]:
+    """The form validation picks on the scans (``form`` "auto", select.py) or the one
+    named; ``report`` gets the validation table."""
+    if not scans:
+        raise UserError("fit: give at least one SCAN.csv")
+    kw = dict(options, drive_band_hz=tuple(drive_band_hz))
+    if form == "auto":
+        model, sel = select_model(scans, speeds_mm_s=speeds_mm_s, wrap=wrap_iterations, **kw)
+        report(selection_table(sel))
+    else:
+        model = fit_candidate(form, scans, speeds_mm_s, wrap_iterations=wrap_iterations, **kw)
+        report([f"  form {form} as asked (--form): not validated"])
+    return model_to_json(model)
 
 
-#: The ``fydpad texture fit`` options the LPC fit takes.
-FIT_OPTIONS = ("order", "speeds", "tolerance", "min_seconds", "highpass_hz", "surface",
-               "drive_band", "form", "wrap_iterations")
-
-
-def check_fit_options(opts: dict[str, Any], fs_hz: float) -> None:
+def check_options(opts: dict[str, Any], fs_hz: float) -> None:
     """The fit's filters and targets against the scans' rate: each option that would
     fail in the fit or be written into the model (failing on reading)."""
     where = f"the scans' Nyquist frequency {fs_hz / 2:g} Hz"
     if opts["order"] < 1:
         raise UserError("--order must be at least 1")
-    if len(opts["drive_band"]) != 2:
+    if len(opts["drive_band_hz"]) != 2:
         raise UserError("--drive-band needs LO,HI")
-    hp, (lo, hi) = opts["highpass_hz"], opts["drive_band"]
+    hp, (lo, hi) = opts["highpass_hz"], opts["drive_band_hz"]
     if not (math.isfinite(hp) and 0 <= hp < fs_hz / 2):
         raise UserError(f"--highpass-hz {hp:g}: must be >= 0 and below {where}")
     if not (0 < lo < hi < fs_hz / 2):
         raise UserError(f"--drive-band {lo:g},{hi:g}: need 0 < LO < HI < {where}")
-    speeds = opts["speeds"]
+    speeds = opts["speeds_mm_s"]
     if not speeds or not all(math.isfinite(v) and v > 0 for v in speeds):
         raise UserError(f"--speeds {','.join(f'{v:g}' for v in speeds)}: every target "
                         "speed must be > 0 mm/s")
-    if not (math.isfinite(opts["tolerance"]) and opts["tolerance"] >= 0):
-        raise UserError(f"--tolerance {opts['tolerance']:g}: must be >= 0 mm/s")
+    tol = opts["tolerance_mm_s"]
+    if not (math.isfinite(tol) and tol >= 0):
+        raise UserError(f"--tolerance {tol:g}: must be >= 0 mm/s")
 
 
-def fit_command(scan_paths: list[str], opts: dict[str, Any], out: str,
-                plot: str | None) -> tuple[dict[str, Any], list[str], list[str]]:
-    """``fydpad texture fit`` (kind lpc): the form validation picks on the scans (``form``
-    "auto") or the one named, the lines describing it, warnings about the scans as a
-    whole, and with ``plot`` the recorded against the model spectra (Bianchi 2015 Fig. 10)."""
-    if not scan_paths:
-        raise UserError("fit: give at least one SCAN.csv")
-    scans = read_scans(scan_paths)
-    check_fit_options(opts, scans[0].fs_hz)
-    labels = [sc.meta.get("surface") for sc in scans]
-    notes = []
-    if opts["surface"] is None and None not in labels and len(set(labels)) > 1:
-        counts = ", ".join(f"{s} ({labels.count(s)})" for s in dict.fromkeys(labels))
-        notes.append(f"the scans are of {len(set(labels))} surfaces (# surface=: {counts}), "
-                     f"pooled into one model labelled {labels[0]}; fit each surface on its "
-                     "own, or name the mix with --surface")
-    kw = dict(order=opts["order"], tolerance_mm_s=opts["tolerance"],
-              highpass_hz=opts["highpass_hz"], surface=opts["surface"],
-              drive_band_hz=tuple(opts["drive_band"]), min_seconds=opts["min_seconds"])
-    wrap = opts.get("wrap_iterations", lambda it: it)
-    if opts["form"] == "auto":
-        model, sel = select_model(scans, speeds_mm_s=opts["speeds"], wrap=wrap, **kw)
-        table = selection_table(sel)
-    else:
-        model = fit_candidate(opts["form"], scans, opts["speeds"], wrap_iterations=wrap, **kw)
-        table = [f"  form {opts['form']} as asked (--form): not validated"]
+def describe_fit(data: dict[str, Any], where: str) -> list[str]:
+    """The model's form and speeds, and the speeds no scan went at."""
+    model = parse_model(data, where)
     prov = model.provenance
     head = (f"surface {model.surface}, order {model.order}, {model.fs_hz:g} Hz, form "
             f"{prov['form']}, {len(model.speeds_mm_s)} models at {model.speeds_mm_s[0]:g}-"
@@ -202,30 +190,28 @@ def fit_command(scan_paths: list[str], opts: dict[str, Any], out: str,
     if "two_part_iterations" in prov:
         head += f", calibrated spectrum on its two-part base ({prov['two_part_iterations']} " \
                 "iterations)"
-    lines = [head]
-    gaps = model_gaps(prov, out) or []
-    if gaps:
-        middles = ", ".join(f"{round(a + b) / 2:g}" for a, b in gaps)  # to 0.5 mm/s
-        lines.append(f"  scanned speeds: {describe(prov['speed_coverage_mm_s'])}; no scan "
-                     f"between {describe(gaps)}: the model interpolates there (less "
-                     "accurately: docs/texture.md, 'Speed coverage'); to close the gaps, "
-                     f"scan strokes at {middles} mm/s")
-    if plot:
-        plot_fit(plot, scans, model, opts, gaps)
-    return model_to_json(model), lines + table, notes
+    gaps = model_gaps(prov, where) or []
+    if not gaps:
+        return [head]
+    middles = ", ".join(f"{round(a + b) / 2:g}" for a, b in gaps)  # to 0.5 mm/s
+    return [head, f"  scanned speeds: {describe(prov['speed_coverage_mm_s'])}; no scan "
+            f"between {describe(gaps)}: the model interpolates there (less accurately: "
+            f"docs/texture.md, 'Speed coverage'); to close the gaps, scan strokes at "
+            f"{middles} mm/s"]
 
 
-def plot_fit(path: str, scans: list[Scan], model: TextureModel, opts: dict[str, Any],
-             gaps: list) -> None:
+def plot_fit(path: str, scans: list[Scan], data: dict[str, Any], opts: dict[str, Any]
+             ) -> None:
     """Recorded spectrum at each target speed (its samples within the tolerance) against
-    the model rendered there, and the scans' speed coverage."""
+    the model rendered there (Bianchi 2015 Fig. 10), and the scans' speed coverage."""
+    model = parse_model(data, path)
     interp = SpeedInterpolator(model)
     x = np.concatenate([preprocess(sc.acc, sc.fs_hz, model.highpass_hz) for sc in scans])
     v = np.concatenate([sc.speed_mm_s for sc in scans])
     panels = []
-    for s in opts["speeds"]:
+    for s in opts["speeds_mm_s"]:
         try:
-            f, pr = welch_psd(x, model.fs_hz, np.abs(v - s) <= opts["tolerance"])
+            f, pr = welch_psd(x, model.fs_hz, np.abs(v - s) <= opts["tolerance_mm_s"])
         except ValueError:
             continue  # too little near this speed for a spectrum
         a, s2 = interp(float(s))
@@ -235,9 +221,12 @@ def plot_fit(path: str, scans: list[Scan], model: TextureModel, opts: dict[str, 
                                      modelled_speed_range(fitted, model.tolerance_mm_s))
     plot_spectra(path, panels, f"{model.surface}: recorded vs model "
                  f"({model.provenance['form']}, {model.interpolation})",
-                 coverage=SpeedCoverage(edges, seconds, fitted, gaps))
+                 coverage=SpeedCoverage(edges, seconds, fitted,
+                                        model_gaps(model.provenance, path) or []))
 
 
-KIND = Kind("lpc", _from_json, _fit,
-            "speed-indexed LPC models, eq. 5 of Bianchi 2015 (vibration, 1 kHz)",
-            fit_options=FIT_OPTIONS, fit_command=fit_command, distance="bands")
+KIND = Kind("lpc", _from_json, _fit, set_options=False, check_options=check_options,
+            notes=mixed_surfaces, describe=describe_fit, plot=plot_fit, distance="bands",
+            fit_options=("order", "speeds_mm_s", "tolerance_mm_s", "min_seconds",
+                         "highpass_hz", "surface", "drive_band_hz", "form",
+                         "wrap_iterations", "report"))

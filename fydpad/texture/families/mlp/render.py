@@ -141,5 +141,4 @@ def _fit(scans: list, **options: Any) -> dict[str, Any]:
 
 
 KIND = Kind("mlp", lambda data, where: MlpTexture(parse_mlp(data, where)), _fit,
-            "3-10-1 network from (v_x, v_y, delta f) to the normal acceleration, Lin 2016",
             fit_options=("surface",))

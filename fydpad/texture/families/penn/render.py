@@ -264,6 +264,4 @@ def _from_json(data: dict, where: str) -> PennTexture:
     raise UserError(f"{where}: penn models are HaTT XML files (penn:FILE.xml), not JSON")
 
 
-KIND = Kind("penn", _from_json, None,
-            "Penn Haptic Texture Toolkit ARMA models over speed and force, Culbertson 2014 (XML)",
-            from_file=load_penn_family, title="HaTT")
+KIND = Kind("penn", _from_json, None, from_file=load_penn_family, title="HaTT")
