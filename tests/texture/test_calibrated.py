@@ -20,8 +20,8 @@ import pytest
 from fydpad.commands import texture
 from fydpad.errors import UserError
 from fydpad.synth.texture_scans import generate_scan
+from fydpad.texture.family import runs as mask_runs
 from fydpad.texture.lpc.analysis import is_stable
-from fydpad.texture.lpc.analysis import runs as mask_runs
 from fydpad.texture.lpc.fit import fit_texture
 from fydpad.texture.lpc.model_file import load_model, model_to_json, parse_model, save_model
 from fydpad.texture.lpc.spectrum import (

@@ -14,8 +14,7 @@ import scipy.signal as ss
 from numpy.typing import ArrayLike, NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.family import RateMismatch, TextureFamily, finger_from_scan
-from fydpad.texture.lpc.analysis import runs
+from fydpad.texture.family import RateMismatch, TextureFamily, finger_from_scan, runs
 from fydpad.texture.lpc.dft321 import preprocess
 from fydpad.texture.scan_io import Scan
 
