@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from fydpad.errors import UserError, read_json
 
@@ -211,6 +211,14 @@ def hold_finite(x: Array, first: float) -> Array:
     idx = np.where(ok, np.arange(x.size), -1)
     np.maximum.accumulate(idx, out=idx)
     return np.where(idx >= 0, x[np.maximum(idx, 0)], first)
+
+
+def runs(mask: ArrayLike, min_len: int = 1) -> list[tuple[int, int]]:
+    """[start, stop) index pairs of the True runs of ``mask`` at least ``min_len`` long."""
+    m = np.asarray(mask, bool).astype(np.int8)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], m, [0]])))
+    return [(int(a), int(b)) for a, b in zip(edges[0::2], edges[1::2], strict=True)
+            if b - a >= min_len]
 
 
 def mixed_surfaces(scans: list, options: dict[str, Any]) -> list[str]:

@@ -18,8 +18,6 @@ from fydpad.texture.lpc.coverage import MIN_SECONDS_PER_BIN
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
-    from fydpad.texture.evaluation.identify import Identification
-
 PSD_LABEL = "PSD (dB re (m/s²)²/Hz)"
 
 
@@ -35,6 +33,7 @@ class SpeedCoverage:
 
 
 def _save(fig: Any, path: str | Path, title: str) -> Path:
+    # Here, not at the top: matplotlib loads only when a figure is drawn.
     from fydpad.plots import plt
 
     if title:
@@ -48,6 +47,7 @@ def plot_spectra(path: str | Path, panels: Sequence[tuple[str, NDArray, NDArray,
                  title: str = "", coverage: SpeedCoverage | None = None) -> Path:
     """One panel per (label, f_hz, P_recorded, P_model); with ``coverage``, a last panel
     of the scans' time per speed bin, the fitted speeds and the gaps."""
+    # Here, not at the top: matplotlib loads only when a figure is drawn.
     from fydpad.plots import label, plt
 
     n = max(1, len(panels))
@@ -74,6 +74,7 @@ def plot_spectra(path: str | Path, panels: Sequence[tuple[str, NDArray, NDArray,
 
 
 def _plot_coverage(ax: Axes, cov: SpeedCoverage) -> None:
+    # Here, not at the top: matplotlib loads only when a figure is drawn.
     from fydpad.plots import label
 
     e = np.asarray(cov.edges_mm_s, float)
@@ -100,6 +101,7 @@ def plot_against_ceiling(path: str | Path, f_hz: NDArray, recorded: NDArray, mod
                          second: NDArray, title: str = "") -> Path:
     """``evaluate --second``: the three spectra, and below them the model's and the
     second recording's difference to the recording in dB."""
+    # Here, not at the top: matplotlib loads only when a figure is drawn.
     from fydpad.plots import label, legend_outside, plt
 
     sel = (f_hz >= BAND_HZ[0]) & (f_hz <= BAND_HZ[1])
@@ -124,7 +126,10 @@ def plot_against_ceiling(path: str | Path, f_hz: NDArray, recorded: NDArray, mod
     return _save(fig, path, title)
 
 
-def plot_confusion(path: str, ident: Identification, title: str = "") -> None:
+def plot_confusion(path: str, ident: Any, title: str = "") -> None:
+    """An identification's confusion matrix (``evaluation.identify.Identification``):
+    scans by surface against the model each was assigned to."""
+    # Here, not at the top: matplotlib loads only when a figure is drawn.
     from fydpad.plots import plt
 
     c = np.asarray(ident.confusion)

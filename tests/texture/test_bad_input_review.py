@@ -156,14 +156,15 @@ def test_fit_options_checked_against_the_scans(files, tmp_path, option, value, m
 ])
 def test_output_in_a_missing_directory_fails_before_the_work(files, tmp_path, monkeypatch,
                                                              argv, option):
-    import fydpad.texture.lpc.fit as fit
+    import fydpad.texture.lpc.select as select
     import fydpad.texture.lpc.synthesis as syn
     import fydpad.texture.operations as ops
 
     def started(*a, **k):
         raise AssertionError("the work started before the output was checked")
 
-    monkeypatch.setattr(fit, "fit_texture", started)
+    monkeypatch.setattr(select, "fit_texture", started)  # the names fit calls them by
+    monkeypatch.setattr(select, "fit_paper", started)
     monkeypatch.setattr(ops, "evaluate_model", started)
     monkeypatch.setattr(ops, "identify_models", started)
     monkeypatch.setattr(syn, "TextureRenderer", started)

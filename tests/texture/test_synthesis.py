@@ -263,3 +263,45 @@ def test_tick_and_block_agree_with_a_response_longer_than_the_warped_lags(sandpa
         yt = np.array([r2.tick(float(s)) for s in v])
     assert np.isfinite(yt).all()
     np.testing.assert_allclose(yb, yt, atol=1e-12)
+
+
+@pytest.mark.parametrize("structure", ["fir", "direct"])
+def test_lpc_family_after_reset_renders_as_a_fresh_one(model, structure, monkeypatch):
+    """LpcFamily keeps its renderer (a calibrated table is hundreds of all-pole fits): after
+    ``reset()``, a new seed or a new drive filter it renders exactly what a new family with
+    those parameters renders, the clamp warning included."""
+    import fydpad.texture.lpc.family as lpc_family
+    from fydpad.texture.family import FingerBlock
+
+    class Renderer(TextureRenderer):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **{**kwargs, "structure": structure})
+
+    monkeypatch.setattr(lpc_family, "TextureRenderer", Renderer)
+    t = np.arange(3000) / 1000
+    speed = 25 + 30 * np.sin(2 * np.pi * 0.5 * t)  # above 45 mm/s: clamped, warned
+    stroke = FingerBlock(1000.0, t, np.arange(3000) % 700 < 500, np.cumsum(speed) / 1000,
+                         np.zeros(3000), speed, np.ones(3000))
+
+    def fresh(**params):
+        fam = lpc_family.LpcFamily(model)
+        for name, value in params.items():
+            fam.set_parameter(name, value)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            return fam.render(stroke), len(caught)
+
+    used = lpc_family.LpcFamily(model)
+    used.set_parameter("seed", 5)
+    used.render(stroke)
+    for change, params in ((lambda: used.reset(), {"seed": 5}),
+                           (lambda: used.set_parameter("seed", 7), {"seed": 7}),
+                           (lambda: used.set_parameter("drive_filter", True),
+                            {"seed": 7, "drive_filter": True})):
+        change()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            y = used.render(stroke)
+        want, n_warned = fresh(**params)
+        assert np.array_equal(y, want)
+        assert len(caught) == n_warned == 1

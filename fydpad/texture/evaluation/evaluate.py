@@ -14,8 +14,7 @@ import scipy.signal as ss
 from numpy.typing import ArrayLike, NDArray
 
 from fydpad.errors import UserError
-from fydpad.texture.family import RateMismatch, TextureFamily, finger_from_scan
-from fydpad.texture.lpc.analysis import runs
+from fydpad.texture.family import RateMismatch, TextureFamily, finger_from_scan, runs
 from fydpad.texture.lpc.dft321 import preprocess
 from fydpad.texture.scan_io import Scan
 
@@ -154,12 +153,15 @@ def unfair_ceiling(scan_speeds_mm_s: Array, second_speeds_mm_s: Array, fs_hz: fl
 
 
 def meets_targets(c: Comparison, ceil: Ceiling) -> bool:
+    """The targets: correlation >= 0.95 and LSD <= the ceiling's + 0.25 dB."""
     return (c.psd_correlation >= TARGET_PSD_CORRELATION
             and c.lsd_db <= ceil.lsd_db + TARGET_LSD_OVER_CEILING_DB)
 
 
 @dataclass(frozen=True)
 class MeansVerdict:
+    """The targets judged on the means of several strokes (:func:`verdict_on_means`)."""
+
     psd_correlation: float
     lsd_over_ceiling_db: float
     psd_correlation_se: float | None  # None with one stroke

@@ -55,6 +55,7 @@ def band_levels_db(f_hz: Array, p: Array, band_hz: tuple[float, float] = BAND_HZ
 
 
 def band_level_distance_db(f_hz: Array, p1: Array, p2: Array) -> float:
+    """RMS over third-octave bands of the level difference in dB ("bands")."""
     d = band_levels_db(f_hz, p1) - band_levels_db(f_hz, p2)
     return float(np.sqrt(np.mean(d * d)))
 

@@ -22,9 +22,9 @@ from fydpad.texture.family import (
     read_model_json,
     require,
     require_version,
+    runs,
     save_model_json,
 )
-from fydpad.texture.lpc.analysis import runs
 
 NAME = "friction"
 FORMAT_VERSION = 1

@@ -1,5 +1,5 @@
 """Linear prediction (Bianchi 2015 eq. 4: autocorrelation method, Levinson-Durbin,
-stability), all-pole fits to a log spectrum, and the runs of a mask (III-B). The predictor
+stability) and all-pole fits to a log spectrum. The predictor
 ``a(k) = e(k) + h^T [a(k-1) .. a(k-p)]`` (eq. 5) is the all-pole filter 1 / A with the
 "polynomial" ``A = [1, -h_1, ..., -h_p]`` (scipy.signal's denominator)."""
 
@@ -103,11 +103,3 @@ def ar_from_log_psd(log_p: Array, order: int) -> tuple[Array, float]:
     if not is_stable(a):  # rounding at extreme dynamic range: the recursion keeps |k| < 1
         return levinson(r, order)
     return a, float(r[0] + np.dot(a[1:], r[1:order + 1]))
-
-
-def runs(mask: ArrayLike, min_len: int = 1) -> list[tuple[int, int]]:
-    """[start, stop) index pairs of the True runs of ``mask`` at least ``min_len`` long."""
-    m = np.asarray(mask, bool).astype(np.int8)
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], m, [0]])))
-    return [(int(a), int(b)) for a, b in zip(edges[0::2], edges[1::2], strict=True)
-            if b - a >= min_len]

@@ -13,13 +13,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.errors import UserError
+from fydpad.texture.family import runs
 from fydpad.texture.lpc.analysis import (
     DEFAULT_SPEEDS_MM_S,
     DEFAULT_TOLERANCE_MM_S,
     h_from_poly,
     is_stable,
     lpc_autocorrelation,
-    runs,
 )
 from fydpad.texture.lpc.coverage import Span, gaps_within, scanned_spans
 from fydpad.texture.lpc.dft321 import preprocess

@@ -15,7 +15,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.texture.evaluation.evaluate import compare
-from fydpad.texture.lpc.analysis import DEFAULT_SPEEDS_MM_S, DEFAULT_TOLERANCE_MM_S, runs
+from fydpad.texture.family import runs
+from fydpad.texture.lpc.analysis import DEFAULT_SPEEDS_MM_S, DEFAULT_TOLERANCE_MM_S
 from fydpad.texture.lpc.dft321 import preprocess
 from fydpad.texture.lpc.fit import fit_paper, fit_texture
 from fydpad.texture.lpc.model_file import TextureModel
