@@ -126,7 +126,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    metavar="LO,HI",
                    help="output drive filter band stored in the model (default 165,220 Hz)")
     f.add_argument("--plot", metavar="FIG.png",
-                   help="recorded against model spectra per speed (like Bianchi 2015 Fig. 10)")
+                   help="recorded against model spectra per speed (like Bianchi 2015 "
+                   "Fig. 10; lpc fits only)")
     f.set_defaults(func=run_fit)
 
     s = tsub.add_parser(

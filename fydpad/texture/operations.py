@@ -77,6 +77,8 @@ def fit_model(kind: str, scan_paths: list[str], options: dict[str, Any], out: st
     k = get_kind(kind)
     if k.fit is None:
         raise UserError(f"texture kind {kind!r} is not fitted from scans")
+    if plot and k.plot is None:
+        raise UserError(f"--plot {plot}: the {kind} fit draws no figure (the lpc fit does)")
     reported: list[str] = []
     given = {**options, "report": reported.extend}
     opts = {name: given[name] for name in k.fit_options if name in given}

@@ -77,3 +77,13 @@ def test_set_goes_to_the_fit_unless_the_family_takes_only_flags(tmp_path, monkey
                              extra={"level": 5})
     with pytest.raises(UserError, match="the lpc fit takes its options as flags"):
         operations.fit_model("lpc", scans, {}, str(tmp_path / "m.json"), extra={"order": 3})
+
+
+def test_plot_of_a_family_that_draws_none_is_refused_before_the_work(tmp_path, monkeypatch):
+    calls: list[str] = []
+    scans = [_scan(tmp_path / "a.csv", "felt")]
+    monkeypatch.setitem(KINDS, "toy", replace(_family(calls), plot=None))
+    with pytest.raises(UserError, match=r"^--plot \S+p\.png: the toy fit draws no figure"):
+        operations.fit_model("toy", scans, {"level": 3}, str(tmp_path / "m.json"),
+                             plot=str(tmp_path / "p.png"))
+    assert calls == [] and not (tmp_path / "m.json").exists()
