@@ -80,6 +80,9 @@ class Kind:
     describe: Callable[[dict[str, Any], str], list[str]] | None = None
     #: ``plot(path, scans, data, options)``: a figure of the fit against the scans.
     plot: Callable[[str, list, dict[str, Any], dict[str, Any]], None] | None = None
+    #: ``compare_options(scans)``: the fit options ``texture compare`` uses for one
+    #: surface's scans (a quick fit: many surfaces, one model each).
+    compare_options: Callable[[list], dict[str, Any]] | None = None
     #: ``identify``'s default distance: "shape" (levels and tilt removed: families whose
     #: level is a gain) or "bands" (third-octave levels: models of recorded accelerations).
     distance: str = "shape"

@@ -152,16 +152,13 @@ def by_surface(scans: Sequence[Scan]) -> dict[str, list[Scan]]:
 
 def fit_per_surface(kind: str, train: dict[str, list[Scan]], **options: Any
                     ) -> tuple[list[TextureFamily], list[str]]:
-    """One model of ``kind`` per surface, fitted in memory with the fit ``options`` (LPC
-    by default: order 60 at the scans' median speeds rounded to 5 mm/s)."""
+    """One model of ``kind`` per surface, fitted in memory with the fit ``options`` over
+    the family's ``compare_options``."""
     k = get_kind(kind)
     models, labels = [], []
     for label, scans in train.items():
-        opts = dict(options)
-        if kind == "lpc":
-            opts.setdefault("order", 60)
-            opts.setdefault("speeds_mm_s", sorted({round(float(np.median(s.speed_mm_s)) / 5)
-                                                   * 5.0 for s in scans}))
+        quick = k.compare_options(scans) if k.compare_options is not None else {}
+        opts = {**quick, **options}
         models.append(k.from_json(k.fit(scans, surface=label, **opts), f"{kind}:{label}"))
         labels.append(label)
     return models, labels

@@ -225,8 +225,15 @@ def plot_fit(path: str, scans: list[Scan], data: dict[str, Any], opts: dict[str,
                                         model_gaps(model.provenance, path) or []))
 
 
+def compare_options(scans: list) -> dict[str, Any]:
+    """``texture compare``'s quick fit: order 60 at the scans' median speeds to 5 mm/s."""
+    return {"order": 60, "speeds_mm_s": sorted({round(float(np.median(s.speed_mm_s)) / 5) * 5.0
+                                                for s in scans})}
+
+
 KIND = Kind("lpc", _from_json, _fit, set_options=False, check_options=check_options,
             notes=mixed_surfaces, describe=describe_fit, plot=plot_fit, distance="bands",
+            compare_options=compare_options,
             fit_options=("order", "speeds_mm_s", "tolerance_mm_s", "min_seconds",
                          "highpass_hz", "surface", "drive_band_hz", "form",
                          "wrap_iterations", "report"))
