@@ -98,8 +98,12 @@ def test_identify_refuses_a_model_at_another_rate(files):
     ("provenance", 5, "key 'provenance' must be an object"),
     ("speed_tolerance_mm_s", -1, "key 'speed_tolerance_mm_s' must be a finite number >= 0"),
     ("order", 3, "key 'order' is 3, but models\\[\\].h have 2 coefficients"),
-    ("models.speed_mm_s", -20, r"models\[1\]: key 'speed_mm_s' must be a finite number > 0"),
+    ("models.speed_mm_s", -20, r"models\[1\]: key 'speed_mm_s' must be a finite number > 0 "
+     "mm/s, not -20"),
     ("models.sigma2", 0, r"models\[1\]: key 'sigma2' must be a finite number > 0"),
+    ("models.h", 3, r"models\[1\]: key 'h' must be a non-empty list of finite numbers"),
+    ("models", [{}, 3], r"models\[0\]: missing key 'speed_mm_s'"),
+    ("models", [3], r"models\[0\] must be an object, not 3"),
 ])
 def test_model_header_is_checked_naming_the_key(tmp_path, key, value, match):
     data = model_to_json(_model())

@@ -125,7 +125,9 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
     speeds, sig, hs = [], [], []
     for i, m in enumerate(models):
         w = f"{where}: models[{i}]"
-        speeds.append(_number(m, "speed_mm_s", w, positive=True))
+        if not isinstance(m, dict):
+            raise UserError(f"{w} must be an object, not {_short(m)}")
+        speeds.append(_number(m, "speed_mm_s", w, positive=True, unit=" mm/s"))
         sig.append(_number(m, "sigma2", w, positive=True))  # 0: a singular spectrum
         h = _array(m, "h", w, "a non-empty list of finite numbers")
         if hs and h.size != hs[0].size:
@@ -157,14 +159,14 @@ def parse_model(data: Any, where: str = "model") -> TextureModel:
 
 
 def _number(d: Any, key: str, where: str, default: float | None = None,
-            positive: bool = False) -> float:
+            positive: bool = False, unit: str = "") -> float:
     """``d[key]`` (``default`` when absent; required when None): a finite number >= 0,
-    or > 0 where ``positive``."""
+    or > 0 where ``positive``, in ``unit`` (named in the message)."""
     v = require(d, key, where, object) if default is None else d.get(key, default)
     if (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
             or v < 0 or (positive and v == 0)):
         raise UserError(f"{where}: key '{key}' must be a finite number "
-                        f"{'>' if positive else '>='} 0, not {_short(v)}")
+                        f"{'>' if positive else '>='} 0{unit}, not {_short(v)}")
     return float(v)
 
 
@@ -172,8 +174,9 @@ def _array(d: Any, key: str, where: str, what: str,
            ok: Callable[[Array], Any] = lambda a: a.ndim == 1 and a.size > 0) -> Array:
     """``d[key]``, a list of finite numbers for which ``ok`` holds; else the UserError
     says it must be ``what``."""
+    v = require(d, key, where, object)
     try:
-        a = np.asarray(require(d, key, where, list), float)
+        a = np.asarray(v, float) if isinstance(v, list) else None
     except (TypeError, ValueError):  # a ragged list, a string in it
         a = None
     if a is None or not np.isfinite(a).all() or not ok(a):
