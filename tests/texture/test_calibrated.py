@@ -174,7 +174,7 @@ def test_bad_free_form_block_names_the_key(scan_model):
     positive = "must be a finite number > 0, not"
     for taper, why in ((0, f"{positive} 0"), (-5, f"{positive} -5"), ("x", f"{positive} 'x'"),
                        (float("inf"), "is not a finite number")):
-        bad = json.loads(json.dumps(data))  # 0 and "x" were tracebacks, -5 silent
+        bad = json.loads(json.dumps(data))
         bad["free_form"]["taper_mm_s"] = taper
         with pytest.raises(UserError, match=rf"m.json: free_form: key 'taper_mm_s' {why}"):
             parse_model(bad, "m.json")

@@ -172,10 +172,10 @@ def test_bad_files_name_the_file_and_field(tmp_path, penn_file, edit, message):
 
 
 @pytest.mark.parametrize(("old", "new", "message"), [
-    ("<numTri>2", "<numTri>two", "<numTri> is not a number"),  # was ValueError
-    ("<numTri>2", "<numTri>inf", "<numTri> is not a whole number"),  # was OverflowError
-    ("<numMod>4", "<numMod>inf", "<numMod> is not a whole number"),  # was OverflowError
-    ("<numMod>4", "<numMod>4.5", "<numMod> is not a whole number"),  # was read as 4
+    ("<numTri>2", "<numTri>two", "<numTri> is not a number"),
+    ("<numTri>2", "<numTri>inf", "<numTri> is not a whole number"),
+    ("<numMod>4", "<numMod>inf", "<numMod> is not a whole number"),
+    ("<numMod>4", "<numMod>4.5", "<numMod> is not a whole number"),
     ("<numARCoeff>4", "<numARCoeff>nan", "<numARCoeff> is not a whole number"),
     ("<numMACoeff>2", "<numMACoeff>-1", "<numMACoeff> is not a whole number"),
 ])
