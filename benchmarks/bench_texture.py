@@ -120,7 +120,7 @@ def quality(textures: list[str] | None = None) -> None:
     """Held-out figures of both forms against the texture targets for every texture
     (minutes; --quality)."""
     from fydpad.synth.texture_scans import TEXTURES
-    from fydpad.texture.evaluation.evaluate import compare, evaluate_family
+    from fydpad.texture.evaluation.evaluate import evaluate_family, evaluate_second
     from fydpad.texture.evaluation.identify import identify_families
     from fydpad.texture.lpc.family import LpcFamily
 
@@ -140,10 +140,7 @@ def quality(textures: list[str] | None = None) -> None:
             second = generate_scan(name, v, 10.0, seed=200)
             cal = LpcFamily(fitted["calibrated"])
             mask = cal.covers(held.speed_mm_s)
-            hp = cal.highpass_hz
-            ceil, *_ = compare(preprocess(held.acc, held.fs_hz, hp),
-                               preprocess(second.acc, held.fs_hz, hp), held.fs_hz,
-                               mask & cal.covers(second.speed_mm_s))
+            ceil = evaluate_second(cal, held, second, mask)
             res = [ceil.psd_correlation, ceil.lsd_db]
             for f in forms:
                 c, *_ = evaluate_family(LpcFamily(fitted[f]), held, mask=mask)

@@ -33,7 +33,7 @@ from fydpad.texture.evaluation.identify import (
     compare_families,
     identify_families,
 )
-from fydpad.texture.families import get_kind, load_family, spec_kind
+from fydpad.texture.families import fitted_kind, get_kind, load_family, spec_kind
 from fydpad.texture.families.friction import FrictionFamily, friction_coefficient
 from fydpad.texture.family import (
     TextureFamily,
@@ -74,9 +74,7 @@ def fit_model(kind: str, scan_paths: list[str], options: dict[str, Any], out: st
               plot: str | None = None, extra: dict[str, Any] | None = None) -> Fitted:
     """Fit a ``kind`` model with the family's ``fit_options`` from ``options`` and
     ``extra`` (``--set KEY=VALUE``), and write it to ``out`` (strict JSON)."""
-    k = get_kind(kind)
-    if k.fit is None:
-        raise UserError(f"texture kind {kind!r} is not fitted from scans")
+    k = fitted_kind(kind)
     if plot and k.plot is None:
         raise UserError(f"--plot {plot}: the {kind} fit draws no figure (the lpc fit does)")
     reported: list[str] = []

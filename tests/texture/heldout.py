@@ -4,8 +4,7 @@ that score a model form on it: held-out 8 s stroke seed 100, second recording se
 from __future__ import annotations
 
 from fydpad.synth.texture_scans import generate_scan
-from fydpad.texture.evaluation.evaluate import compare
-from fydpad.texture.lpc.dft321 import preprocess
+from fydpad.texture.evaluation.evaluate import evaluate_second
 from fydpad.texture.lpc.family import LpcFamily
 
 
@@ -17,7 +16,4 @@ def held_out(name: str, speed_mm_s: float, model, seconds: float = 8.0, seed: in
     second = generate_scan(name, speed_mm_s, seconds, seed=second_seed)
     fam = LpcFamily(model)
     mask = fam.covers(held.speed_mm_s)
-    ceil, *_ = compare(preprocess(held.acc, held.fs_hz, fam.highpass_hz),
-                       preprocess(second.acc, second.fs_hz, fam.highpass_hz), held.fs_hz,
-                       mask & fam.covers(second.speed_mm_s))
-    return held, mask, ceil
+    return held, mask, evaluate_second(fam, held, second, mask)

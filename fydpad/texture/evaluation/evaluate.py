@@ -118,6 +118,18 @@ def evaluate_family(family: TextureFamily, scan: Scan, *, seed: int = 0,
                    family.covers(scan.speed_mm_s) if mask is None else mask)
 
 
+def evaluate_second(family: TextureFamily, scan: Scan, second: Scan,
+                    mask: ArrayLike | None = None) -> Comparison:
+    """A second recording scored against the scan as :func:`evaluate_family` scores the
+    family (the ceiling), over ``mask`` and the second's samples the family covers."""
+    hp = family.highpass_hz
+    mask = family.covers(scan.speed_mm_s) if mask is None else np.asarray(mask, bool)
+    c, *_ = compare(preprocess(scan.acc, scan.fs_hz, hp),
+                    preprocess(second.acc, second.fs_hz, hp), scan.fs_hz,
+                    mask & family.covers(second.speed_mm_s))
+    return c
+
+
 @dataclass
 class Ceiling:
     """A second recording scored against the scan as a model is: what two realisations

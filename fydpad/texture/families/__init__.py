@@ -73,10 +73,15 @@ def spec_kind(spec: str | Path) -> str:
     return own if own is not None else model_kind(read_model_json(path))
 
 
+def fitted_kind(name: str) -> Kind:
+    """:func:`get_kind` for a family fitted from scans (not HaTT's)."""
+    k = get_kind(name)
+    if k.fit is None:
+        raise UserError(f"texture kind {name!r} is not fitted from scans")
+    return k
+
+
 def fit_family(kind: str, scans: list, **options: Any) -> dict[str, Any]:
     """Fit a model of ``kind`` from scans; returns the model file's JSON (with ``kind``)."""
-    k = get_kind(kind)
-    if k.fit is None:
-        raise UserError(f"texture kind {kind!r} is not fitted from scans")
-    return k.fit(scans, **options)
+    return fitted_kind(kind).fit(scans, **options)  # type: ignore[misc]
 
