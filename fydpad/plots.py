@@ -59,7 +59,7 @@ def plot_teleop(path: str | Path, t_s: ArrayLike, master_mm: ArrayLike, t_slave_
         ax.grid(alpha=0.3)
     legend_outside(axs[0])
     axs[-1].set_xlabel(label("time", "s"))
-    return _save(fig, path, title)
+    return save_figure(fig, path, title)
 
 
 def plot_track(
@@ -108,10 +108,10 @@ def plot_track(
     ax.set_xlabel(label("x, to the user's right", "mm"))
     ax.set_ylabel(label("y, away from the user", "mm"))
     ax.set_title("workspace, seen from above")
-    return _save(fig, path, title)
+    return save_figure(fig, path, title)
 
 
-def _save(fig, path: str | Path, title: str) -> Path:
+def save_figure(fig, path: str | Path, title: str = "") -> Path:
     """Title the figure, write it to ``path`` and free it."""
     if title:
         fig.suptitle(title)

@@ -20,13 +20,13 @@ from fydpad.softness import SPECIMENS, fit_through_origin
 from fydpad.texture.evaluation.evaluate import render_stroke, welch_psd
 from fydpad.texture.evaluation.identify import (
     DEFAULT_OBSERVABLE,
-    OBSERVABLES,
     Identification,
     by_surface,
     fit_per_surface,
     observe,
     shape_distance_db,
 )
+from fydpad.texture.families import get_kind
 from fydpad.texture.plots import plot_confusion
 from fydpad.texture.scan_io import read_scans
 
@@ -56,7 +56,7 @@ def specimen_experiment(kind: str, train: dict[str, list], test: dict[str, list]
     rough = {n: "R1" if abs(SPECIMENS[n].period_mm - 3.90) < 0.01 else "R2" for n in names}
     models, labels = fit_per_surface(kind, {r: train[r] for r in ("R1", "R2")})
     fam = dict(zip(labels, models, strict=True))
-    channel, band, what = OBSERVABLES.get(kind, DEFAULT_OBSERVABLE)
+    channel, band, what = get_kind(kind).observable or DEFAULT_OBSERVABLE
     ref_psd = {}
     for r in ("R1", "R2"):
         ps = []

@@ -543,7 +543,9 @@ def penn_scan(ms: PennModelSet, speed_mm_s: Array, seed: int, force_n: float = 1
     # surface at a given speed and force is the same whatever else the stroke visits (a
     # stroke's overall RMS is its fastest part's: up to 26 dB over its slow part's).
     win = np.ones(min(n, round(fs)))
-    rms = np.sqrt(np.convolve(y * y, win, "same") / np.convolve(np.ones(n), win, "same")) + 1e-9
+    j = np.arange(n) + (win.size - 1) // 2  # "same" output i is the full convolution's j
+    count = np.minimum(n - 1, j) - np.maximum(0, j - win.size + 1) + 1  # samples in window
+    rms = np.sqrt(np.convolve(y * y, win, "same") / count) + 1e-9
     dist = np.cumsum(v) / fs
     at = np.cumsum(rng.uniform(0.5, 2.0, int(dist[-1] / 0.5) + 2))
     k = np.searchsorted(dist, at[at < dist[-1]])

@@ -83,6 +83,9 @@ class Kind:
     #: ``compare_options(scans)``: the fit options ``texture compare`` uses for one
     #: surface's scans (a quick fit: many surfaces, one model each).
     compare_options: Callable[[list], dict[str, Any]] | None = None
+    #: (channel rendered, band compared in Hz, the scan's observable) of the "shape"
+    #: distance; None: the vibration against the acceleration (``evaluation.identify``).
+    observable: tuple[str, tuple[float, float], str] | None = None
     #: ``identify``'s default distance: "shape" (levels and tilt removed: families whose
     #: level is a gain) or "bands" (third-octave levels: models of recorded accelerations).
     distance: str = "shape"

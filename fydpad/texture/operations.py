@@ -96,7 +96,7 @@ def fit_model(kind: str, scan_paths: list[str], options: dict[str, Any], out: st
         except TypeError as exc:  # an option this family's fit does not take
             raise UserError(f"fit --kind {kind}: {exc}") from None
         lines = k.describe(data, out) if k.describe is not None else [f"{kind} model"]
-        if plot and k.plot is not None:
+        if plot:
             k.plot(plot, scans, data, opts)
     save_model_json(data, out)
     return Fitted(data, [f"{out}: {lines[0]}", *lines[1:], *reported],

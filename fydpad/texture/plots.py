@@ -32,23 +32,12 @@ class SpeedCoverage:
     gaps_mm_s: Sequence[tuple[float, float]]
 
 
-def _save(fig: Any, path: str | Path, title: str) -> Path:
-    # Here, not at the top: matplotlib loads only when a figure is drawn.
-    from fydpad.plots import plt
-
-    if title:
-        fig.suptitle(title)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
-
-
 def plot_spectra(path: str | Path, panels: Sequence[tuple[str, NDArray, NDArray, NDArray]],
                  title: str = "", coverage: SpeedCoverage | None = None) -> Path:
     """One panel per (label, f_hz, P_recorded, P_model); with ``coverage``, a last panel
     of the scans' time per speed bin, the fitted speeds and the gaps."""
     # Here, not at the top: matplotlib loads only when a figure is drawn.
-    from fydpad.plots import label, plt
+    from fydpad.plots import label, plt, save_figure
 
     n = max(1, len(panels))
     cols = min(2, n)
@@ -70,7 +59,7 @@ def plot_spectra(path: str | Path, panels: Sequence[tuple[str, NDArray, NDArray,
     axes[0].legend()
     if coverage is not None:
         _plot_coverage(fig.add_subplot(grid[rows, :]), coverage)
-    return _save(fig, path, title)
+    return save_figure(fig, path, title)
 
 
 def _plot_coverage(ax: Axes, cov: SpeedCoverage) -> None:
@@ -102,7 +91,7 @@ def plot_against_ceiling(path: str | Path, f_hz: NDArray, recorded: NDArray, mod
     """``evaluate --second``: the three spectra, and below them the model's and the
     second recording's difference to the recording in dB."""
     # Here, not at the top: matplotlib loads only when a figure is drawn.
-    from fydpad.plots import label, legend_outside, plt
+    from fydpad.plots import label, legend_outside, plt, save_figure
 
     sel = (f_hz >= BAND_HZ[0]) & (f_hz <= BAND_HZ[1])
     f = f_hz[sel]
@@ -123,14 +112,14 @@ def plot_against_ceiling(path: str | Path, f_hz: NDArray, recorded: NDArray, mod
     for ax in (top, bottom):
         legend_outside(ax)
         ax.grid(alpha=0.3)
-    return _save(fig, path, title)
+    return save_figure(fig, path, title)
 
 
 def plot_confusion(path: str, ident: Any, title: str = "") -> None:
     """An identification's confusion matrix (``evaluation.identify.Identification``):
     scans by surface against the model each was assigned to."""
     # Here, not at the top: matplotlib loads only when a figure is drawn.
-    from fydpad.plots import plt
+    from fydpad.plots import plt, save_figure
 
     c = np.asarray(ident.confusion)
     n = len(ident.labels)
@@ -145,4 +134,4 @@ def plot_confusion(path: str, ident: Any, title: str = "") -> None:
             if c[i, j]:
                 ax.text(j, i, str(c[i, j]), ha="center", va="center")
     ax.set_title(title or f"identification rate {ident.rate:.0%}")
-    _save(fig, path, "")
+    save_figure(fig, path)

@@ -26,7 +26,7 @@ from fydpad.texture.scan_io import Scan
 Array = NDArray[np.float64]
 BANDS_PER_OCTAVE = 3
 #: Per family: (the channel rendered, the band compared in Hz, the scan's observable).
-OBSERVABLES = {"friction": ("tension", (2.0, 100.0), "friction")}
+#: A family's (channel, band in Hz, the scan's observable) unless its Kind says another.
 DEFAULT_OBSERVABLE = ("vibration", BAND_HZ, "acceleration")
 
 
@@ -105,25 +105,32 @@ def identify_families(models: Sequence[TextureFamily], labels: Sequence[str],
         raise ValueError(f"distance {distance!r}: expected shape or one of "
                          f"{', '.join(DISTANCES)}")
     names = list(model_names) if model_names is not None else list(labels)
-    channel, band, what = (OBSERVABLES.get(models[0].kind, DEFAULT_OBSERVABLE)
-                           if distance == "shape" else DEFAULT_OBSERVABLE)
+    channel, band, what = DEFAULT_OBSERVABLE
+    if distance == "shape":
+        channel, band, what = get_kind(models[0].kind).observable or DEFAULT_OBSERVABLE
     key = "shape_distance_db" if distance == "shape" else "distance_db"
     all_labels = list(dict.fromkeys([*labels, *(s.surface for s in scans)]))
     conf = np.zeros((len(all_labels), len(all_labels)), int)
     assignments = []
     for scan in wrap(scans):
         dists = []
+        recorded: dict[tuple, tuple] = {}  # the scan's spectrum, once per high-pass and mask
         for m, name in zip(models, names, strict=True):
             mask = scan.speed_mm_s > 1.0  # every moving sample, or where enough, those
-            covered = m.covers(scan.speed_mm_s)  # the model covers (bands, lsd)
-            if distance != "shape" and covered.sum() >= scan.fs_hz / 2:
-                mask = covered
-            try:
-                f, pr = welch_psd(observe(scan, what, m.highpass_hz), scan.fs_hz, mask)
-            except ValueError as exc:  # the synthesis has the same mask: one check
-                raise UserError(f"{scan.path}: too short to identify ({scan.t_s.size} rows, "
-                                f"{int(mask.sum())} of them scanning by column "
-                                f"'speed_mm_s'): {exc}") from None
+            if distance != "shape":  # the model covers (bands, lsd)
+                covered = m.covers(scan.speed_mm_s)
+                if covered.sum() >= scan.fs_hz / 2:
+                    mask = covered
+            key_psd = (m.highpass_hz, mask.tobytes())
+            if key_psd not in recorded:
+                try:
+                    recorded[key_psd] = welch_psd(observe(scan, what, m.highpass_hz),
+                                                  scan.fs_hz, mask)
+                except ValueError as exc:  # the synthesis has the same mask: one check
+                    raise UserError(f"{scan.path}: too short to identify ({scan.t_s.size} "
+                                    f"rows, {int(mask.sum())} of them scanning by column "
+                                    f"'speed_mm_s'): {exc}") from None
+            f, pr = recorded[key_psd]
             syn = render_stroke(m, scan, channel, seed, name)
             if distance == "shape":
                 _, ps = welch_psd(syn - np.mean(syn), scan.fs_hz, mask)

@@ -225,4 +225,5 @@ def set_electrostatic_b(path: str, b_v: float) -> None:
 
 
 KIND = Kind(NAME, parse_friction, fit_friction,
-            fit_options=("dx_mm", "lowpass_hz", "surface"), describe=describe_fit)
+            fit_options=("dx_mm", "lowpass_hz", "surface"), describe=describe_fit,
+            observable=("tension", (2.0, 100.0), "friction"))  # affine in mu(x), 2-100 Hz

@@ -506,13 +506,11 @@ class TextureRenderer:
             self._vpos = 0
 
 
-def synthesize(
-    model: TextureModel, speed_mm_s: ArrayLike, *, seed: int | None = None,
-    warmup_s: float = 0.5, n: int | None = None,
-) -> Array:
-    """Offline synthesis along a speed trace (contact throughout), after a warm-up."""
-    v = np.asarray(speed_mm_s, float)
-    n = v.size if n is None else n
+def synthesize(model: TextureModel, speed_mm_s: ArrayLike, *, seed: int | None = None
+               ) -> Array:
+    """Offline synthesis along a speed trace (contact throughout), after a 0.5 s warm-up
+    at its first speed."""
+    v = np.atleast_1d(np.asarray(speed_mm_s, float))
     r = TextureRenderer(model, seed=seed, ramp_s=1e-6)
-    r.warmup(float(np.broadcast_to(v, (max(n, 1),))[0]), warmup_s)
-    return r.block(v, True, n)
+    r.warmup(float(v[0]) if v.size else 0.0, 0.5)
+    return r.block(v, True, v.size)
