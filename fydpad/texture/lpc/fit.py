@@ -135,13 +135,13 @@ def modelled_speed_range(speeds_mm_s: Sequence[float], tolerance_mm_s: float
 
 
 def fit_paper(
-    scans: Iterable[Scan], *, order: int = 200, window_mm_s: float = 5.0,
+    scans: Iterable[Scan], *, order: int = 200, tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S,
     highpass_hz: float = 10.0, surface: str | None = None,
     drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
 ) -> TextureModel:
     """The paper's method read plainly (Fig. 8, eq. 4): every ``PAPER_GRID_STEP_MM_S`` over
     the scanned speeds (1st-99th percentile of the moving samples), one LPC of ``order``
-    (autocorrelation method) on the samples within ``window_mm_s`` of the speed, or the
+    (autocorrelation method) on the samples within ``tolerance_mm_s`` of the speed, or the
     ``PAPER_MIN_SECONDS`` nearest where fewer; rendered by the nearest grid speed."""
     scans = list(scans)
     fs, prepared = _prepare(scans, highpass_hz)
@@ -160,7 +160,7 @@ def fit_paper(
     fits = []
     for v in grid:
         dist = np.abs(v_all - v)
-        limit = window_mm_s
+        limit = tolerance_mm_s
         if np.count_nonzero(dist <= limit) < need:
             limit = float(np.partition(dist, need - 1)[need - 1])
         segs = [x[a:b] for x, sv in prepared for a, b in runs(np.abs(sv - v) <= limit, 1)]
@@ -172,9 +172,10 @@ def fit_paper(
         else:
             raise UserError(f"speed {v:g} mm/s: the fitted filter is unstable")
         fits.append((a, s2, int(sum(s.size for s in segs))))
-    spans = scanned_spans(vs, fs, (float(grid[0]) - window_mm_s, float(grid[-1]) + window_mm_s))
+    spans = scanned_spans(vs, fs, (float(grid[0]) - tolerance_mm_s,
+                                   float(grid[-1]) + tolerance_mm_s))
     method = {"method": "autocorrelation", "order": order, "form": "paper",
-              "window_mm_s": window_mm_s, "min_seconds": PAPER_MIN_SECONDS}
+              "window_mm_s": tolerance_mm_s, "min_seconds": PAPER_MIN_SECONDS}
     return _model(scans, fs, grid, fits, method, spans, [], surface, highpass_hz,
                   drive_band_hz=drive_band_hz, tolerance_mm_s=step_mm_s / 2,
                   interpolation="nearest")

@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fydpad.texture.lpc.analysis import is_stable
-from fydpad.texture.lpc.model_file import INTERPOLATIONS, TextureModel
+from fydpad.texture.lpc.model_file import TextureModel
 from fydpad.texture.lpc.spectrum import spectrum_of
 
 Array = NDArray[np.float64]
@@ -21,14 +21,8 @@ class SpeedInterpolator:
     """(A, sigma^2) at any speed from a model, by the model's ``interpolation``."""
 
     def __init__(self, model: TextureModel):
-        how = model.interpolation
-        if how not in INTERPOLATIONS:
-            raise ValueError(f"interpolation must be one of {INTERPOLATIONS}, not {how!r}")
-        if how == "stretch" and model.free_form is None:
-            raise ValueError(f"{model.surface}: interpolation 'stretch' needs the model's "
-                             "speed-resolved spectrum (key 'free_form'); this model has none")
-        self.model = model
-        self._spectrum = spectrum_of(model) if how == "stretch" else None
+        self.model = model  # parse_model checked its interpolation and spectrum
+        self._spectrum = spectrum_of(model) if model.interpolation == "stretch" else None
 
     def __call__(self, speed_mm_s: float) -> tuple[Array, float]:
         m = self.model

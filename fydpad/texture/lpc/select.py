@@ -90,22 +90,17 @@ class Selection:
 
 
 def fit_candidate(name: str, scans: Sequence[Scan], speeds_mm_s: Sequence[float], *,
-                  order: int = 200, tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S,
-                  highpass_hz: float = 10.0, surface: str | None = None,
-                  drive_band_hz: tuple[float, float] | None = (165.0, 220.0),
                   min_seconds: float = 0.25,
-                  wrap_iterations: Callable[[Iterable], Iterable] = lambda it: it
-                  ) -> TextureModel:
-    """One candidate form fitted on ``scans`` (``speeds_mm_s``, ``min_seconds``: the
-    calibrated form's)."""
+                  wrap_iterations: Callable[[Iterable], Iterable] = lambda it: it,
+                  **options: Any) -> TextureModel:
+    """One candidate form fitted on ``scans``; ``options`` (order, tolerance_mm_s,
+    highpass_hz, surface, drive_band_hz) go to either form, the rest to the calibrated."""
     if name == "paper":
-        return fit_paper(scans, order=order, window_mm_s=tolerance_mm_s,
-                         highpass_hz=highpass_hz, surface=surface, drive_band_hz=drive_band_hz)
+        return fit_paper(scans, **options)
     if name != "calibrated":
         raise ValueError(f"unknown candidate {name!r}; one of {CANDIDATES}")
-    return fit_texture(scans, order=order, speeds_mm_s=speeds_mm_s, tolerance_mm_s=tolerance_mm_s,
-                       highpass_hz=highpass_hz, min_seconds=min_seconds, surface=surface,
-                       drive_band_hz=drive_band_hz, wrap_iterations=wrap_iterations)
+    return fit_texture(scans, speeds_mm_s=speeds_mm_s, min_seconds=min_seconds,
+                       wrap_iterations=wrap_iterations, **options)
 
 
 def plateaus(scans: Sequence[Scan], speeds_mm_s: Sequence[float], tolerance_mm_s: float

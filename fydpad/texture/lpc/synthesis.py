@@ -97,8 +97,6 @@ class TextureRenderer:
         """``structure``: "fir" or "direct" (default "fir" for "stretch" models);
         ``drive_filter``: band-pass the output through the model's drive band (order-2
         Butterworth)."""
-        if model.fs_hz <= 0:
-            raise ValueError("model sample rate must be positive")
         self.model = model
         self.fs_hz = float(model.fs_hz)
         self.interpolation = how = model.interpolation
@@ -369,7 +367,10 @@ class TextureRenderer:
             # A speed that is not finite is no speed (as in tick): the first entry.
             v_ok = np.where(np.isfinite(v), v, self._v0)
             idx, lam = table_position(v_ok, self._v0, t.step_mm_s, self._n_fir_rows)
-            y = self._fir_block(e, idx, lam, self._history_speeds(v))
+            # The speed history, as the tick's: not finite holds the last finite speed.
+            hv = np.clip(hold_finite(v, self._v_last), 0.0, _HISTORY_MAX_MM_S)
+            self._v_last = float(hv[-1])
+            y = self._fir_block(e, idx, lam, hv)
         else:
             idx = np.clip(((v - t.speeds_mm_s[0]) / t.step_mm_s + 0.5).astype(np.int64),
                           0, t.h.shape[0] - 1)
@@ -430,12 +431,6 @@ class TextureRenderer:
         self._ebuf[:] = np.tile(full[::-1][:n_fir], 2)
         self._epos = 0
         return y
-
-    def _history_speeds(self, v: Array) -> Array:
-        """The tick's speed history over a block: not finite holds the last finite speed."""
-        h = np.clip(hold_finite(v, self._v_last), 0.0, _HISTORY_MAX_MM_S)
-        self._v_last = float(h[-1])
-        return h
 
     def _warp_block(self, y: Array, full: Array, v: Array, idx: NDArray[np.int64],
                     lam: Array) -> None:
