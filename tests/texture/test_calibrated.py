@@ -72,7 +72,7 @@ def fitted():
         for s in SPEEDS:  # the runs of 0.25 s or more within 5 mm/s of each speed
             by.setdefault(float(s), []).extend(
                 (xi[a:b], vi[a:b]) for a, b in mask_runs(np.abs(vi - s) <= 5.0, 250))
-    return {"two": two, "calibrated": fit_calibrated(by, FS, two),
+    return {"two": two, "calibrated": fit_calibrated(by, two),
             "by": by,
             "held": {t: t * np.random.default_rng(7).uniform(0.8, 1.2, 24)
                      for t in (20.0, 25.0, 30.0)}}
@@ -103,7 +103,7 @@ def test_calibrated_spectrum_reproduces_the_pooled_runs_at_each_fitted_speed(fit
     smear = RENDER_SMEAR_MM_S * np.linspace(-1.0, 1.0, 5)
     for s in (20.0, 30.0):
         runs = [(x, v) for x, v in fitted["by"][s] if x.size >= 512]
-        p, _ = chunk_periodograms([x for x, _ in runs], [v for _, v in runs], FS)
+        p, _ = chunk_periodograms([x for x, _ in runs], [v for _, v in runs])
         speeds = np.concatenate([v for _, v in runs])[::8]
         # The identity is for S_two C_i (the tent then weighs C_i down away from v_i).
         c_only = np.exp(cal.log_c[list(cal.v_mm_s).index(s)])

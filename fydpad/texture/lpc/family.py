@@ -135,12 +135,7 @@ class LpcFamily(FamilyBase):
         return model_gaps(self.model.provenance, self.path)
 
 
-def _from_json(data: dict[str, Any], where: str) -> LpcFamily:
-    return LpcFamily(parse_model(data, where), where)
-
-
 def _fit(scans: list, *, form: str = "auto", speeds_mm_s: Sequence[float] = DEFAULT_SPEEDS_MM_S,
-         drive_band_hz: Sequence[float] = (165.0, 220.0),
          wrap_iterations: Callable[[Iterable], Iterable] = lambda it: it,
          report: Callable[[list[str]], Any] = lambda lines: None, **options: Any
          ) -> dict[str, Any]:
@@ -148,12 +143,11 @@ def _fit(scans: list, *, form: str = "auto", speeds_mm_s: Sequence[float] = DEFA
     named; ``report`` gets the validation table."""
     if not scans:
         raise UserError("fit: give at least one SCAN.csv")
-    kw = dict(options, drive_band_hz=tuple(drive_band_hz))
     if form == "auto":
-        model, sel = select_model(scans, speeds_mm_s=speeds_mm_s, wrap=wrap_iterations, **kw)
+        model, sel = select_model(scans, speeds_mm_s=speeds_mm_s, wrap=wrap_iterations, **options)
         report(selection_table(sel))
     else:
-        model = fit_candidate(form, scans, speeds_mm_s, wrap_iterations=wrap_iterations, **kw)
+        model = fit_candidate(form, scans, speeds_mm_s, wrap_iterations=wrap_iterations, **options)
         report([f"  form {form} as asked (--form): not validated"])
     return model_to_json(model)
 
@@ -231,9 +225,9 @@ def compare_options(scans: list) -> dict[str, Any]:
                                                 for s in scans})}
 
 
-KIND = Kind("lpc", _from_json, _fit, set_options=False, check_options=check_options,
-            notes=mixed_surfaces, describe=describe_fit, plot=plot_fit, distance="bands",
-            compare_options=compare_options,
+KIND = Kind("lpc", lambda data, where: LpcFamily(parse_model(data, where), where), _fit,
+            set_options=False, check_options=check_options, notes=mixed_surfaces,
+            describe=describe_fit, plot=plot_fit, distance="bands", compare_options=compare_options,
             fit_options=("order", "speeds_mm_s", "tolerance_mm_s", "min_seconds",
                          "highpass_hz", "surface", "drive_band_hz", "form",
                          "wrap_iterations", "report"))

@@ -110,7 +110,7 @@ def fit_texture(
     try:
         two = fit_two_part([x for x, _ in prepared], [v for _, v in prepared], fs, (lo, hi),
                            ITERATIONS, wrap=wrap_iterations)
-        spec = fit_calibrated({s: by[s] for s in got}, fs, two)
+        spec = fit_calibrated({s: by[s] for s in got}, two)
     except ValueError as exc:
         raise UserError(f"calibrated spectrum: {exc}") from None
     fits = [(*spec.ar(s, order, fs), counts[s]) for s in got]

@@ -155,8 +155,7 @@ def select_model(
     ``fit_options`` go to :func:`fit_candidate`; ``wrap`` wraps the list of (fold,
     candidate) fits (a progress bar)."""
     scans = list(scans)
-    kw = {"tolerance_mm_s": tolerance_mm_s, **fit_options,
-          "surface": fit_options.get("surface") or scans[0].surface}
+    kw = {"tolerance_mm_s": tolerance_mm_s, **fit_options}
     found = plateaus(scans, speeds_mm_s, tolerance_mm_s)
     targets = [s for s, *_ in found]
     if len(found) < 2:

@@ -15,7 +15,7 @@ import contextlib
 import functools
 import threading
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 import scipy.sparse as sp
@@ -35,7 +35,6 @@ RENDER_SMEAR_MM_S = 1.0
 _SMEAR_MM_S = RENDER_SMEAR_MM_S * np.linspace(-1.0, 1.0, 5)  # the offsets S is averaged at
 PREWHITEN_ORDER = 8  # of the two-stage all-pole fit (ar_two_stage)
 _SUB = 8  # points across each f bin where U(f / v) is averaged
-FACTORS = ("f_hz", "k_per_mm", "tool", "surface", "floor", "v_mm_s", "g", "n")
 STEP = 0.5  # MU exponent: 1/2 is the IS divergence's majorisation (monotone)
 KNOT_MIN_CHUNKS = 8.0  # chunks a level knot needs within half a knot step (~2 s of a stroke)
 U_MIN_CHUNKS = 1.0  # chunk weight a spatial frequency needs; those seen less hold the nearest
@@ -56,7 +55,7 @@ class TwoPartSpectrum:
     v_mm_s: Array  # speed grid of the levels
     g: Array  # g(v)
     n: Array  # n(v)
-    fixed: Array  # N0(f)
+    fixed_floor: Array  # N0(f)
 
     def _levels(self, v: float | Array) -> tuple[Array, Array, Array]:
         """The speeds clipped to the level grid, and g and n there (linear in log v)."""
@@ -68,7 +67,7 @@ class TwoPartSpectrum:
         """S_two(f, v) on ``f_hz`` (power per bin: mean = power), levels held beyond."""
         v, g, n = self._levels(float(speed_mm_s))
         u = _resampled(self.surface, self.k_per_mm, self.f_hz, v)
-        return self.tool * u * g + self.floor * n + self.fixed
+        return self.tool * u * g + self.floor * n + self.fixed_floor
 
     def mean_psd(self, speeds_mm_s: ArrayLike, weights: ArrayLike | None = None) -> Array:
         """The ``weights``-weighted mean of :meth:`psd` over ``speeds_mm_s``, in one pass."""
@@ -76,17 +75,14 @@ class TwoPartSpectrum:
         w = np.ones(v.size) if weights is None else np.asarray(weights, float)
         w = w / w.sum()
         u = _resampled(self.surface, self.k_per_mm, self.f_hz, v)
-        return self.tool * ((w * g) @ u) + self.floor * float(w @ n) + self.fixed
+        return self.tool * ((w * g) @ u) + self.floor * float(w @ n) + self.fixed_floor
 
     def to_json(self) -> dict:
-        d = {k: [float(x) for x in getattr(self, k)] for k in FACTORS}
-        d["fixed_floor"] = [float(x) for x in self.fixed]
-        return d
+        return {f.name: [float(x) for x in getattr(self, f.name)] for f in fields(self)}
 
     @classmethod
     def from_json(cls, d: dict) -> TwoPartSpectrum:
-        return cls(**{k: np.asarray(d[k], float) for k in FACTORS},
-                   fixed=np.asarray(d["fixed_floor"], float))
+        return cls(**{f.name: np.asarray(d[f.name], float) for f in fields(cls)})
 
 
 def ar_two_stage(log_p: Array, order: int) -> tuple[Array, float]:
@@ -101,8 +97,7 @@ def ar_two_stage(log_p: Array, order: int) -> tuple[Array, float]:
     return np.convolve(a2, pre), s2
 
 
-def chunk_periodograms(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float
-                       ) -> tuple[Array, list[Array]]:
+def chunk_periodograms(runs: Sequence[Array], speeds: Sequence[Array]) -> tuple[Array, list[Array]]:
     """Hann periodograms (mean = power) of 50 %-overlapping chunks, and each chunk's
     sample speeds."""
     w = np.hanning(CHUNK)
@@ -197,7 +192,7 @@ def fit_two_part(runs: Sequence[Array], speeds: Sequence[Array], fs_hz: float,
     """S_two fitted to preprocessed ``runs`` with speed traces ``speeds``, on the chunks
     within ``speed_range_mm_s``; ``wrap`` wraps the iterations (a progress bar)."""
     lo, hi = speed_range_mm_s
-    p_all, v_all = chunk_periodograms(runs, speeds, fs_hz)
+    p_all, v_all = chunk_periodograms(runs, speeds)
     keep = [i for i, v in enumerate(v_all) if v.min() >= lo and v.max() <= hi]
     if not keep:
         raise TooLittleData("no 0.5 s chunk of the scans stays within the modelled speeds")
@@ -326,8 +321,8 @@ class CalibratedSpectrum:
                 "taper_mm_s": self.taper_mm_s}
 
 
-def fit_calibrated(runs_by_speed: dict[float, list[tuple[Array, Array]]], fs_hz: float,
-                   two: TwoPartSpectrum) -> CalibratedSpectrum:
+def fit_calibrated(runs_by_speed: dict[float, list[tuple[Array, Array]]], two: TwoPartSpectrum
+                   ) -> CalibratedSpectrum:
     """C_i for each fitted speed v_i from its segmented runs ``runs_by_speed[v_i] =
     [(x, speed trace), ...]``; runs shorter than a chunk are skipped."""
     speeds, rows = [], []
@@ -335,7 +330,7 @@ def fit_calibrated(runs_by_speed: dict[float, list[tuple[Array, Array]]], fs_hz:
         rv = [(x, v) for x, v in rv if x.size >= CHUNK]
         if not rv:
             continue
-        p, _ = chunk_periodograms([x for x, _ in rv], [v for _, v in rv], fs_hz)
+        p, _ = chunk_periodograms([x for x, _ in rv], [v for _, v in rv])
         # S_two averaged over the runs' sample speeds: a histogram on a 0.25 mm/s grid.
         allv = np.concatenate([v for _, v in rv])
         edges = np.arange(allv.min(), allv.max() + 2 * 0.25, 0.25)
