@@ -113,8 +113,8 @@ def checked_spans(raw: Any, where: str, key: str) -> list[Span]:
     return spans
 
 
-def model_gaps(provenance: dict, where: str = "model") -> list[Span] | None:
-    """The gaps a fitted model records (``provenance["interpolated_mm_s"]``), or None for
-    a model fitted before coverage was recorded (unknown, not "no gaps")."""
+def model_gaps(provenance: dict) -> list[Span] | None:
+    """The gaps a fitted model records (``provenance["interpolated_mm_s"]``, checked by
+    parse_model), or None for a model without the record (unknown, not "no gaps")."""
     raw = provenance.get("interpolated_mm_s")
-    return None if raw is None else checked_spans(raw, where, "interpolated_mm_s")
+    return None if raw is None else [(float(a), float(b)) for a, b in raw]

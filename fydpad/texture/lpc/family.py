@@ -132,7 +132,7 @@ class LpcFamily(FamilyBase):
         return (v >= s[0] - tol) & (v <= s[-1] + tol)
 
     def unscanned_speeds(self) -> list[tuple[float, float]] | None:
-        return model_gaps(self.model.provenance, self.path)
+        return model_gaps(self.model.provenance)
 
 
 def _fit(scans: list, *, form: str = "auto", speeds_mm_s: Sequence[float] = DEFAULT_SPEEDS_MM_S,
@@ -184,7 +184,7 @@ def describe_fit(data: dict[str, Any], where: str) -> list[str]:
     if "two_part_iterations" in prov:
         head += f", calibrated spectrum on its two-part base ({prov['two_part_iterations']} " \
                 "iterations)"
-    gaps = model_gaps(prov, where) or []
+    gaps = model_gaps(prov) or []
     if not gaps:
         return [head]
     middles = ", ".join(f"{round(a + b) / 2:g}" for a, b in gaps)  # to 0.5 mm/s
@@ -215,8 +215,7 @@ def plot_fit(path: str, scans: list[Scan], data: dict[str, Any], opts: dict[str,
                                      modelled_speed_range(fitted, model.tolerance_mm_s))
     plot_spectra(path, panels, f"{model.surface}: recorded vs model "
                  f"({model.provenance['form']}, {model.interpolation})",
-                 coverage=SpeedCoverage(edges, seconds, fitted,
-                                        model_gaps(model.provenance, path) or []))
+                 coverage=SpeedCoverage(edges, seconds, fitted, model_gaps(model.provenance) or []))
 
 
 def compare_options(scans: list) -> dict[str, Any]:

@@ -172,10 +172,8 @@ class TextureRenderer:
         self.fir = fir = np.ascontiguousarray(g[:, :n_fir])
         self._n_fir_rows, self._n_fir = rows, n_fir = fir.shape
         self._fir_rev = np.ascontiguousarray(fir[:, ::-1])
-        # Block path: FFT size (chunks of >= 1024 samples), each entry's spectrum once used.
+        # Block path: FFT size (chunks of >= 1024 samples).
         self._nfft = sfft.next_fast_len(n_fir + 1023)
-        self._gspec = np.empty((rows, self._nfft // 2 + 1), complex)
-        self._gspec_ok = np.zeros(rows, bool)
         self._ebuf = np.zeros(2 * n_fir)  # noise, newest first, written twice
         self._epos = 0
         self._lags = lags = min(WARP_LAGS, n_fir)
@@ -388,8 +386,8 @@ class TextureRenderer:
     def _fir_block(self, e: Array, idx: NDArray[np.int64], lam: Array, v: Array) -> Array:
         """a(k) = sum_j g_v(j) e(k-j), g_v linear between the entries ``idx`` and ``idx + 1``
         by ``lam``, then the warped samples corrected. Per chunk, entry by entry: one used
-        on few samples (a fast sweep) by dot products, one used on more by FFT with its
-        cached spectrum (a hand's second uses ~20 entries on 40-120 samples each)."""
+        on few samples (a fast sweep) by dot products, one used on more by FFT (a hand's
+        second uses ~20 entries on 40-120 samples each)."""
         n_fir = self._n_fir
         nfft = self._nfft
         step = nfft - n_fir + 1
@@ -421,10 +419,7 @@ class TextureRenderer:
                     continue
                 if spec is None:
                     spec = sfft.rfft(x, nfft)
-                if not self._gspec_ok[j]:
-                    self._gspec[j] = sfft.rfft(self.fir[j], nfft)
-                    self._gspec_ok[j] = True
-                z = sfft.irfft(spec * self._gspec[j], nfft)
+                z = sfft.irfft(spec * sfft.rfft(self.fir[j], nfft), nfft)
                 y[a + k] += wj * z[n_fir - 1 + k]
         self._warp_block(y, full, v, idx, lam)
         self._ebuf[:] = np.tile(full[::-1][:n_fir], 2)
