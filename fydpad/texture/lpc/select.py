@@ -148,8 +148,8 @@ def held_out_lsd_db(model: TextureModel, blocks: Sequence[Scan], seed: int = 0
 
 def select_model(
     scans: Sequence[Scan], *, speeds_mm_s: Sequence[float] = DEFAULT_SPEEDS_MM_S,
-    tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S, candidates: Sequence[str] = CANDIDATES,
-    seed: int = 0, wrap: Callable[[Iterable], Iterable] = lambda it: it, **fit_options: Any,
+    tolerance_mm_s: float = DEFAULT_TOLERANCE_MM_S,
+    wrap: Callable[[Iterable], Iterable] = lambda it: it, **fit_options: Any,
 ) -> tuple[TextureModel, Selection]:
     """The validated winner refitted on all ``scans`` and the validation (module doc).
     ``fit_options`` go to :func:`fit_candidate`; ``wrap`` wraps the list of (fold,
@@ -179,13 +179,13 @@ def select_model(
         drop = [np.abs(sc.speed_mm_s - s) <= tolerance_mm_s for sc in scans]
         folds.append(("between", _without(scans, drop), [v for v in targets if v != s],
                       [_piece(scans[i], a, b, f"{s:g}")]))
-    scores = {c: CandidateScore(c, [], []) for c in candidates}
-    for (kind, train, speeds, held), c in wrap([(f, c) for f in folds for c in candidates]):
+    scores = {c: CandidateScore(c, [], []) for c in CANDIDATES}
+    for (kind, train, speeds, held), c in wrap([(f, c) for f in folds for c in CANDIDATES]):
         # speeds a fold lacks, blocks beyond its speeds (clamped): the final fit says
         with warnings.catch_warnings(action="ignore"):
-            got = held_out_lsd_db(fit_candidate(c, train, speeds, **kw), held, seed)
+            got = held_out_lsd_db(fit_candidate(c, train, speeds, **kw), held)
         (scores[c].block_lsd_db if kind == "block" else scores[c].between_lsd_db).extend(got)
-    table = [scores[c] for c in candidates]
+    table = list(scores.values())
     best = min(table, key=lambda t: t.mean_lsd_db)
     noise = {t.name: t.noise_to(best) for t in table}
     winner = next(t for t in table if t.mean_lsd_db - best.mean_lsd_db <= noise[t.name])
