@@ -175,7 +175,7 @@ def test_fit_texture_stores_the_spectrum_and_every_table_filter_is_stable(scan_m
     assert table.stable.all()
     # At a fitted speed the stored h is the table's filter (one model, two views).
     k = table.index(20.0)
-    assert np.allclose(table.polys[k], scan_model.poly(1))
+    assert np.allclose(table.h[k], scan_model.h[1])
 
 
 def test_model_file_round_trip(scan_model, tmp_path):

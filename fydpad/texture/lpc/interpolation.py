@@ -34,11 +34,12 @@ class SpeedInterpolator:
 
 @dataclass
 class SpeedTable:
-    """Filters on a fine speed grid, so the 1 kHz loop only looks them up: ``polys[i]`` (A),
+    """Filters on a fine speed grid, so the 1 kHz loop only looks them up: ``h[i]``,
     ``sigma[i]`` (the std of e, eq. 5) and ``stable[i]`` at ``speeds_mm_s[i]``."""
 
     speeds_mm_s: Array
     polys: Array
+    h: Array
     sigma: Array
     stable: NDArray[np.bool_]
     step_mm_s: float
@@ -46,7 +47,7 @@ class SpeedTable:
     def index(self, speed_mm_s: float) -> int:
         """Nearest grid entry (clamped to the table)."""
         i = int((speed_mm_s - self.speeds_mm_s[0]) / self.step_mm_s + 0.5)
-        return 0 if i < 0 else (len(self.polys) - 1 if i >= len(self.polys) else i)
+        return 0 if i < 0 else (self.h.shape[0] - 1 if i >= self.h.shape[0] else i)
 
 
 def table_range(model: TextureModel) -> tuple[float, float]:
@@ -73,4 +74,4 @@ def build_table(model: TextureModel, step_mm_s: float = 0.25) -> SpeedTable:
     for k, v in enumerate(grid):
         polys[k], s2[k] = interp(float(v))
     stable = np.array([is_stable(a) for a in polys])
-    return SpeedTable(grid, polys, np.sqrt(s2), stable, step_mm_s)
+    return SpeedTable(grid, polys, -polys[:, 1:], np.sqrt(s2), stable, step_mm_s)

@@ -110,6 +110,7 @@ class TextureRenderer:
             for k in np.flatnonzero(~t.stable):
                 j = int(np.argmin(np.abs(model.speeds_mm_s - t.speeds_mm_s[k])))
                 t.polys[k] = model.poly(j)
+                t.h[k] = model.h[j]
                 t.sigma[k] = math.sqrt(model.sigma2[j])
         self.structure = structure or ("fir" if how == "stretch" else "direct")
         if self.structure not in ("direct", "fir"):
@@ -137,7 +138,7 @@ class TextureRenderer:
             self._pos = 0
             self._bwin = [self._buf[k:k + p] for k in range(p)]
             self._sigma = [float(s) for s in t.sigma]
-            self._h_rows = list(-t.polys[:, 1:])  # the paper's h
+            self._h_rows = list(t.h)
             self._last_i = -1
             # The cap on the history's energy entering each filter (_limit_history).
             rms = np.array([s * np.sqrt(np.mean(1.0 / np.abs(np.fft.rfft(a, 8192)) ** 2))
@@ -370,7 +371,7 @@ class TextureRenderer:
             y = self._fir_block(e, idx, lam, hv)
         else:
             idx = np.clip(((v - t.speeds_mm_s[0]) / t.step_mm_s + 0.5).astype(np.int64),
-                          0, len(t.polys) - 1)
+                          0, t.h.shape[0] - 1)
             idx[~np.isfinite(v)] = 0
             y = self._direct_block(e, idx)
         target = self.target_gains(v, c)
