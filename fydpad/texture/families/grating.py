@@ -33,32 +33,12 @@ RATIOS = tuple((v, 10 - v) for v in range(11))  # 0:10 ... 10:0
 
 def level_value(level: int, at_1: float, at_10: float) -> float:
     """Linear in force between level 1 and level 10; level 0 is off (Ito 2019 4.2.3)."""
-    if not 0 <= level <= 10:
-        raise ValueError(f"level must be 0..10, got {level}")
     return 0.0 if level == 0 else at_1 + (level - 1) * (at_10 - at_1) / 9.0
-
-
-def profile_wave(x_mm: Array, wavelength_mm: float, profile: str = "sine",
-                 ridge_fraction: float = 0.9, edge_mm: float = 0.1) -> Array:
-    """p(x): sin(2 pi x / lambda), or the zero-mean rectangular 2 (r(x) - d)."""
-    x = np.asarray(x_mm, float)
-    if profile == "sine":
-        return np.sin(2 * np.pi * x / wavelength_mm)
-    d = ridge_fraction * wavelength_mm
-    w = max(min(edge_mm, 0.5 * d, 0.5 * (wavelength_mm - d)), 1e-9)
-    # In [-w/2, lambda - w/2): the rise edge centred at 0, the fall at d, each w wide.
-    ph = np.mod(x + w / 2, wavelength_mm) - w / 2
-
-    def step(u: Array) -> Array:
-        return 0.5 - 0.5 * np.cos(np.pi * np.clip(u / w + 0.5, 0.0, 1.0))
-
-    r = step(ph) - step(ph - d)
-    return 2.0 * (r - ridge_fraction)
 
 
 def profile_scalar(x_mm: float, wavelength_mm: float, ridge_fraction: float,
                    edge_mm: float) -> float:
-    """:func:`profile_wave`'s rectangle at one position in floats (the tick: no arrays)."""
+    """:meth:`GratingFamily.p`'s rectangle at one position in floats (the tick: no arrays)."""
     d = ridge_fraction * wavelength_mm
     w = max(min(edge_mm, 0.5 * d, 0.5 * (wavelength_mm - d)), 1e-9)
     ph = (x_mm + w / 2) % wavelength_mm - w / 2
@@ -106,8 +86,19 @@ class GratingFamily(FamilyBase):
         self._pos = TickPosition()
 
     def p(self, x_mm: Array) -> Array:
-        return profile_wave(x_mm, self.wavelength_mm, self.profile, self.ridge_fraction,
-                            self.edge_mm)
+        """p(x): sin(2 pi x / lambda), or the zero-mean rectangular 2 (r(x) - d)."""
+        lam, rf, x = self.wavelength_mm, self.ridge_fraction, np.asarray(x_mm, float)
+        if self.profile == "sine":
+            return np.sin(2 * np.pi * x / lam)
+        d = rf * lam
+        w = max(min(self.edge_mm, 0.5 * d, 0.5 * (lam - d)), 1e-9)
+        # In [-w/2, lambda - w/2): the rise edge centred at 0, the fall at d, each w wide.
+        ph = np.mod(x + w / 2, lam) - w / 2
+
+        def step(u: Array) -> Array:
+            return 0.5 - 0.5 * np.cos(np.pi * np.clip(u / w + 0.5, 0.0, 1.0))
+
+        return 2.0 * (step(ph) - step(ph - d) - rf)
 
     def voltage(self, x_mm: Array) -> Array:
         """V_e (eq. 2), V; for the rectangle the non-negative root of V_e^2."""
