@@ -99,12 +99,8 @@ def fit_friction(scans: list, *, dx_mm: float = 0.01, lowpass_hz: float = LOWPAS
         ok = np.isfinite(filt)
         acc[ok] += filt[ok]
         w[ok] += 1.0
-    covered = w > 0
-    mu_grid = np.full(n, np.nan)
-    mu_grid[covered] = acc[covered] / w[covered]
-    if not covered.all():  # gaps between strips: linear across
-        k = np.arange(n)
-        mu_grid = np.interp(k, k[covered], mu_grid[covered])
+    covered, k = w > 0, np.arange(n)
+    mu_grid = np.interp(k, k[covered], acc[covered] / w[covered])  # gaps: linear across
     return {
         "format": "fydpad-texture-model", "kind": NAME, "format_version": FORMAT_VERSION,
         "surface": surface or scans[0].surface,
