@@ -70,9 +70,8 @@ def fit_friction(scans: list, *, dx_mm: float = 0.01, lowpass_hz: float = LOWPAS
                             "by position")
         v = np.abs(sc.speed_mm_s)
         vmed = float(np.median(v[v > 0])) if np.any(v > 0) else 0.0
-        keep = (v >= min_speed_fraction * vmed) & np.isfinite(x)
         mu = friction_coefficient(ff, sc.force_n, min_force_n)
-        keep &= np.isfinite(mu)
+        keep = (v >= min_speed_fraction * vmed) & np.isfinite(x) & np.isfinite(mu)
         if keep.sum() < 16 or vmed <= 0:
             raise UserError(f"{sc.path}: too little steady sliding to fit mu(x)")
         pieces.append((np.asarray(x)[keep], mu[keep], v[keep]))
@@ -83,10 +82,9 @@ def fit_friction(scans: list, *, dx_mm: float = 0.01, lowpass_hz: float = LOWPAS
     acc, w = np.zeros(n), np.zeros(n)
     grid = x0 + dx_mm * np.arange(n)
     for x, mu, _ in pieces:
-        order = np.argsort(x, kind="stable")
         # Equal positions (a hand that paused): averaged.
-        uniq, inv = np.unique(x[order], return_inverse=True)
-        g = np.interp(grid, uniq, np.bincount(inv, mu[order]) / np.bincount(inv),
+        uniq, inv = np.unique(x, return_inverse=True)
+        g = np.interp(grid, uniq, np.bincount(inv, mu) / np.bincount(inv),
                       left=np.nan, right=np.nan)
         filt = np.full(n, np.nan)
         # Low-pass each scan's strip on its own (no jump at a strip's edge).

@@ -162,11 +162,9 @@ def estimate_wavelength(scans: list, band_mm: tuple[float, float] = (0.3, 10.0),
         x = np.cumsum(sc.speed_mm_s) / sc.fs_hz if sc.x_mm is None else sc.x_mm
         a = preprocess(sc.acc, sc.fs_hz, 10.0)
         keep = sc.speed_mm_s > 0.5 * np.median(sc.speed_mm_s)
-        xs, order = x[keep], np.argsort(x[keep], kind="stable")
-        xs, ys = xs[order], a[keep][order]
-        xs, idx = np.unique(xs, return_index=True)
+        xs, idx = np.unique(x[keep], return_index=True)  # the first sample at each x
         grid = np.arange(xs[0], xs[-1], dx_mm)
-        g = np.interp(grid, xs, ys[idx])
+        g = np.interp(grid, xs, a[keep][idx])
         f = np.fft.rfftfreq(g.size, dx_mm)
         p = np.abs(np.fft.rfft((g - g.mean()) * np.hanning(g.size))) ** 2
         logs.append((f, p))
@@ -192,14 +190,13 @@ def estimate_wavelength(scans: list, band_mm: tuple[float, float] = (0.3, 10.0),
     best = float(cand[int(np.argmax([lines(lam) for lam in cand]))])
     # A multiple of the period scores as well as the period (its extra lines add ~0):
     # go down to best / m while the lines best / m lacks do not stand 10 dB out.
-    changed = True
-    while changed:
-        changed = False
+    while True:
         for m in (2, 3, 4, 5):
             if best / m >= band_mm[0] and lines(best, skip=m, mean=True) < math.log(10.0):
-                best, changed = best / m, True
+                best /= m
                 break
-    return best
+        else:
+            return best
 
 
 def fit_grating(scans: list | None = None, *, wavelength_mm: float | None = None,
