@@ -170,13 +170,9 @@ def thirds(n: int) -> tuple[slice, slice, slice]:
 
 
 def fit_mlp(scans: Sequence[Scan], cfg: TrainConfig = TrainConfig(), *,
-            band_hz: tuple[float, float] = BAND_HZ, df_tau_s: float = DF_TAU_S,
             surface: str | None = None
             ) -> tuple[MlpModel, TrainReport, tuple[Features, Features, Features]]:
     """Fit on the scans' first thirds, validate on the second; also return the split."""
-    scans = list(scans)
-    if not scans:
-        raise UserError("no scans to fit")
     fs = scans[0].fs_hz
     for s in scans:
         if abs(s.fs_hz - fs) > 1e-6 * fs:
@@ -184,7 +180,7 @@ def fit_mlp(scans: Sequence[Scan], cfg: TrainConfig = TrainConfig(), *,
                             f"from the first scan's {fs:g} Hz")
         if s.t_s.size < 30:
             raise UserError(f"{s.path}: only {s.t_s.size} samples; need 30 for three thirds")
-    feats = [scan_features(s, band_hz, df_tau_s) for s in scans]
+    feats = [scan_features(s) for s in scans]
     # Each scan's thirds, pooled over the scans (so every speed is in every set).
     tr, va, te = (Features(np.vstack([f.x[thirds(f.y.size)[k]] for f in feats]),
                            np.concatenate([f.y[thirds(f.y.size)[k]] for f in feats]))
@@ -192,7 +188,7 @@ def fit_mlp(scans: Sequence[Scan], cfg: TrainConfig = TrainConfig(), *,
     scaling = Scaling.mapminmax(tr.x, tr.y)
     net, report = train(scaling.inputs(tr.x), scaling.target(tr.y),
                         scaling.inputs(va.x), scaling.target(va.y), cfg)
-    model = MlpModel(net, scaling, fs, band_hz, df_tau_s, surface or scans[0].surface,
+    model = MlpModel(net, scaling, fs, BAND_HZ, DF_TAU_S, surface or scans[0].surface,
                      {"scans": [s.path for s in scans], "tool": "fydpad texture fit --kind mlp",
                       "split": "contiguous thirds per scan: train, validation, test",
                       "training": asdict(cfg), "epochs": report.epochs,
