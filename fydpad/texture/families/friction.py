@@ -191,7 +191,7 @@ def parse_friction(data: dict[str, Any], where: str) -> FrictionFamily:
     if arr.ndim != 1 or arr.size < 2 or not np.isfinite(arr).all() or (arr <= 0).any():
         raise UserError(f"{where}: key 'mu' must hold at least 2 finite positive numbers")
     dx = float(require(data, "dx_mm", where))
-    if not dx > 0 or not math.isfinite(dx):
+    if not dx > 0:  # require: finite
         raise UserError(f"{where}: key 'dx_mm' must be positive")
     es, pad = data.get("electrostatic", {}), data.get("fydpad", {})
     return FrictionFamily(

