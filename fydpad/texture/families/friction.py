@@ -120,8 +120,7 @@ class FrictionFamily(FamilyBase):
 
     def __init__(self, mu: Array, x0_mm: float, dx_mm: float, *, b: float = B_DEFAULT,
                  carrier_hz: float = CARRIER_HZ, vibration_gain_m_s2: float = 2.0,
-                 tension_gain: float = 1.0, still_mm_s: float = 2.0,
-                 audio_hz: float = 48_000.0, surface: str = ""):
+                 tension_gain: float = 1.0, still_mm_s: float = 2.0, surface: str = ""):
         super().__init__()
         self.mu = np.asarray(mu, float)
         self._mu = [*self.mu.tolist(), float(self.mu[0])]  # floats for the tick (wraps)
@@ -132,7 +131,7 @@ class FrictionFamily(FamilyBase):
         self.vibration_gain_m_s2 = float(vibration_gain_m_s2)
         self.tension_gain = float(tension_gain)
         self.surface = surface
-        self.channels = {"vibration": 1000.0, "tension": 1000.0, "audio": float(audio_hz)}
+        self.channels = {"vibration": 1000.0, "tension": 1000.0, "audio": 48e3}
         self._pos = TickPosition()
 
     @property

@@ -62,7 +62,7 @@ class GratingFamily(FamilyBase):
                  friction_levels_n: tuple[float, float] = (0.02, 0.2),
                  mu: float = 0.5, load_n: float = 0.5, k_n_per_v2: float = 2e-6,
                  vibration_gain_m_s2: float = 2.0, tension_gain: float = 1.0,
-                 edge_mm: float = 0.1, audio_hz: float = 48_000.0, surface: str = ""):
+                 edge_mm: float = 0.1, surface: str = ""):
         super().__init__()
         if not wavelength_mm > 0:
             raise ValueError("wavelength must be positive")
@@ -81,8 +81,7 @@ class GratingFamily(FamilyBase):
         self.B_v = math.sqrt(2 * self.Fe_mod_n / (mu * k_n_per_v2))
         self.vibration_gain_m_s2, self.tension_gain = vibration_gain_m_s2, tension_gain
         self.surface = surface
-        self.channels = {"vibration": 1000.0, "tension": 1000.0, "audio": float(audio_hz),
-                         "force": float(audio_hz)}
+        self.channels = {"vibration": 1000.0, "tension": 1000.0, "audio": 48e3, "force": 48e3}
         self._pos = TickPosition()
 
     def p(self, x_mm: Array) -> Array:
