@@ -138,17 +138,12 @@ class PennTexture(FamilyBase):
         yh = np.repeat(eye[None, :p], c, axis=0)  # each state variable as a row over v
         eh = np.repeat(eye[None, p:p + q], c, axis=0)
         z = np.repeat(eye[None, p + q:d].reshape(1, s, 2, d + r), c, axis=0)
-        x = np.zeros((c, d + r))
         for k in range(r):
             e = sig[:, None] * eye[d + k][None, :]
-            y = bg[:, :1] * e
-            if p:
-                y -= np.einsum("cp,cpd->cd", a[:, 1:], yh)
-            if q:
-                y += np.einsum("cq,cqd->cd", bg[:, 1:], eh)
-                eh = np.concatenate([e[:, None], eh[:, :-1]], axis=1)
-            if p:
-                yh = np.concatenate([y[:, None], yh[:, :-1]], axis=1)
+            y = (bg[:, :1] * e - np.einsum("cp,cpd->cd", a[:, 1:], yh)
+                 + np.einsum("cq,cqd->cd", bg[:, 1:], eh))
+            eh = np.concatenate([e[:, None], eh], axis=1)[:, :q]
+            yh = np.concatenate([y[:, None], yh], axis=1)[:, :p]
             x = y
             for j in range(s):  # transposed direct form II, as scipy's sosfilt
                 b0, b1, b2, _, a1, a2 = sos[j]
