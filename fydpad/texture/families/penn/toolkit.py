@@ -142,7 +142,7 @@ def read_penn(path: str | Path) -> PennModelSet:
     return PennModelSet(
         name=(root.findtext("material") or "").strip() or path.stem, fs_hz=fs,
         speeds_mm_s=speeds[order], forces_n=forces[order], tri=tri,
-        ar_lsf=np.vstack(ar)[order], ma_lsf=np.vstack(ma)[order] if q else np.zeros((n, 0)),
+        ar_lsf=np.vstack(ar)[order], ma_lsf=np.vstack(ma)[order],
         var=np.asarray(var)[order], gain=np.asarray(gain)[order],
         max_speed_mm_s=_num(root, "maxSpeed", w, float(speeds.max())),
         max_force_n=_num(root, "maxForce", w, float(forces.max())),
