@@ -200,10 +200,8 @@ def estimate_wavelength(scans: list, band_mm: tuple[float, float] = (0.3, 10.0),
 
 def fit_grating(scans: list | None = None, *, wavelength_mm: float | None = None,
                 profile: str = "rect", ridge_fraction: float = 0.9,
-                ratio: tuple[int, int] | None = None,
-                vib_levels_n: tuple[float, float] = (0.05, 0.5),
-                friction_levels_n: tuple[float, float] = (0.02, 0.2),
-                surface: str | None = None) -> dict[str, Any]:
+                ratio: tuple[int, int] | None = None, surface: str | None = None
+                ) -> dict[str, Any]:
     """A grating model file (JSON dict): parametric, lambda given or estimated from scans."""
     how = "given"
     if wavelength_mm is not None and not (wavelength_mm > 0 and math.isfinite(wavelength_mm)):
@@ -214,14 +212,14 @@ def fit_grating(scans: list | None = None, *, wavelength_mm: float | None = None
         wavelength_mm = estimate_wavelength(scans)
         how = "estimated from the scans' spatial spectrum"
     fam = GratingFamily(wavelength_mm, profile=profile, ridge_fraction=ridge_fraction,
-                        ratio=ratio, vib_levels_n=vib_levels_n,
-                        friction_levels_n=friction_levels_n)
+                        ratio=ratio)
     return {
         "format": "fydpad-texture-model", "kind": NAME, "format_version": FORMAT_VERSION,
         "surface": surface or (scans[0].surface if scans else f"grating_{wavelength_mm:g}mm"),
         "wavelength_mm": float(wavelength_mm), "profile": profile,
         "ridge_fraction": ridge_fraction, "ratio": list(fam.ratio),
-        "levels": {"vibrotactile_n": list(vib_levels_n), "friction_n": list(friction_levels_n)},
+        "levels": {"vibrotactile_n": list(fam.vib_levels_n),
+                   "friction_n": list(fam.friction_levels_n)},
         "electrostatic": {"mu": fam.mu, "load_n": fam.load_n, "k_n_per_v2": fam.k_n_per_v2},
         "fydpad": {"vibration_gain_m_s2": fam.vibration_gain_m_s2,
                    "tension_gain": fam.tension_gain},
