@@ -22,13 +22,13 @@ from fydpad.texture.evaluation.identify import (
     DEFAULT_OBSERVABLE,
     Identification,
     by_surface,
-    fit_per_surface,
     observe,
     shape_distance_db,
 )
 from fydpad.texture.families import get_kind
+from fydpad.texture.family import TextureFamily
 from fydpad.texture.plots import plot_confusion
-from fydpad.texture.scan_io import read_scans
+from fydpad.texture.scan_io import Scan
 
 
 def press_stiffness(drive, k_n_per_mm: float, rng: np.random.Generator) -> float:
@@ -45,17 +45,15 @@ def press_stiffness(drive, k_n_per_mm: float, rng: np.random.Generator) -> float
     return fit_through_origin(d, f).k_n_per_mm
 
 
-def specimen_experiment(kind: str, train: dict[str, list], test: dict[str, list],
+def specimen_experiment(kind: str, models: dict[str, TextureFamily], test: dict[str, list],
                         reference: dict[str, list], trials: int = 3, seed: int = 0) -> dict:
-    """Each trial renders a specimen's roughness by the family's model of R1 or R2 along a
-    test stroke and presses its softness. The identifier knows the specimens' roughness
-    scans (``reference``) and stiffness (Table I); spectra alone cannot separate SS1 from
-    SS3 (both R1), spectra and stiffness (each distance scaled by its spread over the
-    specimens) can."""
+    """Each trial renders a specimen's roughness by the family's model of R1 or R2
+    (``models``) along a test stroke and presses its softness. The identifier knows the
+    specimens' roughness scans (``reference``) and stiffness (Table I); spectra alone
+    cannot separate SS1 from SS3 (both R1), spectra and stiffness (each distance scaled by
+    its spread over the specimens) can."""
     names = sorted(SPECIMENS)
     rough = {n: "R1" if abs(SPECIMENS[n].period_mm - 3.90) < 0.01 else "R2" for n in names}
-    models, labels = fit_per_surface(kind, {r: train[r] for r in ("R1", "R2")})
-    fam = dict(zip(labels, models, strict=True))
     channel, band, what = get_kind(kind).observable or DEFAULT_OBSERVABLE
     ref_psd = {}
     for r in ("R1", "R2"):
@@ -76,7 +74,7 @@ def specimen_experiment(kind: str, train: dict[str, list], test: dict[str, list]
                 r = rough[n]
                 stroke = test[r][k % len(test[r])]
                 # The same seed, the same confusion matrix.
-                syn = render_stroke(fam[r], stroke, channel, seed + k)
+                syn = render_stroke(models[r], stroke, channel, seed + k)
                 _, ps = welch_psd(syn - syn.mean(), stroke.fs_hz, stroke.speed_mm_s > 1)
                 d_spec = np.array([shape_distance_db(ref_psd[rough[j]][sel], ps[sel], f[sel])
                                    for j in names])
@@ -101,19 +99,26 @@ def specimen_experiment(kind: str, train: dict[str, list], test: dict[str, list]
     }
 
 
-def specimens_command(train_paths: list[str], scan_paths: list[str], kinds: list[str],
-                      out_dir: Path, trials: int = 3) -> tuple[dict, list[str]]:
-    """``compare --specimens``: per family (of ``kinds``, those fitted) the 2 x 2, its
-    lines to print and its confusion plots in ``out_dir``."""
-    tr, te = by_surface(read_scans(train_paths)), by_surface(read_scans(scan_paths))
+def check_specimen_scans(train: list[Scan], test: list[Scan]) -> dict[str, list[Scan]]:
+    """The test scans by surface; a UserError, before any fit, unless both the training
+    and the test scans hold R1 and R2."""
+    tr, te = by_surface(train), by_surface(test)
     if not all(r in tr and r in te for r in ("R1", "R2")):
         raise UserError("--specimens: the --train and --scans need R1 and R2 scans "
                         "(fydpad texture generate-scans --textures R1,R2)")
+    return te
+
+
+def specimens_command(fitted: dict[str, dict[str, TextureFamily]], test: dict[str, list[Scan]],
+                      out_dir: Path, trials: int = 3) -> tuple[dict, list[str]]:
+    """``compare --specimens``: per family (``fitted``: kind -> surface -> model, as
+    ``texture compare`` fitted them) the 2 x 2, its lines to print and its confusion plots
+    in ``out_dir``."""
     result, lines = {}, []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        for kind in kinds:
-            r = result[kind] = specimen_experiment(kind, tr, te, te, trials=trials)
+        for kind, models in fitted.items():
+            r = result[kind] = specimen_experiment(kind, models, test, test, trials=trials)
             lines.append(f"{kind:9s} SS1..SS4: spectra alone {r['rate']['spectra']:.0%}, "
                          f"with the stiffness of a press {r['rate']['spectra+stiffness']:.0%}")
             for key, conf in r["confusion"].items():

@@ -471,16 +471,18 @@ def run_identify(args: argparse.Namespace) -> int:
 
 def run_compare(args: argparse.Namespace) -> int:
     from fydpad.texture import operations as ops
+    from fydpad.texture.scan_io import read_scans
 
     kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
     out_dir = _make_dir(args.out_dir, "--out-dir")
-    result, lines = ops.compare_command(args.train, args.scans, kinds, out_dir, args.seed)
+    train, test = read_scans(args.train), read_scans(args.scans)
     if args.specimens:  # the pad's softness too: outside fydpad.texture
-        from fydpad.specimen_experiment import specimens_command
+        from fydpad.specimen_experiment import check_specimen_scans, specimens_command
 
-        fitted = [k for k, r in result["families"].items() if "error" not in r]
-        result["specimens"], more = specimens_command(args.train, args.scans, fitted, out_dir,
-                                                      args.trials)
+        by_surface = check_specimen_scans(train, test)
+    result, lines, fitted = ops.compare_command(train, test, kinds, out_dir, args.seed)
+    if args.specimens:
+        result["specimens"], more = specimens_command(fitted, by_surface, out_dir, args.trials)
         lines += more
     for line in lines:
         print(line)

@@ -44,7 +44,7 @@ from fydpad.texture.family import (
 from fydpad.texture.lpc.coverage import describe, inside
 from fydpad.texture.lpc.dft321 import preprocess
 from fydpad.texture.plots import plot_against_ceiling, plot_confusion, plot_spectra
-from fydpad.texture.scan_io import read_scans
+from fydpad.texture.scan_io import Scan, read_scans
 from vision.recording import CsvRowWriter
 
 Array = NDArray[np.float64]
@@ -380,24 +380,26 @@ def identify_models(specs: list[str], scan_paths: list[str], *, distance: str | 
     return kind, ident
 
 
-def compare_command(train_paths: list[str], scan_paths: list[str], kinds: list[str],
-                    out_dir: Path, seed: int = 0) -> tuple[dict, list[str]]:
-    """Per family the confusion matrix (plots in ``out_dir``)."""
+def compare_command(train: list[Scan], test: list[Scan], kinds: list[str], out_dir: Path,
+                    seed: int = 0) -> tuple[dict, list[str], dict[str, dict]]:
+    """Per family the confusion matrix (plots in ``out_dir``), and the fitted models
+    (kind -> surface -> model)."""
     unknown = [k for k in kinds if get_kind(k).fit is None]
     if unknown:
         raise UserError(f"--kinds: unknown {', '.join(unknown)}")
-    train, test = read_scans(train_paths), read_scans(scan_paths)
-    result: dict = {"train": train_paths, "scans": scan_paths, "families": {}}
-    lines = []
+    result: dict = {"train": [s.path for s in train], "scans": [s.path for s in test],
+                    "families": {}}
+    lines, fitted = [], {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        for kind, ident in compare_families(train, test, kinds, seed=seed).items():
-            if isinstance(ident, str):
-                lines.append(f"{kind:9s} {ident}")
-                result["families"][kind] = {"error": ident}
+        for kind, got in compare_families(train, test, kinds, seed=seed).items():
+            if isinstance(got, str):
+                lines.append(f"{kind:9s} {got}")
+                result["families"][kind] = {"error": got}
                 continue
+            ident, fitted[kind] = got
             lines.append(f"{kind:9s} identification rate {ident.rate:.1%} ({len(test)} scans)")
             result["families"][kind] = ident.to_json()
             plot_confusion(str(out_dir / f"confusion_{kind}.png"), ident,
                            f"{kind}: rate {ident.rate:.0%}")
-    return result, lines
+    return result, lines, fitted

@@ -11,7 +11,12 @@ import pytest
 
 from fydpad.specimen_experiment import specimen_experiment
 from fydpad.synth.texture_scans import generate_scan, save_generated
-from fydpad.texture.evaluation.identify import by_surface, compare_families, shape_distance_db
+from fydpad.texture.evaluation.identify import (
+    by_surface,
+    compare_families,
+    fit_per_surface,
+    shape_distance_db,
+)
 from tests.texture_families.helpers import run_cli
 
 NAMES = ("R1", "R2", "canvas", "cork", "felt")
@@ -29,7 +34,8 @@ def test_confusion_per_family_on_the_same_scans(scans):
     train, test = scans
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = compare_families(train, test, ["lpc", "friction", "grating"])
+        res = {k: ident for k, (ident, _) in
+               compare_families(train, test, ["lpc", "friction", "grating"]).items()}
     for kind in ("lpc", "friction", "grating"):
         c = np.asarray(res[kind].confusion)
         assert c.sum() == len(test) and res[kind].labels[:len(NAMES)] == list(NAMES)
@@ -44,11 +50,13 @@ def test_specimens_need_the_stiffness_feature(scans):
     """Spectra alone cannot tell SS1 from SS3 (both R1) or SS2 from SS4; a simulated
     press on the fabric holding each specimen's stiffness can."""
     train, test = scans
-    tr, te = by_surface(train), by_surface(test)
+    te = by_surface(test)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        r = specimen_experiment("lpc", tr, te, te, trials=2)
-        again = specimen_experiment("lpc", tr, te, te, trials=2)
+        models, labels = fit_per_surface("lpc", by_surface(train[:2]))  # R1, R2
+        fam = dict(zip(labels, models, strict=True))
+        r = specimen_experiment("lpc", fam, te, te, trials=2)
+        again = specimen_experiment("lpc", fam, te, te, trials=2)
     # Seeded: the same seed gives the same spectral distances, trial by trial.
     assert [row["spectral_distance_db"] for row in again["rows"]] == \
         [row["spectral_distance_db"] for row in r["rows"]]
@@ -118,7 +126,7 @@ def test_the_same_seed_gives_the_same_confusion_another_seed_other_draws(scans):
     """The LPC family synthesizes noise: identify_families draws it from its seed, so two
     runs agree to the digit, and another seed gives other distances (the seed reaches
     the synthesis)."""
-    from fydpad.texture.evaluation.identify import fit_per_surface, identify_families
+    from fydpad.texture.evaluation.identify import identify_families
 
     train, test = scans
     with warnings.catch_warnings():
@@ -128,3 +136,21 @@ def test_the_same_seed_gives_the_same_confusion_another_seed_other_draws(scans):
     dist = [[a["shape_distance_db"] for a in r.assignments] for r in runs]
     assert dist[0] == dist[1]
     assert dist[0] != dist[2]
+
+
+def test_specimens_without_r1_r2_refused_before_any_fit(scans, tmp_path, monkeypatch):
+    """The 2 x 2 needs R1 and R2 among both the training and the test scans: the command
+    says so before it fits any family."""
+    import fydpad.texture.evaluation.identify as identify
+    from fydpad.errors import UserError
+
+    fits = []
+    monkeypatch.setattr(identify, "fit_per_surface", lambda *a, **k: fits.append(a))
+    train, test = scans
+    felt = [str(save_generated(s, tmp_path / f"{s.surface}_{k}.csv"))
+            for k, s in enumerate([train[4], test[8]])]
+    r1 = str(save_generated(train[0], tmp_path / "R1.csv"))
+    with pytest.raises(UserError, match="need R1 and R2 scans"):
+        run_cli("compare", "--train", r1, felt[0], "--scans", felt[1], "--kinds", "lpc",
+                "--specimens", "--out-dir", str(tmp_path / "out"))
+    assert fits == []

@@ -172,9 +172,10 @@ def fit_per_surface(kind: str, train: dict[str, list[Scan]], **options: Any
 
 
 def compare_families(train: Sequence[Scan], test: Sequence[Scan], kinds: Sequence[str],
-                     seed: int = 0) -> dict[str, Identification | str]:
-    """Per family one model per training surface, and every test scan identified."""
-    out: dict[str, Identification | str] = {}
+                     seed: int = 0) -> dict[str, tuple[Identification, dict] | str]:
+    """Per family one model per training surface (label -> model), and every test scan
+    identified; a family that cannot fit the scans gets the reason instead."""
+    out: dict[str, tuple[Identification, dict] | str] = {}
     groups = by_surface(train)
     for kind in kinds:
         try:
@@ -182,6 +183,6 @@ def compare_families(train: Sequence[Scan], test: Sequence[Scan], kinds: Sequenc
         except Exception as exc:  # a family that cannot fit these scans is reported
             out[kind] = f"not fitted: {exc}"
             continue
-        out[kind] = identify_families(models, labels, test, seed=seed)
+        out[kind] = (identify_families(models, labels, test, seed=seed),
+                     dict(zip(labels, models, strict=True)))
     return out
-

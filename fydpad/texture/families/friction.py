@@ -70,9 +70,8 @@ def fit_friction(scans: list, *, dx_mm: float = 0.01, lowpass_hz: float = LOWPAS
                             "by position")
         v = np.abs(sc.speed_mm_s)
         vmed = float(np.median(v[v > 0])) if np.any(v > 0) else 0.0
-        keep = (v >= min_speed_fraction * vmed) & np.isfinite(x)
         mu = friction_coefficient(ff, sc.force_n, min_force_n)
-        keep &= np.isfinite(mu)
+        keep = (v >= min_speed_fraction * vmed) & np.isfinite(x) & np.isfinite(mu)
         if keep.sum() < 16 or vmed <= 0:
             raise UserError(f"{sc.path}: too little steady sliding to fit mu(x)")
         pieces.append((np.asarray(x)[keep], mu[keep], v[keep]))
@@ -83,10 +82,9 @@ def fit_friction(scans: list, *, dx_mm: float = 0.01, lowpass_hz: float = LOWPAS
     acc, w = np.zeros(n), np.zeros(n)
     grid = x0 + dx_mm * np.arange(n)
     for x, mu, _ in pieces:
-        order = np.argsort(x, kind="stable")
         # Equal positions (a hand that paused): averaged.
-        uniq, inv = np.unique(x[order], return_inverse=True)
-        g = np.interp(grid, uniq, np.bincount(inv, mu[order]) / np.bincount(inv),
+        uniq, inv = np.unique(x, return_inverse=True)
+        g = np.interp(grid, uniq, np.bincount(inv, mu) / np.bincount(inv),
                       left=np.nan, right=np.nan)
         filt = np.full(n, np.nan)
         # Low-pass each scan's strip on its own (no jump at a strip's edge).
@@ -99,12 +97,8 @@ def fit_friction(scans: list, *, dx_mm: float = 0.01, lowpass_hz: float = LOWPAS
         ok = np.isfinite(filt)
         acc[ok] += filt[ok]
         w[ok] += 1.0
-    covered = w > 0
-    mu_grid = np.full(n, np.nan)
-    mu_grid[covered] = acc[covered] / w[covered]
-    if not covered.all():  # gaps between strips: linear across
-        k = np.arange(n)
-        mu_grid = np.interp(k, k[covered], mu_grid[covered])
+    covered, k = w > 0, np.arange(n)
+    mu_grid = np.interp(k, k[covered], acc[covered] / w[covered])  # gaps: linear across
     return {
         "format": "fydpad-texture-model", "kind": NAME, "format_version": FORMAT_VERSION,
         "surface": surface or scans[0].surface,
@@ -126,8 +120,7 @@ class FrictionFamily(FamilyBase):
 
     def __init__(self, mu: Array, x0_mm: float, dx_mm: float, *, b: float = B_DEFAULT,
                  carrier_hz: float = CARRIER_HZ, vibration_gain_m_s2: float = 2.0,
-                 tension_gain: float = 1.0, still_mm_s: float = 2.0,
-                 audio_hz: float = 48_000.0, surface: str = ""):
+                 tension_gain: float = 1.0, still_mm_s: float = 2.0, surface: str = ""):
         super().__init__()
         self.mu = np.asarray(mu, float)
         self._mu = [*self.mu.tolist(), float(self.mu[0])]  # floats for the tick (wraps)
@@ -138,7 +131,7 @@ class FrictionFamily(FamilyBase):
         self.vibration_gain_m_s2 = float(vibration_gain_m_s2)
         self.tension_gain = float(tension_gain)
         self.surface = surface
-        self.channels = {"vibration": 1000.0, "tension": 1000.0, "audio": float(audio_hz)}
+        self.channels = {"vibration": 1000.0, "tension": 1000.0, "audio": 48e3}
         self._pos = TickPosition()
 
     @property
@@ -197,7 +190,7 @@ def parse_friction(data: dict[str, Any], where: str) -> FrictionFamily:
     if arr.ndim != 1 or arr.size < 2 or not np.isfinite(arr).all() or (arr <= 0).any():
         raise UserError(f"{where}: key 'mu' must hold at least 2 finite positive numbers")
     dx = float(require(data, "dx_mm", where))
-    if not dx > 0 or not math.isfinite(dx):
+    if not dx > 0:  # require: finite
         raise UserError(f"{where}: key 'dx_mm' must be positive")
     es, pad = data.get("electrostatic", {}), data.get("fydpad", {})
     return FrictionFamily(

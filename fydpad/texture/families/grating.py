@@ -33,32 +33,12 @@ RATIOS = tuple((v, 10 - v) for v in range(11))  # 0:10 ... 10:0
 
 def level_value(level: int, at_1: float, at_10: float) -> float:
     """Linear in force between level 1 and level 10; level 0 is off (Ito 2019 4.2.3)."""
-    if not 0 <= level <= 10:
-        raise ValueError(f"level must be 0..10, got {level}")
     return 0.0 if level == 0 else at_1 + (level - 1) * (at_10 - at_1) / 9.0
-
-
-def profile_wave(x_mm: Array, wavelength_mm: float, profile: str = "sine",
-                 ridge_fraction: float = 0.9, edge_mm: float = 0.1) -> Array:
-    """p(x): sin(2 pi x / lambda), or the zero-mean rectangular 2 (r(x) - d)."""
-    x = np.asarray(x_mm, float)
-    if profile == "sine":
-        return np.sin(2 * np.pi * x / wavelength_mm)
-    d = ridge_fraction * wavelength_mm
-    w = max(min(edge_mm, 0.5 * d, 0.5 * (wavelength_mm - d)), 1e-9)
-    # In [-w/2, lambda - w/2): the rise edge centred at 0, the fall at d, each w wide.
-    ph = np.mod(x + w / 2, wavelength_mm) - w / 2
-
-    def step(u: Array) -> Array:
-        return 0.5 - 0.5 * np.cos(np.pi * np.clip(u / w + 0.5, 0.0, 1.0))
-
-    r = step(ph) - step(ph - d)
-    return 2.0 * (r - ridge_fraction)
 
 
 def profile_scalar(x_mm: float, wavelength_mm: float, ridge_fraction: float,
                    edge_mm: float) -> float:
-    """:func:`profile_wave`'s rectangle at one position in floats (the tick: no arrays)."""
+    """:meth:`GratingFamily.p`'s rectangle at one position in floats (the tick: no arrays)."""
     d = ridge_fraction * wavelength_mm
     w = max(min(edge_mm, 0.5 * d, 0.5 * (wavelength_mm - d)), 1e-9)
     ph = (x_mm + w / 2) % wavelength_mm - w / 2
@@ -82,7 +62,7 @@ class GratingFamily(FamilyBase):
                  friction_levels_n: tuple[float, float] = (0.02, 0.2),
                  mu: float = 0.5, load_n: float = 0.5, k_n_per_v2: float = 2e-6,
                  vibration_gain_m_s2: float = 2.0, tension_gain: float = 1.0,
-                 edge_mm: float = 0.1, audio_hz: float = 48_000.0, surface: str = ""):
+                 edge_mm: float = 0.1, surface: str = ""):
         super().__init__()
         if not wavelength_mm > 0:
             raise ValueError("wavelength must be positive")
@@ -101,13 +81,23 @@ class GratingFamily(FamilyBase):
         self.B_v = math.sqrt(2 * self.Fe_mod_n / (mu * k_n_per_v2))
         self.vibration_gain_m_s2, self.tension_gain = vibration_gain_m_s2, tension_gain
         self.surface = surface
-        self.channels = {"vibration": 1000.0, "tension": 1000.0, "audio": float(audio_hz),
-                         "force": float(audio_hz)}
+        self.channels = {"vibration": 1000.0, "tension": 1000.0, "audio": 48e3, "force": 48e3}
         self._pos = TickPosition()
 
     def p(self, x_mm: Array) -> Array:
-        return profile_wave(x_mm, self.wavelength_mm, self.profile, self.ridge_fraction,
-                            self.edge_mm)
+        """p(x): sin(2 pi x / lambda), or the zero-mean rectangular 2 (r(x) - d)."""
+        lam, rf, x = self.wavelength_mm, self.ridge_fraction, np.asarray(x_mm, float)
+        if self.profile == "sine":
+            return np.sin(2 * np.pi * x / lam)
+        d = rf * lam
+        w = max(min(self.edge_mm, 0.5 * d, 0.5 * (lam - d)), 1e-9)
+        # In [-w/2, lambda - w/2): the rise edge centred at 0, the fall at d, each w wide.
+        ph = np.mod(x + w / 2, lam) - w / 2
+
+        def step(u: Array) -> Array:
+            return 0.5 - 0.5 * np.cos(np.pi * np.clip(u / w + 0.5, 0.0, 1.0))
+
+        return 2.0 * (step(ph) - step(ph - d) - rf)
 
     def voltage(self, x_mm: Array) -> Array:
         """V_e (eq. 2), V; for the rectangle the non-negative root of V_e^2."""
@@ -171,11 +161,9 @@ def estimate_wavelength(scans: list, band_mm: tuple[float, float] = (0.3, 10.0),
         x = np.cumsum(sc.speed_mm_s) / sc.fs_hz if sc.x_mm is None else sc.x_mm
         a = preprocess(sc.acc, sc.fs_hz, 10.0)
         keep = sc.speed_mm_s > 0.5 * np.median(sc.speed_mm_s)
-        xs, order = x[keep], np.argsort(x[keep], kind="stable")
-        xs, ys = xs[order], a[keep][order]
-        xs, idx = np.unique(xs, return_index=True)
+        xs, idx = np.unique(x[keep], return_index=True)  # the first sample at each x
         grid = np.arange(xs[0], xs[-1], dx_mm)
-        g = np.interp(grid, xs, ys[idx])
+        g = np.interp(grid, xs, a[keep][idx])
         f = np.fft.rfftfreq(g.size, dx_mm)
         p = np.abs(np.fft.rfft((g - g.mean()) * np.hanning(g.size))) ** 2
         logs.append((f, p))
@@ -201,22 +189,19 @@ def estimate_wavelength(scans: list, band_mm: tuple[float, float] = (0.3, 10.0),
     best = float(cand[int(np.argmax([lines(lam) for lam in cand]))])
     # A multiple of the period scores as well as the period (its extra lines add ~0):
     # go down to best / m while the lines best / m lacks do not stand 10 dB out.
-    changed = True
-    while changed:
-        changed = False
+    while True:
         for m in (2, 3, 4, 5):
             if best / m >= band_mm[0] and lines(best, skip=m, mean=True) < math.log(10.0):
-                best, changed = best / m, True
+                best /= m
                 break
-    return best
+        else:
+            return best
 
 
 def fit_grating(scans: list | None = None, *, wavelength_mm: float | None = None,
                 profile: str = "rect", ridge_fraction: float = 0.9,
-                ratio: tuple[int, int] | None = None,
-                vib_levels_n: tuple[float, float] = (0.05, 0.5),
-                friction_levels_n: tuple[float, float] = (0.02, 0.2),
-                surface: str | None = None) -> dict[str, Any]:
+                ratio: tuple[int, int] | None = None, surface: str | None = None
+                ) -> dict[str, Any]:
     """A grating model file (JSON dict): parametric, lambda given or estimated from scans."""
     how = "given"
     if wavelength_mm is not None and not (wavelength_mm > 0 and math.isfinite(wavelength_mm)):
@@ -227,14 +212,14 @@ def fit_grating(scans: list | None = None, *, wavelength_mm: float | None = None
         wavelength_mm = estimate_wavelength(scans)
         how = "estimated from the scans' spatial spectrum"
     fam = GratingFamily(wavelength_mm, profile=profile, ridge_fraction=ridge_fraction,
-                        ratio=ratio, vib_levels_n=vib_levels_n,
-                        friction_levels_n=friction_levels_n)
+                        ratio=ratio)
     return {
         "format": "fydpad-texture-model", "kind": NAME, "format_version": FORMAT_VERSION,
         "surface": surface or (scans[0].surface if scans else f"grating_{wavelength_mm:g}mm"),
         "wavelength_mm": float(wavelength_mm), "profile": profile,
         "ridge_fraction": ridge_fraction, "ratio": list(fam.ratio),
-        "levels": {"vibrotactile_n": list(vib_levels_n), "friction_n": list(friction_levels_n)},
+        "levels": {"vibrotactile_n": list(fam.vib_levels_n),
+                   "friction_n": list(fam.friction_levels_n)},
         "electrostatic": {"mu": fam.mu, "load_n": fam.load_n, "k_n_per_v2": fam.k_n_per_v2},
         "fydpad": {"vibration_gain_m_s2": fam.vibration_gain_m_s2,
                    "tension_gain": fam.tension_gain},
@@ -254,7 +239,7 @@ def parse_grating(data: dict[str, Any], where: str) -> GratingFamily:
     """Check a grating model file; errors name the file and the key."""
     require_version(data, where, NAME, FORMAT_VERSION)
     lam = float(require(data, "wavelength_mm", where))
-    if not lam > 0 or not math.isfinite(lam):
+    if not lam > 0:  # require: finite
         raise UserError(f"{where}: key 'wavelength_mm' must be positive")
     profile = require(data, "profile", where, str)
     if profile not in PROFILES:

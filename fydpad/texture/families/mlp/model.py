@@ -43,8 +43,6 @@ def delta_force(force_n: ArrayLike, fs_hz: float, tau_s: float = DF_TAU_S,
     """Δf(k) = f(k) - m(k-1), m(k) = m(k-1) + alpha Δf(k), alpha = 1 - exp(-1/(tau fs));
     ``mean_n`` carried from the previous block (None: the first force). -> (Δf, mean)."""
     f = np.asarray(force_n, float)
-    if f.size == 0:
-        return f.copy(), (0.0 if mean_n is None else float(mean_n))
     alpha = 1.0 - math.exp(-1.0 / (tau_s * fs_hz))
     m0 = float(f[0]) if mean_n is None else float(mean_n)
     m, _ = ss.lfilter([alpha], [1.0, alpha - 1.0], f, zi=[(1.0 - alpha) * m0])
@@ -57,8 +55,6 @@ def velocity_xy(x_mm: ArrayLike, y_mm: ArrayLike, speed_mm_s: ArrayLike,
     """(v_x, v_y) = speed (cos, sin) of the last position change's direction; ``last`` =
     (x, y, direction) carried from the previous block (0 rad until the finger moves)."""
     x, y, v = np.asarray(x_mm, float), np.asarray(y_mm, float), np.asarray(speed_mm_s, float)
-    if x.size == 0:
-        return x.copy(), x.copy(), last
     dx = x - np.concatenate([[last[0]], x[:-1]])
     dy = y - np.concatenate([[last[1]], y[:-1]])
     moved = np.isfinite(dx) & np.isfinite(dy) & ((dx != 0) | (dy != 0))
@@ -125,7 +121,6 @@ class MlpModel:
     fs_hz: float = 1000.0
     band_hz: tuple[float, float] = BAND_HZ
     df_tau_s: float = DF_TAU_S
-    target: str = "az"  # the accelerometer axis normal to the surface (thesis 3.1)
     surface: str = ""
     provenance: dict[str, Any] = field(default_factory=dict)
 
@@ -135,7 +130,7 @@ def model_to_json(model: MlpModel) -> dict[str, Any]:
     return {
         "format": FORMAT, "kind": KIND, "format_version": FORMAT_VERSION,
         "surface": model.surface, "sample_rate_hz": model.fs_hz, "inputs": list(INPUTS),
-        "output": f"{model.target}_m_s2",
+        "output": "az_m_s2",  # the accelerometer axis normal to the surface (thesis 3.1)
         "hidden_activation": "logsig", "output_activation": "purelin",
         "band_hz": list(model.band_hz),
         "delta_force": {"definition": "force_n minus its causal exponential moving mean",
@@ -193,7 +188,6 @@ def parse_mlp(data: dict[str, Any], where: str = "model") -> MlpModel:
     if not tau > 0:
         raise UserError(f"{where}: key 'delta_force.tau_s' must be positive, got {tau:g}")
     return MlpModel(net, scaling, fs, (float(band[0]), float(band[1])), tau,
-                    str(data.get("output", "az_m_s2")).removesuffix("_m_s2"),
                     str(data.get("surface", "")), dict(data.get("provenance", {})))
 
 

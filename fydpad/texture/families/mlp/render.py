@@ -36,12 +36,12 @@ class MlpTexture(FamilyBase):
     tick_channels = ("vibration",)
     needs = frozenset({"speed_mm_s", "x_mm", "y_mm", "force_change"})
 
-    def __init__(self, model: MlpModel, *, still_mm_s: float = 1.0):
+    def __init__(self, model: MlpModel):
         super().__init__()
         self.model, self.surface = model, model.surface
         fs = float(model.fs_hz)
         self.channels = {"vibration": fs, "audio": fs}
-        self.still_mm_s = float(still_mm_s)
+        self.still_mm_s = 1.0  # silent below 1 mm/s
         self._alpha = 1.0 - math.exp(-1.0 / (model.df_tau_s * fs))
         self._r = math.exp(-2.0 * math.pi * model.band_hz[0] / fs)  # DC blocker pole
         # Fold input scaling and logsig(z) = 0.5 + 0.5 tanh(z / 2) into the weights:

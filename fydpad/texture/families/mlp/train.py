@@ -105,8 +105,6 @@ def train(u_train: Array, t_train: Array, u_val: Array | None, t_val: Array | No
     if cfg.mode not in ("online", "batch"):
         raise UserError(f"mlp fit: option mode must be 'online' or 'batch', not {cfg.mode!r}")
     u_train, t_train = np.asarray(u_train, float), np.asarray(t_train, float)
-    if u_train.shape[1] != 3 and cfg.mode == "online":
-        raise ValueError("online training is written for 3 inputs (v_x, v_y, Δf)")
     net = init_net(u_train.shape[1], cfg)
     step = _online_epoch if cfg.mode == "online" else _batch_epoch
 
@@ -115,9 +113,7 @@ def train(u_train: Array, t_train: Array, u_val: Array | None, t_val: Array | No
 
     have_val = u_val is not None and t_val is not None and len(t_val) > 0
     best, best_val, best_epoch, fails = copy.deepcopy(net), math.inf, 0, 0
-    tr_hist: list[float] = []
-    va_hist: list[float] = []
-    stop, epoch = "max_epochs", 0
+    tr_hist, va_hist, stop, epoch = [], [], "max_epochs", 0
     for epoch in range(1, cfg.max_epochs + 1):
         step(net, u_train, t_train, cfg.learning_rate)
         if not (np.isfinite(net.w_in).all() and np.isfinite(net.w_out).all()
@@ -173,24 +169,10 @@ def thirds(n: int) -> tuple[slice, slice, slice]:
     return slice(0, a), slice(a, b), slice(b, n)
 
 
-def split_features(feats: Sequence[Features]) -> tuple[Features, Features, Features]:
-    """Each recording's thirds, pooled over recordings (so every speed is in every set)."""
-    parts: list[list[Features]] = [[], [], []]
-    for f in feats:
-        for k, s in enumerate(thirds(f.y.size)):
-            parts[k].append(Features(f.x[s], f.y[s]))
-    return tuple(Features(np.vstack([p.x for p in ps]), np.concatenate([p.y for p in ps]))
-                 for ps in parts)  # type: ignore[return-value]
-
-
 def fit_mlp(scans: Sequence[Scan], cfg: TrainConfig = TrainConfig(), *,
-            band_hz: tuple[float, float] = BAND_HZ, df_tau_s: float = DF_TAU_S,
             surface: str | None = None
             ) -> tuple[MlpModel, TrainReport, tuple[Features, Features, Features]]:
     """Fit on the scans' first thirds, validate on the second; also return the split."""
-    scans = list(scans)
-    if not scans:
-        raise UserError("no scans to fit")
     fs = scans[0].fs_hz
     for s in scans:
         if abs(s.fs_hz - fs) > 1e-6 * fs:
@@ -198,11 +180,15 @@ def fit_mlp(scans: Sequence[Scan], cfg: TrainConfig = TrainConfig(), *,
                             f"from the first scan's {fs:g} Hz")
         if s.t_s.size < 30:
             raise UserError(f"{s.path}: only {s.t_s.size} samples; need 30 for three thirds")
-    tr, va, te = split_features([scan_features(s, band_hz, df_tau_s) for s in scans])
+    feats = [scan_features(s) for s in scans]
+    # Each scan's thirds, pooled over the scans (so every speed is in every set).
+    tr, va, te = (Features(np.vstack([f.x[thirds(f.y.size)[k]] for f in feats]),
+                           np.concatenate([f.y[thirds(f.y.size)[k]] for f in feats]))
+                  for k in range(3))
     scaling = Scaling.mapminmax(tr.x, tr.y)
     net, report = train(scaling.inputs(tr.x), scaling.target(tr.y),
                         scaling.inputs(va.x), scaling.target(va.y), cfg)
-    model = MlpModel(net, scaling, fs, band_hz, df_tau_s, "az", surface or scans[0].surface,
+    model = MlpModel(net, scaling, fs, BAND_HZ, DF_TAU_S, surface or scans[0].surface,
                      {"scans": [s.path for s in scans], "tool": "fydpad texture fit --kind mlp",
                       "split": "contiguous thirds per scan: train, validation, test",
                       "training": asdict(cfg), "epochs": report.epochs,

@@ -9,7 +9,6 @@ import math
 import warnings
 from fractions import Fraction
 from itertools import pairwise
-from pathlib import Path
 
 import numpy as np
 import scipy.signal as ss
@@ -51,36 +50,29 @@ class PennTexture(FamilyBase):
         self.parameters = {"seed": seed}
         self.still_mm_s, self.ramp_s = 1.0, 0.005  # silent below 1 mm/s, faded over 5 ms
         self.p, self.q = ms.ar_lsf.shape[1], ms.ma_lsf.shape[1]
-        self._grid = self._fit_grid()
-        self._build_table()
-        self.default_force_n = float(np.median(ms.forces_n))
-        self._tick_ready = False
-        self._rng = np.random.default_rng(seed)
-        self.clamped = False
-        self.reset()
-
-    def _fit_grid(self) -> tuple[int, int]:
-        ns, nf = 64, 32  # speeds x forces
-        ratio = max(1, round(self.ms.fs_hz / self.rate_hz))
-        # The tick matrix's size (_tick_matrices) with the low-pass prepare() will build.
+        # The (speed, force) grid: 64 x 32, shrunk until its tick matrices (_tick_matrices,
+        # with the low-pass prepare() will build) fit in _TABLE_BYTES.
+        ns, nf = 64, 32
+        ratio = max(1, round(ms.fs_hz / self.rate_hz))
         d = self.p + self.q + 2 * decimation_sos(ratio, self.rate_hz).shape[0]
-        per_cell = 8 * (d + 1) * (d + ratio)
-        while ns * nf * per_cell > _TABLE_BYTES and ns * nf > 64:
+        while ns * nf * 8 * (d + 1) * (d + ratio) > _TABLE_BYTES and ns * nf > 64:
             ns, nf = max(8, ns * 3 // 4), max(8, nf * 3 // 4)
-        return ns, nf
-
-    def _build_table(self) -> None:
-        ms, (ns, nf) = self.ms, self._grid
+        self._grid = ns, nf
         self.speed_grid_mm_s = np.linspace(0.0, ms.max_speed_mm_s, ns)
         self.force_grid_n = np.linspace(0.0, ms.max_force_n, nf)
         s, f = np.meshgrid(self.speed_grid_mm_s, self.force_grid_n, indexing="ij")
         w = barycentric_weights(ms, s.ravel(), f.ravel())  # (cells, models)
         self.den = lsf_to_poly(w @ ms.ar_lsf)
-        ma = lsf_to_poly(w @ ms.ma_lsf) if self.q else np.ones((w.shape[0], 1))
         self.sigma = np.sqrt(np.maximum(w @ ms.var, 0.0))
-        self.num = (w @ ms.gain)[:, None] * ma  # gain: 1 in AR files (toolkit.read_penn)
+        # B (order 0 in AR files: [1]) times the gain (1 in AR files, toolkit.read_penn).
+        self.num = (w @ ms.gain)[:, None] * lsf_to_poly(w @ ms.ma_lsf)
         self._inv_ds = (ns - 1) / ms.max_speed_mm_s if ms.max_speed_mm_s > 0 else 0.0
         self._inv_df = (nf - 1) / ms.max_force_n if ms.max_force_n > 0 else 0.0
+        self.default_force_n = float(np.median(ms.forces_n))
+        self._tick_ready = False
+        self._rng = np.random.default_rng(seed)
+        self.clamped = False
+        self.reset()
 
     def cells(self, speed_mm_s: Array, force_n: Array) -> NDArray[np.int64]:
         """The nearest grid point of each (speed, force)."""
@@ -146,17 +138,12 @@ class PennTexture(FamilyBase):
         yh = np.repeat(eye[None, :p], c, axis=0)  # each state variable as a row over v
         eh = np.repeat(eye[None, p:p + q], c, axis=0)
         z = np.repeat(eye[None, p + q:d].reshape(1, s, 2, d + r), c, axis=0)
-        x = np.zeros((c, d + r))
         for k in range(r):
             e = sig[:, None] * eye[d + k][None, :]
-            y = bg[:, :1] * e
-            if p:
-                y -= np.einsum("cp,cpd->cd", a[:, 1:], yh)
-            if q:
-                y += np.einsum("cq,cqd->cd", bg[:, 1:], eh)
-                eh = np.concatenate([e[:, None], eh[:, :-1]], axis=1)
-            if p:
-                yh = np.concatenate([y[:, None], yh[:, :-1]], axis=1)
+            y = (bg[:, :1] * e - np.einsum("cp,cpd->cd", a[:, 1:], yh)
+                 + np.einsum("cq,cqd->cd", bg[:, 1:], eh))
+            eh = np.concatenate([e[:, None], eh], axis=1)[:, :q]
+            yh = np.concatenate([y[:, None], yh], axis=1)[:, :p]
             x = y
             for j in range(s):  # transposed direct form II, as scipy's sosfilt
                 b0, b1, b2, _, a1, a2 = sos[j]
@@ -245,23 +232,16 @@ class PennTexture(FamilyBase):
         edges = np.concatenate([[0], np.flatnonzero(np.diff(cells)) + 1, [m]])
         for s0, s1 in pairwise(edges.tolist()):
             a, b = self.den[cells[s0]], self.num[cells[s0]]
-            if max(self.p, self.q):
-                zi = ss.lfiltic(b, a, self._yh, self._eh)
-                y[s0:s1], _ = ss.lfilter(b, a, e[s0:s1], zi=zi)
-            else:
-                y[s0:s1] = b[0] * e[s0:s1]
+            zi = ss.lfiltic(b, a, self._yh, self._eh)
+            y[s0:s1], _ = ss.lfilter(b, a, e[s0:s1], zi=zi)
             self._yh = np.concatenate([y[s0:s1][::-1], self._yh])[:self.p]
             self._eh = np.concatenate([e[s0:s1][::-1], self._eh])[:self.q]
         return y
-
-
-def load_penn_family(path: str | Path) -> PennTexture:
-    """``fydpad run --texture penn:FILE.xml``: the model set of a HaTT XML file."""
-    return PennTexture(read_penn(path), str(path))
 
 
 def _from_json(data: dict, where: str) -> PennTexture:
     raise UserError(f"{where}: penn models are HaTT XML files (penn:FILE.xml), not JSON")
 
 
-KIND = Kind("penn", _from_json, None, from_file=load_penn_family, title="HaTT")
+KIND = Kind("penn", _from_json, None, title="HaTT",
+            from_file=lambda path: PennTexture(read_penn(path), path))

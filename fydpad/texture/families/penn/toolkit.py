@@ -142,7 +142,7 @@ def read_penn(path: str | Path) -> PennModelSet:
     return PennModelSet(
         name=(root.findtext("material") or "").strip() or path.stem, fs_hz=fs,
         speeds_mm_s=speeds[order], forces_n=forces[order], tri=tri,
-        ar_lsf=np.vstack(ar)[order], ma_lsf=np.vstack(ma)[order] if q else np.zeros((n, 0)),
+        ar_lsf=np.vstack(ar)[order], ma_lsf=np.vstack(ma)[order],
         var=np.asarray(var)[order], gain=np.asarray(gain)[order],
         max_speed_mm_s=_num(root, "maxSpeed", w, float(speeds.max())),
         max_force_n=_num(root, "maxForce", w, float(forces.max())),
@@ -206,19 +206,14 @@ def barycentric_weights(ms: PennModelSet, speed_mm_s: Array, force_n: Array) -> 
             break
         p0, p1, p2 = pts[t]
         mat = np.column_stack([p1 - p0, p2 - p0])
-        det = np.linalg.det(mat)
-        if abs(det) < 1e-12:
+        if abs(np.linalg.det(mat)) < 1e-12:
             continue
         l12 = np.linalg.solve(mat, np.vstack([s - p0[0], f - p0[1]]))
         wt = np.vstack([1.0 - l12[0] - l12[1], l12[0], l12[1]])
         inside = todo & np.all(wt >= -1e-9, axis=0)
-        if inside.any():
-            wi = np.clip(wt[:, inside], 0.0, 1.0)
-            wi /= wi.sum(axis=0)
-            rows = np.flatnonzero(inside)
-            for c in range(3):
-                out[rows, t[c]] += wi[c]
-            todo &= ~inside
+        wi = np.clip(wt[:, inside], 0.0, 1.0)
+        out[np.flatnonzero(inside)[:, None], t] = (wi / wi.sum(axis=0)).T
+        todo &= ~inside
     if todo.any():
         rows = np.flatnonzero(todo)
         d = np.hypot(ms.speeds_mm_s[None, :] - s[rows, None], ms.forces_n[None, :] - f[rows, None])
