@@ -81,6 +81,11 @@ def test_lpc_adapter_renders_what_the_renderer_does(files):
     ("grating", {"fydpad": 3}, "key 'fydpad' must be an object"),
     ("grating", {"ridge_fraction": "a"}, "key 'ridge_fraction' has the wrong type"),
     ("grating", {"ridge_fraction": 1.5}, "key 'ridge_fraction' must be in (0, 1)"),
+    # Values the render divides by.
+    ("friction", {"fydpad": {"still_mm_s": 0}}, "key 'still_mm_s' must be positive"),
+    ("grating", {"electrostatic": {"load_n": 0}}, "key 'load_n' must be positive"),
+    ("grating", {"levels": {"vibrotactile_n": [0.1, 0], "friction_n": [0.02, 0.2]}},
+     "key 'vibrotactile_n' must be [level_1, level_10], non-negative, level 10 positive"),
 ])
 def test_bad_model_file_names_file_and_key(files, tmp_path, kind, edit, says):
     data = json.loads((files / f"{kind}.json").read_text())

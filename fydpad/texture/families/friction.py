@@ -202,7 +202,7 @@ def parse_friction(data: dict[str, Any], where: str) -> FrictionFamily:
                             positive=True),
         vibration_gain_m_s2=optional(pad, "vibration_gain_m_s2", f"{where}: fydpad", 2.0),
         tension_gain=optional(pad, "tension_gain", f"{where}: fydpad", 1.0),
-        still_mm_s=optional(pad, "still_mm_s", f"{where}: fydpad", 2.0),
+        still_mm_s=optional(pad, "still_mm_s", f"{where}: fydpad", 2.0, positive=True),
         surface=str(data.get("surface", "")))
 
 

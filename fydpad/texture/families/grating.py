@@ -237,8 +237,10 @@ def fit_grating(scans: list | None = None, *, wavelength_mm: float | None = None
 
 def _pair(d: dict, key: str, where: str) -> tuple[float, float]:
     v = require(d, key, where, list)
-    if len(v) != 2 or not all(isinstance(a, int | float) and a >= 0 for a in v):
-        raise UserError(f"{where}: key '{key}' must be [level_1, level_10], non-negative")
+    if len(v) != 2 or not all(isinstance(a, int | float) and not isinstance(a, bool)
+                              and 0 <= a < math.inf for a in v) or not v[1] > 0:
+        raise UserError(f"{where}: key '{key}' must be [level_1, level_10], non-negative, "
+                        "level 10 positive (the levels are relative to it)")
     return float(v[0]), float(v[1])
 
 
@@ -264,7 +266,7 @@ def parse_grating(data: dict[str, Any], where: str) -> GratingFamily:
         vib_levels_n=_pair(levels, "vibrotactile_n", f"{where}: levels"),
         friction_levels_n=_pair(levels, "friction_n", f"{where}: levels"),
         mu=optional(es, "mu", f"{where}: electrostatic", 0.5, positive=True),
-        load_n=optional(es, "load_n", f"{where}: electrostatic", 0.5),
+        load_n=optional(es, "load_n", f"{where}: electrostatic", 0.5, positive=True),
         k_n_per_v2=optional(es, "k_n_per_v2", f"{where}: electrostatic", 2e-6, positive=True),
         vibration_gain_m_s2=optional(pad, "vibration_gain_m_s2", f"{where}: fydpad", 2.0),
         tension_gain=optional(pad, "tension_gain", f"{where}: fydpad", 1.0),
