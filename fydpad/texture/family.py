@@ -303,6 +303,26 @@ def require(d: Any, key: str, where: str, kind: type | tuple[type, ...] = (int, 
     return v
 
 
+def section(data: dict[str, Any], key: str, where: str) -> dict[str, Any]:
+    """The optional object ``data[key]`` ({} when absent); a UserError otherwise."""
+    d = data.get(key, {})
+    if not isinstance(d, dict):
+        raise UserError(f"{where}: key '{key}' must be an object ({{...}})")
+    return d
+
+
+def optional(d: dict[str, Any], key: str, where: str, default: float,
+             positive: bool = False) -> float:
+    """``d[key]`` as :func:`require` checks it (``positive``: also > 0), ``default`` when
+    absent."""
+    if key not in d:
+        return default
+    v = float(require(d, key, where))
+    if positive and not v > 0:
+        raise UserError(f"{where}: key '{key}' must be positive")
+    return v
+
+
 def require_version(data: dict[str, Any], where: str, kind: str, version: int) -> None:
     if data.get("kind") != kind:
         raise UserError(f"{where}: key 'kind' is {data.get('kind')!r}, expected {kind!r}")

@@ -71,6 +71,21 @@ def test_lpc_adapter_renders_what_the_renderer_does(files):
     ("grating", {"profile": "triangle"}, "key 'profile'"),
     ("grating", {"format_version": 0}, "key 'format_version'"),
     ("grating", {"levels": {"vibrotactile_n": [0.1]}}, "key 'vibrotactile_n'"),
+    # The optional sections: each a JSON object of finite numbers.
+    ("friction", {"electrostatic": []}, "key 'electrostatic' must be an object"),
+    ("friction", {"electrostatic": {"b_v": "x"}}, "electrostatic: key 'b_v' has the wrong"),
+    ("friction", {"electrostatic": {"carrier_hz": 0}}, "key 'carrier_hz' must be positive"),
+    ("friction", {"fydpad": {"still_mm_s": True}}, "fydpad: key 'still_mm_s' has the wrong"),
+    ("grating", {"electrostatic": {"mu": 0}}, "electrostatic: key 'mu' must be positive"),
+    ("grating", {"electrostatic": {"mu": "x"}}, "electrostatic: key 'mu' has the wrong"),
+    ("grating", {"fydpad": 3}, "key 'fydpad' must be an object"),
+    ("grating", {"ridge_fraction": "a"}, "key 'ridge_fraction' has the wrong type"),
+    ("grating", {"ridge_fraction": 1.5}, "key 'ridge_fraction' must be in (0, 1)"),
+    # Values the render divides by.
+    ("friction", {"fydpad": {"still_mm_s": 0}}, "key 'still_mm_s' must be positive"),
+    ("grating", {"electrostatic": {"load_n": 0}}, "key 'load_n' must be positive"),
+    ("grating", {"levels": {"vibrotactile_n": [0.1, 0], "friction_n": [0.02, 0.2]}},
+     "key 'vibrotactile_n' must be [level_1, level_10], non-negative, level 10 positive"),
 ])
 def test_bad_model_file_names_file_and_key(files, tmp_path, kind, edit, says):
     data = json.loads((files / f"{kind}.json").read_text())

@@ -113,6 +113,19 @@ def test_cli_fit_names_an_option_the_grating_does_not_take(tmp_path):
     assert not (tmp_path / "g.json").exists()
 
 
+@pytest.mark.parametrize(("setting", "says"), [
+    ("profile=triangle", "profile must be one of"),
+    ("ridge_fraction=1.5", r"ridge fraction must be in \(0, 1\), got 1.5"),
+])
+def test_cli_fit_refuses_a_value_no_grating_has_before_writing(tmp_path, setting, says):
+    """A value the family cannot render is a one-line error at the fit, not a file that
+    then refuses to load."""
+    with pytest.raises(UserError, match=f"^fit --kind grating: {says}"):
+        run_cli("fit", "--kind", "grating", "--wavelength-mm", "2.15", "--set", setting,
+                "--out", str(tmp_path / "g.json"))
+    assert not (tmp_path / "g.json").exists()
+
+
 def test_cli_fit_parametric_and_synth(tmp_path):
     out = tmp_path / "g.json"
     assert run_cli("fit", "--kind", "grating", "--wavelength-mm", "2.15", "--ratio", "7:3",

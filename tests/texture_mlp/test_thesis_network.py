@@ -245,6 +245,8 @@ def _bad(tmp_path, edit, name="bad.json"):
     (lambda d: d.update(kind="grating"), r"key 'kind' is 'grating'"),
     (lambda d: d.update(band_hz=[500, 5]), r"'band_hz' must be positive and ordered"),
     (lambda d: d["delta_force"].update(tau_s=0), r"'delta_force.tau_s' must be positive"),
+    (lambda d: d.update(sample_rate_hz=1e300), r"the rate at most 1e\+06 Hz \(got 1e\+300 Hz"),
+    (lambda d: d.update(inputs=3), r"bad\.json: key 'inputs' must be \['vx_mm_s'"),
 ])
 def test_bad_model_files_name_the_file_and_key(tmp_path, edit, match):
     with pytest.raises(UserError, match=match):

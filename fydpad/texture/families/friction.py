@@ -19,11 +19,13 @@ from fydpad.texture.family import (
     FingerBlock,
     Kind,
     TickPosition,
+    optional,
     read_model_json,
     require,
     require_version,
     runs,
     save_model_json,
+    section,
 )
 
 NAME = "friction"
@@ -192,13 +194,16 @@ def parse_friction(data: dict[str, Any], where: str) -> FrictionFamily:
     dx = float(require(data, "dx_mm", where))
     if not dx > 0:  # require: finite
         raise UserError(f"{where}: key 'dx_mm' must be positive")
-    es, pad = data.get("electrostatic", {}), data.get("fydpad", {})
+    es, pad = section(data, "electrostatic", where), section(data, "fydpad", where)
     return FrictionFamily(
-        arr, float(require(data, "x0_mm", where)), dx, b=float(es.get("b_v", B_DEFAULT)),
-        carrier_hz=float(es.get("carrier_hz", CARRIER_HZ)),
-        vibration_gain_m_s2=float(pad.get("vibration_gain_m_s2", 2.0)),
-        tension_gain=float(pad.get("tension_gain", 1.0)),
-        still_mm_s=float(pad.get("still_mm_s", 2.0)), surface=str(data.get("surface", "")))
+        arr, float(require(data, "x0_mm", where)), dx,
+        b=optional(es, "b_v", f"{where}: electrostatic", B_DEFAULT),
+        carrier_hz=optional(es, "carrier_hz", f"{where}: electrostatic", CARRIER_HZ,
+                            positive=True),
+        vibration_gain_m_s2=optional(pad, "vibration_gain_m_s2", f"{where}: fydpad", 2.0),
+        tension_gain=optional(pad, "tension_gain", f"{where}: fydpad", 1.0),
+        still_mm_s=optional(pad, "still_mm_s", f"{where}: fydpad", 2.0, positive=True),
+        surface=str(data.get("surface", "")))
 
 
 def describe_fit(data: dict[str, Any], where: str) -> list[str]:

@@ -20,8 +20,10 @@ from fydpad.texture.family import (
     FingerBlock,
     Kind,
     TickPosition,
+    optional,
     require,
     require_version,
+    section,
 )
 from fydpad.texture.lpc.dft321 import preprocess
 
@@ -68,6 +70,8 @@ class GratingFamily(FamilyBase):
             raise ValueError("wavelength must be positive")
         if profile not in PROFILES:
             raise ValueError(f"profile must be one of {PROFILES}")
+        if not 0 < ridge_fraction < 1:
+            raise ValueError(f"ridge fraction must be in (0, 1), got {ridge_fraction:g}")
         self.wavelength_mm = float(wavelength_mm)
         self.profile, self.ridge_fraction, self.edge_mm = profile, ridge_fraction, edge_mm
         default = (8, 2) if wavelength_mm >= 1.0 else (6, 4)  # Ito 2019 Fig. 5
@@ -211,8 +215,11 @@ def fit_grating(scans: list | None = None, *, wavelength_mm: float | None = None
             raise UserError("fit --kind grating: give --wavelength-mm or scans to estimate it")
         wavelength_mm = estimate_wavelength(scans)
         how = "estimated from the scans' spatial spectrum"
-    fam = GratingFamily(wavelength_mm, profile=profile, ridge_fraction=ridge_fraction,
-                        ratio=ratio)
+    try:
+        fam = GratingFamily(wavelength_mm, profile=profile, ridge_fraction=ridge_fraction,
+                            ratio=ratio)
+    except (TypeError, ValueError) as exc:  # --set profile=..., ridge_fraction=..., ratio=...
+        raise UserError(f"fit --kind grating: {exc}") from None
     return {
         "format": "fydpad-texture-model", "kind": NAME, "format_version": FORMAT_VERSION,
         "surface": surface or (scans[0].surface if scans else f"grating_{wavelength_mm:g}mm"),
@@ -230,8 +237,10 @@ def fit_grating(scans: list | None = None, *, wavelength_mm: float | None = None
 
 def _pair(d: dict, key: str, where: str) -> tuple[float, float]:
     v = require(d, key, where, list)
-    if len(v) != 2 or not all(isinstance(a, int | float) and a >= 0 for a in v):
-        raise UserError(f"{where}: key '{key}' must be [level_1, level_10], non-negative")
+    if len(v) != 2 or not all(isinstance(a, int | float) and not isinstance(a, bool)
+                              and 0 <= a < math.inf for a in v) or not v[1] > 0:
+        raise UserError(f"{where}: key '{key}' must be [level_1, level_10], non-negative, "
+                        "level 10 positive (the levels are relative to it)")
     return float(v[0]), float(v[1])
 
 
@@ -248,18 +257,20 @@ def parse_grating(data: dict[str, Any], where: str) -> GratingFamily:
     if tuple(ratio) not in RATIOS:
         raise UserError(f"{where}: key 'ratio' must be [v, f] with v + f = 10, got {ratio}")
     levels = require(data, "levels", where, dict)
-    es, pad = data.get("electrostatic", {}), data.get("fydpad", {})
-    rf = float(data.get("ridge_fraction", 0.9))
+    es, pad = section(data, "electrostatic", where), section(data, "fydpad", where)
+    rf = optional(data, "ridge_fraction", where, 0.9)
     if not 0 < rf < 1:
         raise UserError(f"{where}: key 'ridge_fraction' must be in (0, 1)")
     return GratingFamily(
         lam, profile=profile, ridge_fraction=rf, ratio=tuple(ratio),
         vib_levels_n=_pair(levels, "vibrotactile_n", f"{where}: levels"),
         friction_levels_n=_pair(levels, "friction_n", f"{where}: levels"),
-        mu=float(es.get("mu", 0.5)), load_n=float(es.get("load_n", 0.5)),
-        k_n_per_v2=float(es.get("k_n_per_v2", 2e-6)),
-        vibration_gain_m_s2=float(pad.get("vibration_gain_m_s2", 2.0)),
-        tension_gain=float(pad.get("tension_gain", 1.0)), surface=str(data.get("surface", "")))
+        mu=optional(es, "mu", f"{where}: electrostatic", 0.5, positive=True),
+        load_n=optional(es, "load_n", f"{where}: electrostatic", 0.5, positive=True),
+        k_n_per_v2=optional(es, "k_n_per_v2", f"{where}: electrostatic", 2e-6, positive=True),
+        vibration_gain_m_s2=optional(pad, "vibration_gain_m_s2", f"{where}: fydpad", 2.0),
+        tension_gain=optional(pad, "tension_gain", f"{where}: fydpad", 1.0),
+        surface=str(data.get("surface", "")))
 
 
 def describe_fit(data: dict[str, Any], where: str) -> list[str]:

@@ -26,6 +26,8 @@ FORMAT_VERSION = 1
 BAND_HZ = (5.0, 500.0)  # thesis 3.2: hand jitter below 5 Hz, insensitivity above 500 Hz
 DF_TAU_S = 0.05
 INPUTS = ("vx_mm_s", "vy_mm_s", "df_n")
+#: Above this a model file's rate is an error, not a texture (the audio channel is 48 kHz).
+MAX_RATE_HZ = 1e6
 THESIS_MODEL = Path(__file__).resolve().parents[2] / "data" / "thesis_mlp.json"
 
 
@@ -163,7 +165,7 @@ def _vector(d: Any, key: str, where: str, shape: tuple[int, ...]) -> Array:
 def parse_mlp(data: dict[str, Any], where: str = "model") -> MlpModel:
     """Check and convert a parsed model file; errors name the file and the key."""
     require_version(data, where, KIND, FORMAT_VERSION)
-    if list(data.get("inputs", INPUTS)) != list(INPUTS):
+    if data.get("inputs", list(INPUTS)) != list(INPUTS):
         raise UserError(f"{where}: key 'inputs' must be {list(INPUTS)}")
     w, ww = require(data, "weights", where, dict), f"{where}: weights"
     hidden = len(require(w, "input", ww, list))
@@ -180,9 +182,10 @@ def parse_mlp(data: dict[str, Any], where: str = "model") -> MlpModel:
                       str(sc.get("method", "")), bool(sc.get("known", True)))
     fs = float(_vector(data, "sample_rate_hz", where, ()))
     band = _vector(data, "band_hz", where, (2,))
-    if not (fs > 0 and 0 <= band[0] < band[1]):
+    if not (0 < fs <= MAX_RATE_HZ and 0 <= band[0] < band[1]):
         raise UserError(f"{where}: keys 'sample_rate_hz'/'band_hz' must be positive and "
-                        f"ordered (got {fs:g} Hz, {band.tolist()})")
+                        f"ordered, the rate at most {MAX_RATE_HZ:g} Hz (got {fs:g} Hz, "
+                        f"{band.tolist()})")
     df = require(data, "delta_force", where, dict)
     tau = float(_vector(df, "tau_s", f"{where}: delta_force", ()))
     if not tau > 0:
