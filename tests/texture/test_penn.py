@@ -158,6 +158,8 @@ def test_models_are_indexed_by_the_speed_list(tmp_path, penn_file):
     (lambda t: t.replace("<value>1</value>", "<value>0</value>", 1),
      r"bad\.xml: <tri> 1: index 0 outside 1\.\.4"),  # 0-based indices are not the toolkit's
     (lambda t: t.replace("<numMod>4", "<numMod>5"), r"bad\.xml: <numMod> says 5, the file has 4"),
+    (lambda t: t.replace("<SampleRate>10000.0", "<SampleRate>1e309"),
+     r"bad\.xml: <SampleRate> must be a positive finite rate, got inf"),
     (lambda t: t.replace("<speedMod>50.0</speedMod>", "<speedMod>51.0</speedMod>", 1),
      r"bad\.xml: <speedList>/<forceList> value 1 \(50 mm/s, 0.5 N\) has no <model>"),
 ])

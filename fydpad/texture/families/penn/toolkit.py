@@ -115,8 +115,8 @@ def read_penn(path: str | Path) -> PennModelSet:
     p = _count(root, "numARCoeff", w)
     q = _count(root, "numMACoeff", w, 0)
     fs = _num(root, "SampleRate", w, DEFAULT_FS_HZ)
-    if not fs > 0:
-        raise UserError(f"{w}: <SampleRate> must be positive, got {fs:g}")
+    if not 0 < fs < math.inf:
+        raise UserError(f"{w}: <SampleRate> must be a positive finite rate, got {fs:g}")
     models = root.findall("model")
     if not models:
         raise UserError(f"{w}: no <model> elements")
