@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -43,18 +44,20 @@ class Scan:
         return self.meta.get("surface") or Path(self.path).stem
 
 
+#: ``key=value``: a value runs to the next `` key=`` (so ``surface=Paper Plate 2`` is one).
+_PAIR = re.compile(r"(\S+?)=(.*?)\s*(?=\s\S+?=|$)")
+
+
 def read_metadata(path: str | Path) -> dict[str, str]:
-    """``key=value`` pairs of the ``#`` comment lines before the header."""
+    """``key=value`` pairs of the ``#`` comment lines before the header (a value may hold
+    spaces: it runs to the next ``key=``)."""
     meta: dict[str, str] = {}
     try:
         with Path(path).open(encoding="utf-8") as fh:
             for line in fh:
                 if not line.lstrip().startswith("#"):
                     break
-                for tok in line.lstrip()[1:].split():
-                    if "=" in tok:
-                        k, v = tok.split("=", 1)
-                        meta[k.strip()] = v.strip()
+                meta.update(_PAIR.findall(line.lstrip()[1:]))
     except OSError:
         pass
     return meta

@@ -42,6 +42,27 @@ def test_fit_reads_metadata_and_gives_stable_models(fitted):
         assert s2 < np.mean(preprocess(sc.acc, sc.fs_hz) ** 2)
 
 
+def test_a_surface_name_with_spaces_is_read_whole(tmp_path):
+    """``# surface=Floortile 1``: the value runs to the next ``key=``, so surfaces that share
+    a first word stay apart (identify and compare label and group scans by it)."""
+    from fydpad.texture.evaluation.identify import by_surface
+    from fydpad.texture.scan_io import write_scan
+
+    scan = generate_scan("canvas", 20.0, 1.0, seed=1)
+    for name in ("Floortile 1", "Floortile 3"):
+        write_scan(tmp_path / f"{name}.csv", scan.t_s, scan.acc, scan.speed_mm_s,
+                   meta={"surface": name, "tool": "3d-printed tip", "speed_mm_s": 20})
+    scans = [read_scan(tmp_path / f"{n}.csv") for n in ("Floortile 1", "Floortile 3")]
+    assert [sc.surface for sc in scans] == ["Floortile 1", "Floortile 3"]
+    assert scans[0].meta == {"surface": "Floortile 1", "tool": "3d-printed tip",
+                             "speed_mm_s": "20"}
+    assert list(by_surface(scans)) == ["Floortile 1", "Floortile 3"]
+    p = _write(tmp_path / "c.csv", "t_s,ax,ay,az,speed_mm_s",
+               [f"{k / 1000},0,0,{(-1) ** k},20" for k in range(64)],
+               comment="# surface=SS1 tool=3d-printed-tip\n# notes by hand, then rig=B 2")
+    assert read_scan(p).meta == {"surface": "SS1", "tool": "3d-printed-tip", "rig": "B 2"}
+
+
 def test_model_round_trip_and_version(fitted, tmp_path):
     _, _, model = fitted
     p = save_model(model, tmp_path / "m.json")
