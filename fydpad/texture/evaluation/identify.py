@@ -25,8 +25,7 @@ from fydpad.texture.scan_io import Scan
 
 Array = NDArray[np.float64]
 BANDS_PER_OCTAVE = 3
-#: Per family: (the channel rendered, the band compared in Hz, the scan's observable).
-#: A family's (channel, band in Hz, the scan's observable) unless its Kind says another.
+#: (channel rendered, band compared in Hz, the scan's observable) unless a Kind says another.
 DEFAULT_OBSERVABLE = ("vibration", BAND_HZ, "acceleration")
 
 

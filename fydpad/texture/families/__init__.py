@@ -84,4 +84,3 @@ def fitted_kind(name: str) -> Kind:
 def fit_family(kind: str, scans: list, **options: Any) -> dict[str, Any]:
     """Fit a model of ``kind`` from scans; returns the model file's JSON (with ``kind``)."""
     return fitted_kind(kind).fit(scans, **options)  # type: ignore[misc]
-
